@@ -1,0 +1,73 @@
+"""Who may do what: roles come from Django groups, scope from building membership.
+
+A user's role is the strongest of their groups ``admin``, ``operator`` and ``viewer``
+(superusers are admins everywhere); it applies to the buildings they are members of.
+A robot sees exactly the buildings it is registered for, and edits nothing.
+"""
+
+from __future__ import annotations
+
+from enum import IntEnum
+from typing import Any
+
+from django.db.models import QuerySet
+
+from .models import Building
+
+
+class Role(IntEnum):
+    NONE = 0
+    VIEWER = 1
+    OPERATOR = 2
+    ADMIN = 3
+
+
+GROUP_ROLES = {"admin": Role.ADMIN, "operator": Role.OPERATOR, "viewer": Role.VIEWER}
+
+
+def robot_of(principal: Any) -> Any:
+    """Return the robot behind a principal, or None for a person."""
+    return getattr(principal, "robot", None)
+
+
+def global_role(user: Any) -> Role:
+    """Return a person's role from their groups, cached on the user object."""
+    if user is None or not user.is_authenticated or robot_of(user) is not None:
+        return Role.NONE
+    if user.is_superuser:
+        return Role.ADMIN
+    cached = getattr(user, "_cloudnav_role", None)
+    if cached is None:
+        names = user.groups.values_list("name", flat=True)
+        cached = max((GROUP_ROLES.get(n, Role.NONE) for n in names), default=Role.NONE)
+        user._cloudnav_role = cached
+    return Role(cached)
+
+
+def buildings_for(principal: Any) -> QuerySet[Building]:
+    """Return the buildings a user or robot may see at all."""
+    robot = robot_of(principal)
+    if robot is not None:
+        return robot.buildings.all()
+    role = global_role(principal)
+    if role is Role.NONE:
+        return Building.objects.none()
+    if principal.is_superuser:
+        return Building.objects.all()
+    return Building.objects.filter(members=principal)
+
+
+def role_in(principal: Any, building: Building) -> Role:
+    """Return what ``principal`` may do in ``building``: NONE if it may not even see it."""
+    robot = robot_of(principal)
+    if robot is not None:
+        visible = robot.buildings.filter(pk=building.pk).exists()
+        return Role.VIEWER if visible else Role.NONE
+    role = global_role(principal)
+    if role is Role.NONE or principal.is_superuser:
+        return role
+    return role if building.members.filter(pk=principal.pk).exists() else Role.NONE
+
+
+def may_create_buildings(principal: Any) -> bool:
+    return global_role(principal) >= Role.ADMIN

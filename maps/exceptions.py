@@ -1,0 +1,33 @@
+"""Errors of the map store's domain; DRF's exception handler maps them to HTTP 400/404."""
+
+from __future__ import annotations
+
+
+class MapStoreError(Exception):
+    """Base of every map store error."""
+
+
+class MapFileError(MapStoreError):
+    """An uploaded map (image, YAML or archive) is unusable; ``field`` names what is at fault."""
+
+    def __init__(self, field: str, message: str) -> None:
+        super().__init__(f"{field}: {message}")
+        self.field = field
+        self.message = message
+
+
+class TopologyError(MapStoreError):
+    """A topology graph or route request is invalid; ``field`` names what is at fault."""
+
+    def __init__(self, field: str, message: str) -> None:
+        super().__init__(f"{field}: {message}")
+        self.field = field
+        self.message = message
+
+
+class NoRouteError(TopologyError):
+    """No path joins the two sub-maps in the building's topology."""
+
+
+class TagPayloadError(MapStoreError):
+    """A QR payload cannot be parsed, or is too long for QR version 3."""

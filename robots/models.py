@@ -1,0 +1,30 @@
+"""The paper's entity R: registered robots and their credentials."""
+
+from __future__ import annotations
+
+from django.core.validators import RegexValidator
+from django.db import models
+
+from maps.models import Building
+
+ros_name_validator = RegexValidator(
+    r"^[A-Za-z][A-Za-z0-9_]*$",
+    "A robot name is a ROS name segment: a letter, then letters, digits or underscores.",
+)
+
+
+class Robot(models.Model):
+    """A registered robot. Its token is shown once; only its SHA-256 is stored."""
+
+    name = models.CharField(max_length=64, unique=True, validators=[ros_name_validator])
+    description = models.CharField(max_length=300, blank=True)
+    buildings = models.ManyToManyField(Building, blank=True, related_name="robots")
+    token_hash = models.CharField(max_length=64, unique=True, editable=False)
+    token_rotated = models.DateTimeField(auto_now_add=True)
+    created = models.DateTimeField(auto_now_add=True)
+
+    class Meta:
+        ordering = ["name"]
+
+    def __str__(self) -> str:
+        return self.name

@@ -1,0 +1,1 @@
+"""Telemetry keeps no rows of its own yet: the topic bus lives in memory and the channel layer."""
