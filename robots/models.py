@@ -28,3 +28,18 @@ class Robot(models.Model):
 
     def __str__(self) -> str:
         return self.name
+
+
+class RobotState(models.Model):
+    """A robot's last known fleet state, written at a throttled rate by the rosbridge server."""
+
+    robot = models.OneToOneField(Robot, models.CASCADE, primary_key=True, related_name="state")
+    online = models.BooleanField(default=False)
+    map_id = models.CharField(max_length=100, blank=True)
+    x = models.FloatField(null=True, blank=True)
+    y = models.FloatField(null=True, blank=True)
+    yaw = models.FloatField(null=True, blank=True)
+    last_seen = models.DateTimeField(null=True, blank=True)
+
+    def __str__(self) -> str:
+        return f"{self.robot.name} ({'online' if self.online else 'offline'})"
