@@ -1,0 +1,1 @@
+"""Live server fixtures (daphne in a subprocess on a real socket)."""
