@@ -1,0 +1,22 @@
+"""One place that turns domain errors into HTTP answers."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from rest_framework import status
+from rest_framework.response import Response
+from rest_framework.views import exception_handler as drf_exception_handler
+
+from maps.exceptions import MapFileError, NoRouteError, TagPayloadError, TopologyError
+
+
+def exception_handler(exc: Exception, context: dict[str, Any]) -> Response | None:
+    """Answer map store errors with 400 (404 for no route) and field errors; defer the rest."""
+    if isinstance(exc, NoRouteError):
+        return Response({exc.field: [exc.message]}, status=status.HTTP_404_NOT_FOUND)
+    if isinstance(exc, MapFileError | TopologyError):
+        return Response({exc.field: [exc.message]}, status=status.HTTP_400_BAD_REQUEST)
+    if isinstance(exc, TagPayloadError):
+        return Response({"payload": [str(exc)]}, status=status.HTTP_400_BAD_REQUEST)
+    return drf_exception_handler(exc, context)
