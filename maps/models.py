@@ -20,9 +20,7 @@ class Building(models.Model):
     zip_code = models.CharField(max_length=20, blank=True)
     address = models.CharField(max_length=300, blank=True)
     marker_dictionary = models.CharField(max_length=40, default="DICT_APRILTAG_36h11")
-    members = models.ManyToManyField(
-        settings.AUTH_USER_MODEL, blank=True, related_name="buildings"
-    )
+    members = models.ManyToManyField(settings.AUTH_USER_MODEL, blank=True, related_name="buildings")
     created = models.DateTimeField(auto_now_add=True)
 
     class Meta:
@@ -86,6 +84,9 @@ class TopologyEdge(models.Model):
             models.UniqueConstraint(fields=["a", "b"], name="edge_unique_pair"),
             models.CheckConstraint(condition=~models.Q(a=models.F("b")), name="edge_no_loop"),
         ]
+
+    def __str__(self) -> str:
+        return f"{self.a.code} - {self.b.code} ({self.cost:g})"
 
 
 class EnvironmentalTag(models.Model):

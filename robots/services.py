@@ -16,11 +16,9 @@ from .tokens import new_token, token_digest
 def register_robot(
     name: str, buildings: Iterable[Building] = (), description: str = ""
 ) -> tuple[Robot, str]:
-    """Create a robot and return it with its token, which is not stored and cannot be shown again."""
+    """Create a robot; return it with its token, which is not stored and cannot be shown again."""
     token = new_token()
-    robot = Robot.objects.create(
-        name=name, description=description, token_hash=token_digest(token)
-    )
+    robot = Robot.objects.create(name=name, description=description, token_hash=token_digest(token))
     robot.buildings.set(list(buildings))
     return robot, token
 

@@ -1,5 +1,13 @@
+"""Robot registry routes under /api/."""
+
 from __future__ import annotations
 
-from django.urls import URLPattern
+from django.urls import path
 
-urlpatterns: list[URLPattern] = []
+from . import views
+
+urlpatterns = [
+    path("robots/", views.RobotList.as_view(), name="robot-list"),
+    path("robots/<slug:name>/", views.RobotDetail.as_view(), name="robot-detail"),
+    path("robots/<slug:name>/rotate_token", views.RotateToken.as_view(), name="robot-rotate"),
+]

@@ -1,0 +1,131 @@
+"""A building's topology graph: validation, routing across sub-maps and tag coverage.
+
+Nodes are sub-map codes; edges are undirected crossings with a positive cost; a tag
+standing in sub-map ``submap`` and linking to ``links_to`` is what lets a robot cross
+that edge in that direction. The robot agent runs the same ``route_between`` on the
+topology it downloads, so the server and the robot agree on every route.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from itertools import pairwise
+
+import networkx as nx
+
+from maps.exceptions import NoRouteError, TopologyError
+
+
+@dataclass(frozen=True)
+class Edge:
+    a: str
+    b: str
+    cost: float
+
+    def key(self) -> frozenset[str]:
+        return frozenset((self.a, self.b))
+
+
+@dataclass(frozen=True)
+class TagLink:
+    marker_id: int
+    submap: str
+    links_to: str
+
+
+@dataclass(frozen=True)
+class RouteStep:
+    """One sub-map of a route; ``tag`` is the tag to drive to in it (None at the goal)."""
+
+    submap: str
+    tag: TagLink | None
+
+
+def validate_graph(nodes: Iterable[str], edges: Sequence[Edge]) -> None:
+    """Raise TopologyError unless each edge joins two known sub-maps, once, at a positive cost."""
+    known = set(nodes)
+    seen: set[frozenset[str]] = set()
+    for index, edge in enumerate(edges):
+        field = f"edges[{index}]"
+        if edge.a not in known or edge.b not in known:
+            missing = edge.a if edge.a not in known else edge.b
+            raise TopologyError(field, f"'{missing}' is not a sub-map of this building.")
+        if edge.a == edge.b:
+            raise TopologyError(field, "An edge cannot join a sub-map to itself.")
+        if not math.isfinite(edge.cost) or edge.cost <= 0:
+            raise TopologyError(field, "The cost must be a positive number.")
+        if edge.key() in seen:
+            raise TopologyError(field, f"{edge.a} and {edge.b} are already joined.")
+        seen.add(edge.key())
+
+
+def topology_graph(nodes: Iterable[str], edges: Sequence[Edge]) -> nx.Graph:
+    """Build the graph in sorted order, so equal-cost routes break ties the same way everywhere."""
+    graph = nx.Graph()
+    graph.add_nodes_from(sorted(nodes))
+    for edge in sorted(edges, key=lambda e: (min(e.a, e.b), max(e.a, e.b))):
+        graph.add_edge(edge.a, edge.b, cost=edge.cost)
+    return graph
+
+
+def route_between(
+    nodes: Iterable[str],
+    edges: Sequence[Edge],
+    tags: Iterable[TagLink],
+    start: str,
+    goal: str,
+) -> list[RouteStep]:
+    """Return the cheapest sub-map sequence from ``start`` to ``goal``, with the tag leading on.
+
+    Raises TopologyError ("from"/"to") for an unknown sub-map, NoRouteError when no path joins them.
+    """
+    graph = topology_graph(nodes, edges)
+    for field, code in (("from", start), ("to", goal)):
+        if code not in graph:
+            raise TopologyError(field, f"'{code}' is not a sub-map of this building.")
+    try:
+        path = nx.shortest_path(graph, start, goal, weight="cost")
+    except nx.NetworkXNoPath:
+        raise NoRouteError("to", f"No route joins {start} and {goal}.") from None
+    leading = _tags_by_direction(tags)
+    steps = [RouteStep(here, leading.get((here, there))) for here, there in pairwise(path)]
+    return [*steps, RouteStep(goal, None)]
+
+
+def _tags_by_direction(tags: Iterable[TagLink]) -> dict[tuple[str, str], TagLink]:
+    """Map (sub-map, linked sub-map) to its tag; the lowest marker id wins when several stand."""
+    found: dict[tuple[str, str], TagLink] = {}
+    for tag in sorted(tags, key=lambda t: t.marker_id):
+        found.setdefault((tag.submap, tag.links_to), tag)
+    return found
+
+
+@dataclass(frozen=True)
+class Coverage:
+    """What the tags leave uncovered: edges no tag lets a robot cross, and tags with no edge."""
+
+    uncrossable: list[tuple[str, str]]
+    dangling: list[TagLink]
+
+
+def tag_coverage(edges: Sequence[Edge], tags: Sequence[TagLink]) -> Coverage:
+    """List each edge direction that has no tag, and each tag linking along no edge.
+
+    A tag linking a sub-map to itself (an entrance tag) needs no edge.
+    """
+    directions = _tags_by_direction(tags)
+    uncrossable = [
+        (here, there)
+        for edge in edges
+        for here, there in ((edge.a, edge.b), (edge.b, edge.a))
+        if (here, there) not in directions
+    ]
+    joined = {edge.key() for edge in edges}
+    dangling = [
+        tag
+        for tag in tags
+        if tag.submap != tag.links_to and frozenset((tag.submap, tag.links_to)) not in joined
+    ]
+    return Coverage(uncrossable, dangling)

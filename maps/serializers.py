@@ -1,0 +1,204 @@
+"""Wire shapes of the map store API; the rules behind them live in ``services`` and ``domain``."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from django.conf import settings
+from django.contrib.auth.models import User
+from django.urls import reverse
+from rest_framework import serializers
+
+from . import services
+from .domain.mapfile import LoadedMap, load_map_archive, load_map_upload
+from .domain.markers import marker_id_limit
+from .exceptions import TagPayloadError
+from .models import Building, EnvironmentalTag, SubMap
+
+
+class BuildingSerializer(serializers.ModelSerializer[Building]):
+    members = serializers.SlugRelatedField(
+        slug_field="username", queryset=User.objects.all(), many=True, required=False
+    )
+
+    class Meta:
+        model = Building
+        fields = ["code", "name", "zip_code", "address", "marker_dictionary", "members"]
+
+    def validate_marker_dictionary(self, value: str) -> str:
+        try:
+            marker_id_limit(value)
+        except ValueError as exc:
+            raise serializers.ValidationError(str(exc)) from None
+        return value
+
+
+class SubMapSerializer(serializers.ModelSerializer[SubMap]):
+    map_id = serializers.CharField(read_only=True)
+    origin = serializers.SerializerMethodField()
+    links = serializers.SerializerMethodField()
+
+    class Meta:
+        model = SubMap
+        fields = [
+            "code", "name", "map_id", "image_name", "width", "height", "resolution",
+            "origin", "occupied_thresh", "free_thresh", "negate", "mode", "version",
+            "node_x", "node_y", "updated", "links",
+        ]  # fmt: skip
+
+    def get_origin(self, submap: SubMap) -> list[float]:
+        return [submap.origin_x, submap.origin_y, submap.origin_yaw]
+
+    def get_links(self, submap: SubMap) -> dict[str, str]:
+        args = [submap.building.code, submap.code]
+        names = ["image", "grid", "export", "bundle"]
+        return {name: reverse(f"submap-{name}", args=args) for name in names}
+
+
+class SubMapUploadSerializer(serializers.Serializer[SubMap]):
+    """A map_server pair as ``image`` + ``yaml`` files, or a zip of both as ``archive``."""
+
+    code = serializers.RegexField(r"^[A-Za-z][A-Za-z0-9_]*$", max_length=40)
+    name = serializers.CharField(max_length=200, required=False, allow_blank=True)
+    image = serializers.FileField(required=False)
+    yaml = serializers.FileField(required=False)
+    archive = serializers.FileField(required=False)
+    node_x = serializers.FloatField(required=False)
+    node_y = serializers.FloatField(required=False)
+
+    def validate(self, attrs: dict[str, Any]) -> dict[str, Any]:
+        has_pair = "image" in attrs or "yaml" in attrs
+        if "archive" in attrs and has_pair:
+            raise serializers.ValidationError({"archive": ["Send an archive or a pair, not both."]})
+        if "archive" not in attrs:
+            missing = [f for f in ("image", "yaml") if f not in attrs]
+            if missing:
+                raise serializers.ValidationError({f: ["This file is required."] for f in missing})
+        return attrs
+
+    def load(self) -> LoadedMap:
+        """Decode and convert the upload; raises MapFileError naming the field at fault."""
+        data = self.validated_data
+        limit = settings.CLOUDNAV_MAX_MAP_PIXELS
+        if "archive" in data:
+            return load_map_archive(
+                data["archive"].read(), limit, settings.CLOUDNAV_MAX_UPLOAD_BYTES
+            )
+        image = data["image"]
+        return load_map_upload(data["yaml"].read(), {image.name: image.read()}, limit)
+
+
+class SubMapUpdateSerializer(serializers.Serializer[SubMap]):
+    """Metadata edits; cross-field rules (thresholds) are checked by the map file domain."""
+
+    name = serializers.CharField(max_length=200, required=False, allow_blank=True)
+    resolution = serializers.FloatField(required=False)
+    origin = serializers.ListField(
+        child=serializers.FloatField(), min_length=3, max_length=3, required=False
+    )
+    occupied_thresh = serializers.FloatField(required=False)
+    free_thresh = serializers.FloatField(required=False)
+    negate = serializers.BooleanField(required=False)
+    mode = serializers.ChoiceField(["trinary", "scale", "raw"], required=False)
+    node_x = serializers.FloatField(required=False)
+    node_y = serializers.FloatField(required=False)
+
+
+class TagSerializer(serializers.ModelSerializer[EnvironmentalTag]):
+    building = serializers.SlugRelatedField(slug_field="code", queryset=Building.objects.all())
+    submap = serializers.CharField(source="submap.code")
+    links_to = serializers.CharField(source="links_to.code")
+    map_id = serializers.CharField(source="submap.map_id", read_only=True)
+    payload = serializers.SerializerMethodField()
+
+    class Meta:
+        model = EnvironmentalTag
+        fields = [
+            "id", "building", "submap", "map_id", "marker_id", "x", "y", "yaw", "size",
+            "links_to", "payload",
+        ]  # fmt: skip
+
+    def get_payload(self, tag: EnvironmentalTag) -> str:
+        return services.tag_art(tag).payload
+
+    def validate(self, attrs: dict[str, Any]) -> dict[str, Any]:
+        building: Building = attrs.get("building") or self.instance.building  # type: ignore[union-attr]
+        if self.instance is not None and building != self.instance.building:
+            raise serializers.ValidationError(
+                {"building": ["A tag cannot move to another building."]}
+            )
+        for field in ("submap", "links_to"):
+            if field in attrs:
+                attrs[field] = self._submap_in(building, field, attrs[field]["code"])
+        self._check_marker(building, attrs)
+        self._check_payload(building, attrs)
+        return attrs
+
+    def _submap_in(self, building: Building, field: str, code: str) -> SubMap:
+        submap = building.submaps.defer("image").filter(code=code).first()
+        if submap is None:
+            raise serializers.ValidationError(
+                {field: [f"'{code}' is not a sub-map of {building}."]}
+            )
+        return submap
+
+    def _check_marker(self, building: Building, attrs: dict[str, Any]) -> None:
+        marker_id = attrs.get("marker_id")
+        if marker_id is None:
+            return
+        limit = marker_id_limit(building.marker_dictionary)
+        if marker_id >= limit:
+            raise serializers.ValidationError(
+                {"marker_id": [f"{building.marker_dictionary} has ids 0 to {limit - 1}."]}
+            )
+        clash = building.tags.filter(marker_id=marker_id)
+        if self.instance is not None:
+            clash = clash.exclude(pk=self.instance.pk)
+        if clash.exists():
+            raise serializers.ValidationError(
+                {"marker_id": [f"Marker {marker_id} is already used in {building}."]}
+            )
+
+    def _check_payload(self, building: Building, attrs: dict[str, Any]) -> None:
+        links_to = attrs.get("links_to") or getattr(self.instance, "links_to", None)
+        if links_to is None:
+            return
+        try:
+            services.check_tag_payload(building, links_to)
+        except TagPayloadError as exc:
+            raise serializers.ValidationError({"links_to": [str(exc)]}) from None
+
+
+class TopologyNodeSerializer(serializers.Serializer[Any]):
+    code = serializers.CharField()
+    name = serializers.CharField(read_only=True)
+    x = serializers.FloatField()
+    y = serializers.FloatField()
+
+
+class TopologyEdgeSerializer(serializers.Serializer[Any]):
+    a = serializers.CharField()
+    b = serializers.CharField()
+    cost = serializers.FloatField()
+
+
+class TopologySerializer(serializers.Serializer[Any]):
+    nodes = TopologyNodeSerializer(many=True, required=False)
+    edges = TopologyEdgeSerializer(many=True)
+
+
+class RouteStepSerializer(serializers.Serializer[Any]):
+    map = serializers.CharField()
+    map_id = serializers.CharField()
+    tag = serializers.DictField(allow_null=True)
+
+
+class RouteSerializer(serializers.Serializer[Any]):
+    building = serializers.CharField()
+    steps = RouteStepSerializer(many=True)
+
+
+class CoverageSerializer(serializers.Serializer[Any]):
+    valid = serializers.BooleanField()
+    uncrossable_edges = serializers.ListField(child=serializers.DictField())
+    dangling_tags = serializers.ListField(child=serializers.DictField())

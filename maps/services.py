@@ -1,0 +1,280 @@
+"""Map store operations that touch the ORM: sub-maps, topology, routes, bundles and tag art."""
+
+from __future__ import annotations
+
+import base64
+import hashlib
+import json
+from collections.abc import Iterable, Mapping
+from functools import lru_cache
+from typing import Any
+
+import numpy as np
+from django.conf import settings
+from django.db import transaction
+
+from .domain.mapfile import (
+    LoadedMap,
+    MapMetadata,
+    content_version,
+    map_yaml_text,
+    occupancy_from_image,
+    open_map_image,
+    validate_metadata,
+)
+from .domain.tagart import TagArt
+from .domain.tagpayload import TagPayload, encode_payload
+from .domain.topology import Coverage, Edge, RouteStep, TagLink, route_between, tag_coverage
+from .domain.topology import validate_graph as validate_topology
+from .models import Building, EnvironmentalTag, SubMap, TopologyEdge
+
+IMAGE_CONTENT_TYPES = {
+    "pgm": "image/x-portable-graymap",
+    "png": "image/png",
+    "bmp": "image/bmp",
+    "gif": "image/gif",
+    "jpg": "image/jpeg",
+    "jpeg": "image/jpeg",
+    "tif": "image/tiff",
+    "tiff": "image/tiff",
+}
+
+
+def metadata_of(submap: SubMap) -> MapMetadata:
+    return MapMetadata(
+        image=submap.image_name,
+        resolution=submap.resolution,
+        origin=(submap.origin_x, submap.origin_y, submap.origin_yaw),
+        occupied_thresh=submap.occupied_thresh,
+        free_thresh=submap.free_thresh,
+        negate=submap.negate,
+        mode=submap.mode,  # type: ignore[arg-type]
+    )
+
+
+def _apply_metadata(submap: SubMap, meta: MapMetadata) -> None:
+    submap.image_name = meta.image
+    submap.resolution = meta.resolution
+    submap.origin_x, submap.origin_y, submap.origin_yaw = meta.origin
+    submap.occupied_thresh = meta.occupied_thresh
+    submap.free_thresh = meta.free_thresh
+    submap.negate = meta.negate
+    submap.mode = meta.mode
+    submap.version = content_version(bytes(submap.image), meta)
+
+
+@transaction.atomic
+def save_submap(
+    building: Building, code: str, loaded: LoadedMap, **fields: Any
+) -> tuple[SubMap, bool]:
+    """Store an uploaded map under ``building/code``, replacing the image of an existing one.
+
+    Returns the sub-map and whether it was created. ``fields`` sets name and node position.
+    """
+    submap = SubMap.objects.filter(building=building, code=code).first()
+    created = submap is None
+    if submap is None:
+        submap = SubMap(building=building, code=code)
+    for name, value in fields.items():
+        setattr(submap, name, value)
+    submap.image = loaded.image_bytes
+    submap.width, submap.height = loaded.width, loaded.height
+    _apply_metadata(submap, loaded.meta)
+    submap.save()
+    return submap, created
+
+
+@transaction.atomic
+def update_submap(submap: SubMap, changes: Mapping[str, Any]) -> SubMap:
+    """Change a sub-map's map_server metadata, name or node position; the version follows.
+
+    Raises MapFileError for metadata that map_server would refuse; nothing is saved then.
+    """
+    meta_fields = _yaml_fields(metadata_of(submap))
+    meta_changes = {k: v for k, v in changes.items() if k in meta_fields}
+    meta = validate_metadata({**meta_fields, **meta_changes})
+    for name in ("name", "node_x", "node_y"):
+        if name in changes:
+            setattr(submap, name, changes[name])
+    _apply_metadata(submap, meta)
+    submap.save()
+    return submap
+
+
+def _yaml_fields(meta: MapMetadata) -> dict[str, Any]:
+    return {
+        "image": meta.image,
+        "resolution": meta.resolution,
+        "origin": list(meta.origin),
+        "occupied_thresh": meta.occupied_thresh,
+        "free_thresh": meta.free_thresh,
+        "negate": meta.negate,
+        "mode": meta.mode,
+    }
+
+
+def grid_of(submap: SubMap) -> np.ndarray:
+    """Return the sub-map's occupancy grid (row 0 = bottom row), converted once per version."""
+    return _cached_grid(submap.pk, submap.version, bytes(submap.image), metadata_of(submap))
+
+
+@lru_cache(maxsize=32)
+def _cached_grid(pk: int, version: str, image: bytes, meta: MapMetadata) -> np.ndarray:
+    grid = occupancy_from_image(open_map_image(image, settings.CLOUDNAV_MAX_MAP_PIXELS), meta)
+    grid.setflags(write=False)
+    return grid
+
+
+def image_content_type(submap: SubMap) -> str:
+    extension = submap.image_name.rsplit(".", 1)[-1].lower()
+    return IMAGE_CONTENT_TYPES.get(extension, "application/octet-stream")
+
+
+# Topology
+
+
+def topology_of(building: Building) -> tuple[list[SubMap], list[Edge]]:
+    """Return the building's sub-maps (its nodes) and its edges, by sub-map code."""
+    nodes = list(building.submaps.defer("image").order_by("code"))
+    codes = {node.pk: node.code for node in nodes}
+    edges = [
+        Edge(codes[a], codes[b], cost)
+        for a, b, cost in building.edges.values_list("a_id", "b_id", "cost")
+    ]
+    return nodes, edges
+
+
+def topology_document(building: Building) -> dict[str, Any]:
+    """The topology as served by the API and inside bundles."""
+    nodes, edges = topology_of(building)
+    return {
+        "nodes": [{"code": n.code, "name": n.name, "x": n.node_x, "y": n.node_y} for n in nodes],
+        "edges": [{"a": e.a, "b": e.b, "cost": e.cost} for e in sorted(edges, key=_edge_order)],
+    }
+
+
+def _edge_order(edge: Edge) -> tuple[str, str]:
+    return (min(edge.a, edge.b), max(edge.a, edge.b))
+
+
+@transaction.atomic
+def replace_topology(
+    building: Building, positions: Mapping[str, tuple[float, float]], edges: list[Edge]
+) -> None:
+    """Replace the building's whole graph: node positions and edges.
+
+    Raises TopologyError (nothing saved) for edges naming unknown sub-maps, self-loops,
+    duplicates or costs that are not positive.
+    """
+    submaps = {s.code: s for s in building.submaps.defer("image")}
+    validate_topology(submaps, edges)
+    for code, (x, y) in positions.items():
+        if code in submaps:
+            SubMap.objects.filter(pk=submaps[code].pk).update(node_x=x, node_y=y)
+    building.edges.all().delete()
+    TopologyEdge.objects.bulk_create(_edge_rows(building, submaps, edges))
+
+
+def _edge_rows(
+    building: Building, submaps: Mapping[str, SubMap], edges: Iterable[Edge]
+) -> list[TopologyEdge]:
+    rows = []
+    for edge in edges:
+        a, b = sorted((submaps[edge.a], submaps[edge.b]), key=lambda s: s.pk)
+        rows.append(TopologyEdge(building=building, a=a, b=b, cost=edge.cost))
+    return rows
+
+
+def tag_links(building: Building) -> list[TagLink]:
+    rows = building.tags.values_list("marker_id", "submap__code", "links_to__code")
+    return [TagLink(marker, here, there) for marker, here, there in rows]
+
+
+def route_in(building: Building, start: str, goal: str) -> list[RouteStep]:
+    """Route across sub-maps; raises TopologyError or NoRouteError (see ``route_between``)."""
+    nodes, edges = topology_of(building)
+    return route_between([n.code for n in nodes], edges, tag_links(building), start, goal)
+
+
+def coverage_of(building: Building) -> Coverage:
+    _, edges = topology_of(building)
+    return tag_coverage(edges, tag_links(building))
+
+
+# Robot bundles
+
+
+def bundle_etag(submap: SubMap) -> str:
+    """A strong validator over everything a bundle holds: image, YAML fields, tags, topology."""
+    state = {
+        "version": submap.version,
+        "tags": [_tag_document(t) for t in submap.tags.select_related("links_to")],
+        "topology": topology_document(submap.building),
+        "dictionary": submap.building.marker_dictionary,
+    }
+    digest = hashlib.sha256(json.dumps(state, sort_keys=True).encode()).hexdigest()
+    return f'"{digest[:40]}"'
+
+
+def bundle_of(submap: SubMap) -> dict[str, Any]:
+    """The robot's bundle: the map_server pair, the sub-map's tags and the building's topology."""
+    meta = metadata_of(submap)
+    return {
+        "map_id": submap.map_id,
+        "building": submap.building.code,
+        "map": submap.code,
+        "version": submap.version,
+        "image": {
+            "name": submap.image_name,
+            "content_type": image_content_type(submap),
+            "data": base64.b64encode(bytes(submap.image)).decode("ascii"),
+        },
+        "yaml": map_yaml_text(meta),
+        "marker_dictionary": submap.building.marker_dictionary,
+        "tags": [_tag_document(t) for t in submap.tags.select_related("links_to")],
+        "topology": topology_document(submap.building),
+    }
+
+
+def _tag_document(tag: EnvironmentalTag) -> dict[str, Any]:
+    return {
+        "id": tag.pk,
+        "marker_id": tag.marker_id,
+        "x": tag.x,
+        "y": tag.y,
+        "yaw": tag.yaw,
+        "size": tag.size,
+        "links_to": tag.links_to.code,
+    }
+
+
+# Tags
+
+
+def tag_payload(tag: EnvironmentalTag) -> TagPayload:
+    """The QR payload of a tag: it names the sub-map a robot enters by crossing at this tag."""
+    building = tag.building
+    return TagPayload(
+        cloud_location=settings.CLOUDNAV_PUBLIC_URL,
+        zip_code=building.zip_code,
+        building_code=building.code,
+        map_code=tag.links_to.code,
+    )
+
+
+def tag_art(tag: EnvironmentalTag) -> TagArt:
+    return TagArt(
+        marker_id=tag.marker_id,
+        payload=encode_payload(tag_payload(tag)),
+        map_id=tag.submap.map_id,
+        links_to=tag.links_to.map_id,
+        size=tag.size,
+        dictionary=tag.building.marker_dictionary,
+    )
+
+
+def check_tag_payload(building: Building, links_to: SubMap) -> None:
+    """Raise TagPayloadError when the tag's QR payload would not fit QR version 3."""
+    encode_payload(
+        TagPayload(settings.CLOUDNAV_PUBLIC_URL, building.zip_code, building.code, links_to.code)
+    )

@@ -1,0 +1,345 @@
+"""REST adapters of the map store: parse, authorise, call one service, answer."""
+
+from __future__ import annotations
+
+import io
+import zipfile
+from typing import Any
+
+from django.db.models import QuerySet
+from django.http import HttpResponse
+from django.utils.http import quote_etag
+from drf_spectacular.types import OpenApiTypes
+from drf_spectacular.utils import OpenApiParameter, extend_schema
+from rest_framework import generics, status
+from rest_framework.exceptions import NotFound, PermissionDenied, ValidationError
+from rest_framework.parsers import FormParser, JSONParser, MultiPartParser
+from rest_framework.request import Request
+from rest_framework.response import Response
+from rest_framework.views import APIView
+
+from . import services
+from .access import Role, buildings_for, may_create_buildings, robot_of, role_in
+from .domain.mapfile import export_map, map_yaml_text, occupancy_grid_message
+from .domain.tagart import render_tag_pdf, render_tag_png
+from .domain.topology import Edge
+from .models import Building, EnvironmentalTag, SubMap
+from .serializers import (
+    BuildingSerializer,
+    CoverageSerializer,
+    RouteSerializer,
+    SubMapSerializer,
+    SubMapUpdateSerializer,
+    SubMapUploadSerializer,
+    TagSerializer,
+    TopologySerializer,
+)
+
+
+def building_for(request: Request, code: str, need: Role = Role.VIEWER) -> Building:
+    """Return building ``code`` if the caller holds at least ``need`` there.
+
+    Raises NotFound when a person may not see it (its existence is not revealed) and
+    PermissionDenied when a robot is not registered for it or a person's role is too low.
+    """
+    building = Building.objects.filter(code=code).first()
+    role = role_in(request.user, building) if building is not None else Role.NONE
+    if building is not None and role >= need:
+        return building
+    if building is not None and (role > Role.NONE or robot_of(request.user) is not None):
+        raise PermissionDenied("You may not do this in this building.")
+    raise NotFound("No such building.")
+
+
+def submap_for(request: Request, building: str, code: str, need: Role = Role.VIEWER) -> SubMap:
+    submap = building_for(request, building, need).submaps.filter(code=code).first()
+    if submap is None:
+        raise NotFound("No such sub-map.")
+    return submap
+
+
+# Buildings
+
+
+class BuildingList(generics.ListCreateAPIView[Building]):
+    serializer_class = BuildingSerializer
+
+    def get_queryset(self) -> QuerySet[Building]:
+        return buildings_for(self.request.user).prefetch_related("members")
+
+    def perform_create(self, serializer: Any) -> None:
+        if not may_create_buildings(self.request.user):
+            raise PermissionDenied("Only admins create buildings.")
+        building = serializer.save()
+        building.members.add(self.request.user)
+
+
+class BuildingDetail(generics.RetrieveUpdateDestroyAPIView[Building]):
+    serializer_class = BuildingSerializer
+    lookup_field = "code"
+    lookup_url_kwarg = "building"
+
+    def get_object(self) -> Building:
+        need = Role.VIEWER if self.request.method == "GET" else Role.ADMIN
+        return building_for(self.request, self.kwargs["building"], need)
+
+
+# Sub-maps
+
+
+class SubMapList(generics.ListCreateAPIView[SubMap]):
+    parser_classes = [MultiPartParser, FormParser]
+
+    def get_serializer_class(self) -> Any:
+        return SubMapUploadSerializer if self.request.method == "POST" else SubMapSerializer
+
+    def get_queryset(self) -> QuerySet[SubMap]:
+        building = building_for(self.request, self.kwargs["building"])
+        return building.submaps.defer("image").select_related("building")
+
+    @extend_schema(request=SubMapUploadSerializer, responses={201: SubMapSerializer})
+    def post(self, request: Request, building: str) -> Response:
+        """Upload a map_server pair (or a zip of it); an existing code has its map replaced."""
+        target = building_for(request, building, Role.ADMIN)
+        upload = SubMapUploadSerializer(data=request.data)
+        upload.is_valid(raise_exception=True)
+        fields = {
+            k: v for k, v in upload.validated_data.items() if k in ("name", "node_x", "node_y")
+        }
+        submap, created = services.save_submap(
+            target, upload.validated_data["code"], upload.load(), **fields
+        )
+        answer = status.HTTP_201_CREATED if created else status.HTTP_200_OK
+        return Response(SubMapSerializer(submap).data, status=answer)
+
+
+class SubMapDetail(APIView):
+    parser_classes = [JSONParser]
+
+    @extend_schema(responses=SubMapSerializer)
+    def get(self, request: Request, building: str, map: str) -> Response:
+        return Response(SubMapSerializer(submap_for(request, building, map)).data)
+
+    @extend_schema(request=SubMapUpdateSerializer, responses=SubMapSerializer)
+    def patch(self, request: Request, building: str, map: str) -> Response:
+        submap = submap_for(request, building, map, Role.ADMIN)
+        changes = SubMapUpdateSerializer(data=request.data, partial=True)
+        changes.is_valid(raise_exception=True)
+        submap = services.update_submap(submap, changes.validated_data)
+        return Response(SubMapSerializer(submap).data)
+
+    def delete(self, request: Request, building: str, map: str) -> Response:
+        submap_for(request, building, map, Role.ADMIN).delete()
+        return Response(status=status.HTTP_204_NO_CONTENT)
+
+
+class SubMapImage(APIView):
+    """The image exactly as uploaded."""
+
+    @extend_schema(responses={(200, "image/*"): OpenApiTypes.BINARY})
+    def get(self, request: Request, building: str, map: str) -> HttpResponse:
+        submap = submap_for(request, building, map)
+        response = HttpResponse(
+            bytes(submap.image), content_type=services.image_content_type(submap)
+        )
+        response["Content-Disposition"] = f'inline; filename="{submap.image_name}"'
+        response["ETag"] = quote_etag(submap.version)
+        return response
+
+
+class SubMapGrid(APIView):
+    """The sub-map as a ``nav_msgs/OccupancyGrid`` in rosbridge JSON."""
+
+    @extend_schema(responses={200: OpenApiTypes.OBJECT})
+    def get(self, request: Request, building: str, map: str) -> Response:
+        submap = submap_for(request, building, map)
+        meta = services.metadata_of(submap)
+        grid = services.grid_of(submap)
+        return Response(occupancy_grid_message(grid, meta, frame_id=submap.map_id))
+
+
+class SubMapExport(APIView):
+    """A zip holding ``<code>.yaml`` and ``<code>.pgm`` that map_server loads to the same grid."""
+
+    @extend_schema(responses={(200, "application/zip"): OpenApiTypes.BINARY})
+    def get(self, request: Request, building: str, map: str) -> HttpResponse:
+        submap = submap_for(request, building, map)
+        pgm, meta = export_map(services.grid_of(submap), services.metadata_of(submap), f"{map}.pgm")
+        archive = io.BytesIO()
+        with zipfile.ZipFile(archive, "w", zipfile.ZIP_DEFLATED) as bundle:
+            bundle.writestr(f"{map}.yaml", map_yaml_text(meta))
+            bundle.writestr(f"{map}.pgm", pgm)
+        response = HttpResponse(archive.getvalue(), content_type="application/zip")
+        response["Content-Disposition"] = f'attachment; filename="{building}_{map}.zip"'
+        return response
+
+
+class SubMapBundle(APIView):
+    """Everything a robot needs on entering a sub-map, with an ETag for conditional requests."""
+
+    @extend_schema(
+        parameters=[OpenApiParameter("If-None-Match", str, OpenApiParameter.HEADER)],
+        responses={200: OpenApiTypes.OBJECT, 304: None},
+    )
+    def get(self, request: Request, building: str, map: str) -> Response:
+        submap = submap_for(request, building, map)
+        etag = services.bundle_etag(submap)
+        if etag in _etags(request.headers.get("If-None-Match", "")):
+            return Response(status=status.HTTP_304_NOT_MODIFIED, headers={"ETag": etag})
+        return Response(services.bundle_of(submap), headers={"ETag": etag})
+
+
+def _etags(header: str) -> set[str]:
+    return {tag.strip().removeprefix("W/") for tag in header.split(",") if tag.strip()}
+
+
+# Topology and routes
+
+
+class Topology(APIView):
+    parser_classes = [JSONParser]
+
+    @extend_schema(responses=TopologySerializer)
+    def get(self, request: Request, building: str) -> Response:
+        return Response(services.topology_document(building_for(request, building)))
+
+    @extend_schema(request=TopologySerializer, responses=TopologySerializer)
+    def put(self, request: Request, building: str) -> Response:
+        """Replace the whole graph; it is validated first and stored whole or not at all."""
+        target = building_for(request, building, Role.ADMIN)
+        document = TopologySerializer(data=request.data)
+        document.is_valid(raise_exception=True)
+        positions = {n["code"]: (n["x"], n["y"]) for n in document.validated_data.get("nodes", [])}
+        edges = [Edge(e["a"], e["b"], e["cost"]) for e in document.validated_data["edges"]]
+        services.replace_topology(target, positions, edges)
+        return Response(services.topology_document(target))
+
+
+class TopologyValidation(APIView):
+    """Edges no tag lets a robot cross, and tags that link along no edge."""
+
+    @extend_schema(responses=CoverageSerializer)
+    def get(self, request: Request, building: str) -> Response:
+        coverage = services.coverage_of(building_for(request, building))
+        return Response(
+            {
+                "valid": not coverage.uncrossable and not coverage.dangling,
+                "uncrossable_edges": [{"from": a, "to": b} for a, b in coverage.uncrossable],
+                "dangling_tags": [
+                    {"marker_id": t.marker_id, "map": t.submap, "links_to": t.links_to}
+                    for t in coverage.dangling
+                ],
+            }
+        )
+
+
+class Route(APIView):
+    @extend_schema(
+        parameters=[
+            OpenApiParameter("from", str, required=True),
+            OpenApiParameter("to", str, required=True),
+        ],
+        responses=RouteSerializer,
+    )
+    def get(self, request: Request, building: str) -> Response:
+        target = building_for(request, building)
+        missing = {
+            f: ["This parameter is required."]
+            for f in ("from", "to")
+            if not request.query_params.get(f)
+        }
+        if missing:
+            raise ValidationError(missing)
+        steps = services.route_in(target, request.query_params["from"], request.query_params["to"])
+        return Response({"building": target.code, "steps": [_step(target, s) for s in steps]})
+
+
+def _step(building: Building, step: Any) -> dict[str, Any]:
+    tag = step.tag and building.tags.select_related("links_to").get(marker_id=step.tag.marker_id)
+    return {
+        "map": step.submap,
+        "map_id": f"{building.code}/{step.submap}",
+        "tag": tag and {**TagSerializer(tag).data, "building": building.code},
+    }
+
+
+# Tags
+
+
+class TagList(generics.ListCreateAPIView[EnvironmentalTag]):
+    serializer_class = TagSerializer
+
+    def get_queryset(self) -> QuerySet[EnvironmentalTag]:
+        tags = EnvironmentalTag.objects.filter(building__in=buildings_for(self.request.user))
+        if code := self.request.query_params.get("building"):
+            tags = tags.filter(building__code=code)
+        if code := self.request.query_params.get("map"):
+            tags = tags.filter(submap__code=code)
+        return tags.select_related("building", "submap__building", "links_to__building")
+
+    def perform_create(self, serializer: Any) -> None:
+        building_for(self.request, serializer.validated_data["building"].code, Role.ADMIN)
+        serializer.save()
+
+
+class TagDetail(generics.RetrieveUpdateDestroyAPIView[EnvironmentalTag]):
+    serializer_class = TagSerializer
+
+    def get_object(self) -> EnvironmentalTag:
+        return tag_for(
+            self.request,
+            self.kwargs["pk"],
+            Role.VIEWER if self.request.method == "GET" else Role.ADMIN,
+        )
+
+
+def tag_for(request: Request, pk: int, need: Role = Role.VIEWER) -> EnvironmentalTag:
+    tag = (
+        EnvironmentalTag.objects.select_related("building", "submap", "links_to")
+        .filter(pk=pk)
+        .first()
+    )
+    if tag is None:
+        raise NotFound("No such tag.")
+    building_for(request, tag.building.code, need)
+    return tag
+
+
+class TagPrint(APIView):
+    """One tag at true physical size, as PNG (with its DPI) or PDF."""
+
+    @extend_schema(
+        responses={
+            (200, "image/png"): OpenApiTypes.BINARY,
+            (200, "application/pdf"): OpenApiTypes.BINARY,
+        }
+    )
+    def get(self, request: Request, pk: int, extension: str) -> HttpResponse:
+        tag = tag_for(request, pk)
+        art = services.tag_art(tag)
+        body, content_type = (
+            (render_tag_png(art), "image/png")
+            if extension == "png"
+            else (render_tag_pdf([art]), "application/pdf")
+        )
+        response = HttpResponse(body, content_type=content_type)
+        response["Content-Disposition"] = (
+            f'inline; filename="tag_{tag.building.code}_{tag.marker_id}.{extension}"'
+        )
+        return response
+
+
+class BuildingTagSheet(APIView):
+    """Every tag of a building, packed on A4 pages at true physical size."""
+
+    @extend_schema(responses={(200, "application/pdf"): OpenApiTypes.BINARY})
+    def get(self, request: Request, building: str) -> HttpResponse:
+        target = building_for(request, building)
+        tags = target.tags.select_related("building", "submap__building", "links_to__building")
+        if not tags:
+            raise NotFound("This building has no tags.")
+        response = HttpResponse(
+            render_tag_pdf([services.tag_art(t) for t in tags]), content_type="application/pdf"
+        )
+        response["Content-Disposition"] = f'inline; filename="tags_{target.code}.pdf"'
+        return response
