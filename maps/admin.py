@@ -6,13 +6,13 @@ from .models import Building, EnvironmentalTag, SubMap, TopologyEdge
 
 
 @admin.register(Building)
-class BuildingAdmin(admin.ModelAdmin[Building]):
+class BuildingAdmin(admin.ModelAdmin):
     list_display = ["code", "name", "zip_code"]
     filter_horizontal = ["members"]
 
 
 @admin.register(SubMap)
-class SubMapAdmin(admin.ModelAdmin[SubMap]):
+class SubMapAdmin(admin.ModelAdmin):
     list_display = ["building", "code", "name", "width", "height", "resolution", "mode"]
     list_filter = ["building"]
     exclude = ["image"]
@@ -20,11 +20,11 @@ class SubMapAdmin(admin.ModelAdmin[SubMap]):
 
 
 @admin.register(EnvironmentalTag)
-class EnvironmentalTagAdmin(admin.ModelAdmin[EnvironmentalTag]):
+class EnvironmentalTagAdmin(admin.ModelAdmin):
     list_display = ["building", "marker_id", "submap", "links_to", "x", "y", "yaw"]
     list_filter = ["building"]
 
 
 @admin.register(TopologyEdge)
-class TopologyEdgeAdmin(admin.ModelAdmin[TopologyEdge]):
+class TopologyEdgeAdmin(admin.ModelAdmin):
     list_display = ["building", "a", "b", "cost"]

@@ -16,7 +16,7 @@ from .exceptions import TagPayloadError
 from .models import Building, EnvironmentalTag, SubMap
 
 
-class BuildingSerializer(serializers.ModelSerializer[Building]):
+class BuildingSerializer(serializers.ModelSerializer):
     members = serializers.SlugRelatedField(
         slug_field="username", queryset=User.objects.all(), many=True, required=False
     )
@@ -33,7 +33,7 @@ class BuildingSerializer(serializers.ModelSerializer[Building]):
         return value
 
 
-class SubMapSerializer(serializers.ModelSerializer[SubMap]):
+class SubMapSerializer(serializers.ModelSerializer):
     map_id = serializers.CharField(read_only=True)
     origin = serializers.SerializerMethodField()
     links = serializers.SerializerMethodField()
@@ -41,10 +41,24 @@ class SubMapSerializer(serializers.ModelSerializer[SubMap]):
     class Meta:
         model = SubMap
         fields = [
-            "code", "name", "map_id", "image_name", "width", "height", "resolution",
-            "origin", "occupied_thresh", "free_thresh", "negate", "mode", "version",
-            "node_x", "node_y", "updated", "links",
-        ]  # fmt: skip
+            "code",
+            "name",
+            "map_id",
+            "image_name",
+            "width",
+            "height",
+            "resolution",
+            "origin",
+            "occupied_thresh",
+            "free_thresh",
+            "negate",
+            "mode",
+            "version",
+            "node_x",
+            "node_y",
+            "updated",
+            "links",
+        ]
 
     def get_origin(self, submap: SubMap) -> list[float]:
         return [submap.origin_x, submap.origin_y, submap.origin_yaw]
@@ -55,7 +69,7 @@ class SubMapSerializer(serializers.ModelSerializer[SubMap]):
         return {name: reverse(f"submap-{name}", args=args) for name in names}
 
 
-class SubMapUploadSerializer(serializers.Serializer[SubMap]):
+class SubMapUploadSerializer(serializers.Serializer):
     """A map_server pair as ``image`` + ``yaml`` files, or a zip of both as ``archive``."""
 
     code = serializers.RegexField(r"^[A-Za-z][A-Za-z0-9_]*$", max_length=40)
@@ -88,7 +102,7 @@ class SubMapUploadSerializer(serializers.Serializer[SubMap]):
         return load_map_upload(data["yaml"].read(), {image.name: image.read()}, limit)
 
 
-class SubMapUpdateSerializer(serializers.Serializer[SubMap]):
+class SubMapUpdateSerializer(serializers.Serializer):
     """Metadata edits; cross-field rules (thresholds) are checked by the map file domain."""
 
     name = serializers.CharField(max_length=200, required=False, allow_blank=True)
@@ -104,7 +118,7 @@ class SubMapUpdateSerializer(serializers.Serializer[SubMap]):
     node_y = serializers.FloatField(required=False)
 
 
-class TagSerializer(serializers.ModelSerializer[EnvironmentalTag]):
+class TagSerializer(serializers.ModelSerializer):
     building = serializers.SlugRelatedField(slug_field="code", queryset=Building.objects.all())
     submap = serializers.CharField(source="submap.code")
     links_to = serializers.CharField(source="links_to.code")
@@ -114,9 +128,20 @@ class TagSerializer(serializers.ModelSerializer[EnvironmentalTag]):
     class Meta:
         model = EnvironmentalTag
         fields = [
-            "id", "building", "submap", "map_id", "marker_id", "x", "y", "yaw", "size",
-            "links_to", "payload",
-        ]  # fmt: skip
+            "id",
+            "building",
+            "submap",
+            "map_id",
+            "marker_id",
+            "x",
+            "y",
+            "yaw",
+            "size",
+            "links_to",
+            "payload",
+        ]
+        # Marker uniqueness is checked in validate(), so the error names the marker_id field.
+        validators: list[Any] = []
 
     def get_payload(self, tag: EnvironmentalTag) -> str:
         return services.tag_art(tag).payload
@@ -169,36 +194,36 @@ class TagSerializer(serializers.ModelSerializer[EnvironmentalTag]):
             raise serializers.ValidationError({"links_to": [str(exc)]}) from None
 
 
-class TopologyNodeSerializer(serializers.Serializer[Any]):
+class TopologyNodeSerializer(serializers.Serializer):
     code = serializers.CharField()
     name = serializers.CharField(read_only=True)
     x = serializers.FloatField()
     y = serializers.FloatField()
 
 
-class TopologyEdgeSerializer(serializers.Serializer[Any]):
+class TopologyEdgeSerializer(serializers.Serializer):
     a = serializers.CharField()
     b = serializers.CharField()
     cost = serializers.FloatField()
 
 
-class TopologySerializer(serializers.Serializer[Any]):
+class TopologySerializer(serializers.Serializer):
     nodes = TopologyNodeSerializer(many=True, required=False)
     edges = TopologyEdgeSerializer(many=True)
 
 
-class RouteStepSerializer(serializers.Serializer[Any]):
+class RouteStepSerializer(serializers.Serializer):
     map = serializers.CharField()
     map_id = serializers.CharField()
     tag = serializers.DictField(allow_null=True)
 
 
-class RouteSerializer(serializers.Serializer[Any]):
+class RouteSerializer(serializers.Serializer):
     building = serializers.CharField()
     steps = RouteStepSerializer(many=True)
 
 
-class CoverageSerializer(serializers.Serializer[Any]):
+class CoverageSerializer(serializers.Serializer):
     valid = serializers.BooleanField()
     uncrossable_edges = serializers.ListField(child=serializers.DictField())
     dangling_tags = serializers.ListField(child=serializers.DictField())

@@ -26,6 +26,7 @@ from .domain.tagart import TagArt
 from .domain.tagpayload import TagPayload, encode_payload
 from .domain.topology import Coverage, Edge, RouteStep, TagLink, route_between, tag_coverage
 from .domain.topology import validate_graph as validate_topology
+from .exceptions import TopologyError
 from .models import Building, EnvironmentalTag, SubMap, TopologyEdge
 
 IMAGE_CONTENT_TYPES = {
@@ -137,11 +138,9 @@ def topology_of(building: Building) -> tuple[list[SubMap], list[Edge]]:
     """Return the building's sub-maps (its nodes) and its edges, by sub-map code."""
     nodes = list(building.submaps.defer("image").order_by("code"))
     codes = {node.pk: node.code for node in nodes}
-    edges = [
-        Edge(codes[a], codes[b], cost)
-        for a, b, cost in building.edges.values_list("a_id", "b_id", "cost")
-    ]
-    return nodes, edges
+    rows = building.edges.values_list("a_id", "b_id", "cost")
+    edges = [Edge(min(codes[a], codes[b]), max(codes[a], codes[b]), cost) for a, b, cost in rows]
+    return nodes, sorted(edges, key=lambda e: (e.a, e.b))
 
 
 def topology_document(building: Building) -> dict[str, Any]:
@@ -149,12 +148,8 @@ def topology_document(building: Building) -> dict[str, Any]:
     nodes, edges = topology_of(building)
     return {
         "nodes": [{"code": n.code, "name": n.name, "x": n.node_x, "y": n.node_y} for n in nodes],
-        "edges": [{"a": e.a, "b": e.b, "cost": e.cost} for e in sorted(edges, key=_edge_order)],
+        "edges": [{"a": e.a, "b": e.b, "cost": e.cost} for e in edges],
     }
-
-
-def _edge_order(edge: Edge) -> tuple[str, str]:
-    return (min(edge.a, edge.b), max(edge.a, edge.b))
 
 
 @transaction.atomic
@@ -168,21 +163,25 @@ def replace_topology(
     """
     submaps = {s.code: s for s in building.submaps.defer("image")}
     validate_topology(submaps, edges)
-    for code, (x, y) in positions.items():
-        if code in submaps:
-            SubMap.objects.filter(pk=submaps[code].pk).update(node_x=x, node_y=y)
-    building.edges.all().delete()
-    TopologyEdge.objects.bulk_create(_edge_rows(building, submaps, edges))
+    for index, (code, (x, y)) in enumerate(positions.items()):
+        if code not in submaps:
+            raise TopologyError(f"nodes[{index}]", f"'{code}' is not a sub-map of this building.")
+        SubMap.objects.filter(pk=submaps[code].pk).update(node_x=x, node_y=y)
+    _store_edges(building, submaps, edges)
 
 
-def _edge_rows(
-    building: Building, submaps: Mapping[str, SubMap], edges: Iterable[Edge]
-) -> list[TopologyEdge]:
-    rows = []
+def _store_edges(building: Building, submaps: Mapping[str, SubMap], edges: Iterable[Edge]) -> None:
+    """Make the stored edges equal ``edges``, keeping the rows of edges that stay."""
+    stored = {frozenset((row.a_id, row.b_id)): row for row in building.edges.all()}
     for edge in edges:
-        a, b = sorted((submaps[edge.a], submaps[edge.b]), key=lambda s: s.pk)
-        rows.append(TopologyEdge(building=building, a=a, b=b, cost=edge.cost))
-    return rows
+        a, b = sorted((submaps[edge.a].pk, submaps[edge.b].pk))
+        row = stored.pop(frozenset((a, b)), None)
+        if row is None:
+            TopologyEdge.objects.create(building=building, a_id=a, b_id=b, cost=edge.cost)
+        elif row.cost != edge.cost:
+            row.cost = edge.cost
+            row.save(update_fields=["cost"])
+    TopologyEdge.objects.filter(pk__in=[row.pk for row in stored.values()]).delete()
 
 
 def tag_links(building: Building) -> list[TagLink]:

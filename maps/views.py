@@ -61,7 +61,7 @@ def submap_for(request: Request, building: str, code: str, need: Role = Role.VIE
 # Buildings
 
 
-class BuildingList(generics.ListCreateAPIView[Building]):
+class BuildingList(generics.ListCreateAPIView):
     serializer_class = BuildingSerializer
 
     def get_queryset(self) -> QuerySet[Building]:
@@ -74,7 +74,7 @@ class BuildingList(generics.ListCreateAPIView[Building]):
         building.members.add(self.request.user)
 
 
-class BuildingDetail(generics.RetrieveUpdateDestroyAPIView[Building]):
+class BuildingDetail(generics.RetrieveUpdateDestroyAPIView):
     serializer_class = BuildingSerializer
     lookup_field = "code"
     lookup_url_kwarg = "building"
@@ -87,7 +87,7 @@ class BuildingDetail(generics.RetrieveUpdateDestroyAPIView[Building]):
 # Sub-maps
 
 
-class SubMapList(generics.ListCreateAPIView[SubMap]):
+class SubMapList(generics.ListCreateAPIView):
     parser_classes = [MultiPartParser, FormParser]
 
     def get_serializer_class(self) -> Any:
@@ -266,7 +266,7 @@ def _step(building: Building, step: Any) -> dict[str, Any]:
 # Tags
 
 
-class TagList(generics.ListCreateAPIView[EnvironmentalTag]):
+class TagList(generics.ListCreateAPIView):
     serializer_class = TagSerializer
 
     def get_queryset(self) -> QuerySet[EnvironmentalTag]:
@@ -282,7 +282,7 @@ class TagList(generics.ListCreateAPIView[EnvironmentalTag]):
         serializer.save()
 
 
-class TagDetail(generics.RetrieveUpdateDestroyAPIView[EnvironmentalTag]):
+class TagDetail(generics.RetrieveUpdateDestroyAPIView):
     serializer_class = TagSerializer
 
     def get_object(self) -> EnvironmentalTag:

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from typing import Any
-
 from rest_framework import serializers
 
 from maps.access import buildings_for
@@ -12,7 +10,7 @@ from maps.models import Building
 from .models import Robot
 
 
-class RobotSerializer(serializers.ModelSerializer[Robot]):
+class RobotSerializer(serializers.ModelSerializer):
     buildings = serializers.SlugRelatedField(
         slug_field="code", queryset=Building.objects.all(), many=True, required=False
     )
@@ -40,6 +38,6 @@ class RobotCreatedSerializer(RobotSerializer):
         fields = [*RobotSerializer.Meta.fields, "token"]
 
 
-class TokenSerializer(serializers.Serializer[Any]):
+class TokenSerializer(serializers.Serializer):
     name = serializers.CharField(read_only=True)
     token = serializers.CharField(read_only=True)

@@ -7,12 +7,18 @@ Builders take keyword arguments and fill the rest with ``kwargs.setdefault``.
 
 from __future__ import annotations
 
+import io
 from typing import Any
 
+import numpy as np
 import pytest
 from django.contrib.auth.models import Group, User
+from PIL import Image
+from rest_framework.test import APIClient
 
-from maps.models import Building
+from maps import services
+from maps.domain.mapfile import load_map_upload
+from maps.models import Building, EnvironmentalTag, SubMap
 from robots.models import Robot
 from robots.services import register_robot
 
@@ -35,6 +41,44 @@ def make_building(**kwargs: Any) -> Building:
     building = Building.objects.create(**kwargs)
     building.members.add(*members)
     return building
+
+
+def map_pgm(width: int = 40, height: int = 30, wall: int = 0, free: int = 254) -> bytes:
+    """A map_saver style PGM: free inside, a one-pixel wall around, 205 in the top-left corner."""
+    pixels = np.full((height, width), free, np.uint8)
+    pixels[0, :] = pixels[-1, :] = pixels[:, 0] = pixels[:, -1] = wall
+    pixels[1:4, 1:4] = 205
+    out = io.BytesIO()
+    Image.fromarray(pixels, "L").save(out, "PPM")
+    return out.getvalue()
+
+
+def map_yaml(**kwargs: Any) -> bytes:
+    kwargs.setdefault("image", "map.pgm")
+    kwargs.setdefault("resolution", 0.05)
+    kwargs.setdefault("origin", [0.0, 0.0, 0.0])
+    kwargs.setdefault("occupied_thresh", 0.65)
+    kwargs.setdefault("free_thresh", 0.196)
+    kwargs.setdefault("negate", 0)
+    return "".join(f"{key}: {value}\n" for key, value in kwargs.items()).encode()
+
+
+def make_submap(building: Building, **kwargs: Any) -> SubMap:
+    kwargs.setdefault("code", "CorridorA")
+    image = kwargs.pop("image", None) or map_pgm()
+    yaml = kwargs.pop("yaml", None) or map_yaml()
+    loaded = load_map_upload(yaml, {"map.pgm": image}, 10**7)
+    submap, _ = services.save_submap(building, kwargs.pop("code"), loaded, **kwargs)
+    return submap
+
+
+def make_tag(submap: SubMap, **kwargs: Any) -> EnvironmentalTag:
+    kwargs.setdefault("marker_id", submap.building.tags.count())
+    kwargs.setdefault("x", 1.0)
+    kwargs.setdefault("y", 0.5)
+    kwargs.setdefault("yaw", 0.0)
+    kwargs.setdefault("links_to", submap)
+    return EnvironmentalTag.objects.create(building=submap.building, submap=submap, **kwargs)
 
 
 def make_robot(**kwargs: Any) -> tuple[Robot, str]:
@@ -66,3 +110,13 @@ def outsider(db: None) -> User:
 @pytest.fixture
 def building(admin: User, operator: User, viewer: User) -> Building:
     return make_building(members=[admin, operator, viewer])
+
+
+def client_for(principal: User | str | None) -> APIClient:
+    """An API client signed in as a user, or carrying a robot token (a str)."""
+    client = APIClient()
+    if isinstance(principal, User):
+        client.force_login(principal)
+    elif isinstance(principal, str):
+        client.credentials(HTTP_AUTHORIZATION=f"Token {principal}")
+    return client

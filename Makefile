@@ -1,0 +1,39 @@
+# CloudNav: the README names `make demo` and `make test`; the rest are their parts.
+PY := .venv/bin/python
+BIN := .venv/bin
+export CLOUDNAV_TEST_REDIS_URL ?= redis://127.0.0.1:6379/9
+export CLOUDNAV_TEST_POSTGRES_URL ?= postgres://postgres:postgres@127.0.0.1:5432/postgres
+
+.PHONY: setup services demo test lint typecheck pytest bench format
+
+setup:
+	bash scripts/setup.sh
+
+services:
+	bash scripts/services.sh
+
+## Set up, seed the demo building and run the server (http://127.0.0.1:8000) with simulated robots.
+demo: setup
+	bash scripts/demo.sh
+
+## Set up, start Redis and PostgreSQL where none answers, lint, type-check and run every test.
+test: setup services lint typecheck pytest
+
+lint:
+	$(BIN)/ruff check .
+	$(BIN)/ruff format --check .
+	$(BIN)/lint-imports
+
+typecheck:
+	$(BIN)/mypy .
+
+pytest:
+	$(BIN)/pytest
+
+format:
+	$(BIN)/ruff format .
+	$(BIN)/ruff check --fix .
+
+## python manage.py bench NAME ... (see README)
+bench: setup
+	$(PY) manage.py bench $(ARGS)

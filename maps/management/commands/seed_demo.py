@@ -1,0 +1,146 @@
+"""``python manage.py seed_demo``: the paper's demo building, its people and its robots.
+
+Idempotent: a second run changes nothing that is already as the demo wants it. Robot
+tokens are kept in a file (``--tokens-file``) so the simulated robots can read them; a
+robot whose token in that file no longer matches gets a new one.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+from typing import Any
+
+from django.conf import settings
+from django.contrib.auth.models import Group, User
+from django.core.management.base import BaseCommand, CommandParser
+from django.db import transaction
+
+from maps import services
+from maps.domain.demo_building import DemoBuilding, demo_building
+from maps.domain.mapfile import MapMetadata, content_version, load_map_upload, map_yaml_text
+from maps.domain.topology import Edge
+from maps.models import Building, EnvironmentalTag
+from robots.models import Robot
+from robots.services import register_robot, rotate_token
+from robots.tokens import token_digest
+
+DEMO_USERS = ("admin", "operator", "viewer")
+
+
+class Command(BaseCommand):
+    help = "Create or update the demo building boccioni_1, users admin/operator/viewer and robots."
+
+    def add_arguments(self, parser: CommandParser) -> None:
+        parser.add_argument("--robots", type=int, default=3, help="how many demo robots")
+        parser.add_argument(
+            "--tokens-file",
+            default=str(settings.BASE_DIR / "var" / "demo_tokens.json"),
+            help="where robot tokens are kept for the simulated robots",
+        )
+
+    def handle(self, *args: Any, robots: int, tokens_file: str, **options: Any) -> None:
+        demo = demo_building(settings.CLOUDNAV_PUBLIC_URL)
+        with transaction.atomic():
+            building = self._building(demo)
+            self._submaps(building, demo)
+            self._tags(building, demo)
+            self._topology(building, demo)
+            passwords = self._users(building)
+        tokens = self._robots(building, robots, Path(tokens_file))
+        self._report(building, passwords, tokens, tokens_file)
+
+    def _building(self, demo: DemoBuilding) -> Building:
+        building, _ = Building.objects.update_or_create(
+            code=demo.code,
+            defaults={"name": demo.name, "zip_code": demo.zip_code, "address": demo.address},
+        )
+        return building
+
+    def _submaps(self, building: Building, demo: DemoBuilding) -> None:
+        for sub in demo.submaps:
+            meta = MapMetadata(
+                image=f"{sub.code}.pgm",
+                resolution=sub.resolution,
+                origin=sub.origin,
+                occupied_thresh=sub.occupied_thresh,
+                free_thresh=sub.free_thresh,
+                negate=bool(sub.negate),
+            )
+            loaded = load_map_upload(map_yaml_text(meta).encode(), {meta.image: sub.pgm}, 10**8)
+            existing = building.submaps.filter(code=sub.code).only("version").first()
+            fields = {"name": sub.name, "node_x": sub.node_xy[0], "node_y": sub.node_xy[1]}
+            if existing is None or existing.version != content_version(loaded.image_bytes, meta):
+                services.save_submap(building, sub.code, loaded, **fields)
+            else:
+                building.submaps.filter(code=sub.code).update(**fields)
+
+    def _tags(self, building: Building, demo: DemoBuilding) -> None:
+        submaps = {s.code: s for s in building.submaps.defer("image")}
+        for tag in demo.tags:
+            EnvironmentalTag.objects.update_or_create(
+                building=building,
+                marker_id=tag.marker_id,
+                defaults={
+                    "submap": submaps[tag.submap],
+                    "links_to": submaps[tag.links_to],
+                    "x": tag.x,
+                    "y": tag.y,
+                    "yaw": tag.yaw,
+                    "size": tag.size,
+                },
+            )
+        building.tags.exclude(marker_id__in=[t.marker_id for t in demo.tags]).delete()
+
+    def _topology(self, building: Building, demo: DemoBuilding) -> None:
+        edges = [Edge(e.a, e.b, e.cost) for e in demo.edges]
+        positions = {s.code: s.node_xy for s in demo.submaps}
+        services.replace_topology(building, positions, edges)
+
+    def _users(self, building: Building) -> dict[str, str]:
+        passwords = {}
+        for name in DEMO_USERS:
+            password = os.environ.get("CLOUDNAV_DEMO_PASSWORD", f"{name}-demo")
+            user, created = User.objects.get_or_create(username=name)
+            if created or not user.check_password(password):
+                user.set_password(password)
+                user.is_staff = name == "admin"
+                user.save()
+            user.groups.add(Group.objects.get_or_create(name=name)[0])
+            building.members.add(user)
+            passwords[name] = password
+        return passwords
+
+    def _robots(self, building: Building, count: int, path: Path) -> dict[str, str]:
+        known = json.loads(path.read_text()) if path.exists() else {}
+        tokens = {}
+        for index in range(count):
+            name = f"robot_{index}"
+            robot = Robot.objects.filter(name=name).first()
+            if robot is None:
+                robot, token = register_robot(name, [building], "Simulated demo robot")
+            elif robot.token_hash == token_digest(known.get(name, "")):
+                token = known[name]
+            else:
+                token = rotate_token(robot)
+            robot.buildings.add(building)
+            tokens[name] = token
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(json.dumps(tokens, indent=2) + "\n")
+        path.chmod(0o600)
+        return tokens
+
+    def _report(
+        self, building: Building, passwords: dict[str, str], tokens: dict[str, str], path: str
+    ) -> None:
+        write = self.stdout.write
+        write(
+            f"Demo building {building.code}: {building.submaps.count()} sub-maps, "
+            f"{building.tags.count()} tags, {building.edges.count()} edges."
+        )
+        for name, password in passwords.items():
+            write(f"  user {name:9} password {password}")
+        for name, token in tokens.items():
+            write(f"  robot {name:8} token {token}")
+        write(f"Robot tokens saved to {path}")

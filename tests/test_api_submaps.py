@@ -1,0 +1,222 @@
+"""Sub-map upload, edit, conversion and export over the REST API."""
+
+from __future__ import annotations
+
+import io
+import zipfile
+from typing import Any
+
+import numpy as np
+import pytest
+from django.contrib.auth.models import User
+from django.core.files.uploadedfile import SimpleUploadedFile
+from PIL import Image
+
+from maps.domain.mapfile import occupancy_from_image, parse_map_yaml
+from maps.models import Building, SubMap
+from tests.conftest import client_for, make_submap, map_pgm, map_yaml
+
+URL = "/api/buildings/boccioni_1/maps/"
+
+
+def pair(**kwargs: Any) -> dict[str, Any]:
+    kwargs.setdefault("code", "CorridorA")
+    kwargs.setdefault("image", SimpleUploadedFile("map.pgm", map_pgm()))
+    kwargs.setdefault("yaml", SimpleUploadedFile("map.yaml", map_yaml()))
+    return {k: v for k, v in kwargs.items() if v is not None}
+
+
+def zipped(members: dict[str, bytes]) -> SimpleUploadedFile:
+    out = io.BytesIO()
+    with zipfile.ZipFile(out, "w") as archive:
+        for name, data in members.items():
+            archive.writestr(name, data)
+    return SimpleUploadedFile("map.zip", out.getvalue())
+
+
+def post(user: User, data: dict[str, Any]) -> Any:
+    return client_for(user).post(URL, data, format="multipart")
+
+
+def test_it_stores_an_image_and_yaml_pair(building: Building, admin: User) -> None:
+    response = post(admin, pair(name="Corridor A"))
+    assert response.status_code == 201, response.json()
+    body = response.json()
+    assert body["map_id"] == "boccioni_1/CorridorA"
+    assert (body["width"], body["height"], body["resolution"]) == (40, 30, 0.05)
+    assert body["origin"] == [0.0, 0.0, 0.0]
+
+
+def test_it_stores_a_zip_of_both(building: Building, admin: User) -> None:
+    archive = zipped(
+        {"maps/corridor.yaml": map_yaml(image="corridor.pgm"), "maps/corridor.pgm": map_pgm()}
+    )
+    response = post(admin, {"code": "CorridorA", "archive": archive})
+    assert response.status_code == 201, response.json()
+    assert SubMap.objects.get().image_name == "corridor.pgm"
+
+
+def test_uploading_an_existing_code_replaces_its_map_and_version(
+    building: Building, admin: User
+) -> None:
+    first = post(admin, pair()).json()["version"]
+    response = post(admin, pair(image=SimpleUploadedFile("map.pgm", map_pgm(width=50))))
+    assert response.status_code == 200
+    assert response.json()["width"] == 50
+    assert response.json()["version"] != first
+    assert SubMap.objects.count() == 1
+
+
+BAD_UPLOADS: list[tuple[str, dict[str, Any], str]] = [
+    ("truncated image", {"image": SimpleUploadedFile("map.pgm", map_pgm()[:-100])}, "image"),
+    ("garbage image", {"image": SimpleUploadedFile("map.pgm", b"not an image at all")}, "image"),
+    ("yaml not a mapping", {"yaml": SimpleUploadedFile("m.yaml", b"- 1\n- 2\n")}, "yaml"),
+    ("yaml unparsable", {"yaml": SimpleUploadedFile("m.yaml", b"a: [1, \n")}, "yaml"),
+    (
+        "missing resolution",
+        {
+            "yaml": SimpleUploadedFile(
+                "m.yaml",
+                map_yaml().replace(b"resolution: 0.05\n", b""),
+            )
+        },
+        "resolution",
+    ),
+    (
+        "resolution as text",
+        {"yaml": SimpleUploadedFile("m.yaml", map_yaml(resolution="fine"))},
+        "resolution",
+    ),
+    (
+        "negative resolution",
+        {"yaml": SimpleUploadedFile("m.yaml", map_yaml(resolution=-0.05))},
+        "resolution",
+    ),
+    (
+        "zero resolution",
+        {"yaml": SimpleUploadedFile("m.yaml", map_yaml(resolution=0))},
+        "resolution",
+    ),
+    (
+        "origin of two numbers",
+        {"yaml": SimpleUploadedFile("m.yaml", map_yaml(origin=[0, 0]))},
+        "origin",
+    ),
+    ("origin of text", {"yaml": SimpleUploadedFile("m.yaml", map_yaml(origin="here"))}, "origin"),
+    (
+        "threshold above one",
+        {"yaml": SimpleUploadedFile("m.yaml", map_yaml(occupied_thresh=1.5))},
+        "occupied_thresh",
+    ),
+    (
+        "negative threshold",
+        {"yaml": SimpleUploadedFile("m.yaml", map_yaml(free_thresh=-0.1))},
+        "free_thresh",
+    ),
+    (
+        "free at occupied",
+        {"yaml": SimpleUploadedFile("m.yaml", map_yaml(free_thresh=0.65))},
+        "free_thresh",
+    ),
+    ("unknown mode", {"yaml": SimpleUploadedFile("m.yaml", map_yaml(mode="fancy"))}, "mode"),
+    (
+        "image not in upload",
+        {"yaml": SimpleUploadedFile("m.yaml", map_yaml(image="other.pgm"))},
+        "image",
+    ),
+    ("no yaml", {"yaml": None}, "yaml"),
+    ("no image", {"image": None}, "image"),
+    ("bad code", {"code": "1 bad/code"}, "code"),
+]
+
+
+@pytest.mark.parametrize(("what", "change", "field"), BAD_UPLOADS, ids=[c[0] for c in BAD_UPLOADS])
+def test_it_refuses_a_bad_upload_naming_the_field_and_stores_nothing(
+    building: Building, admin: User, what: str, change: dict[str, Any], field: str
+) -> None:
+    response = post(admin, pair(**change))
+    assert response.status_code == 400
+    assert field in response.json(), response.json()
+    assert not SubMap.objects.exists()
+
+
+def test_it_refuses_an_image_over_the_pixel_limit(
+    building: Building, admin: User, settings: Any
+) -> None:
+    settings.CLOUDNAV_MAX_MAP_PIXELS = 1000
+    response = post(admin, pair())
+    assert response.status_code == 400
+    assert "image" in response.json()
+    assert not SubMap.objects.exists()
+
+
+@pytest.mark.parametrize("name", ["../evil.pgm", "/abs/map.pgm", "a/../../map.pgm"])
+def test_it_refuses_a_zip_member_escaping_the_archive(
+    building: Building, admin: User, name: str
+) -> None:
+    archive = zipped({"map.yaml": map_yaml(image="map.pgm"), name: map_pgm()})
+    response = post(admin, {"code": "CorridorA", "archive": archive})
+    assert response.status_code == 400
+    assert "archive" in response.json()
+    assert not SubMap.objects.exists()
+
+
+def test_a_bad_replacement_keeps_the_old_map(building: Building, admin: User) -> None:
+    before = make_submap(building)
+    response = post(admin, pair(image=SimpleUploadedFile("map.pgm", b"P5\n40 30\n255\n")))
+    assert response.status_code == 400
+    assert SubMap.objects.get().version == before.version
+
+
+def test_editing_metadata_changes_the_version(building: Building, admin: User) -> None:
+    submap = make_submap(building)
+    response = client_for(admin).patch(f"{URL}CorridorA/", {"origin": [1, 2, 0.5]}, format="json")
+    assert response.status_code == 200
+    assert response.json()["origin"] == [1.0, 2.0, 0.5]
+    assert response.json()["version"] != submap.version
+
+
+def test_editing_metadata_into_an_invalid_state_is_refused_whole(
+    building: Building, admin: User
+) -> None:
+    submap = make_submap(building)
+    changes = {"free_thresh": 0.9, "name": "Renamed"}
+    response = client_for(admin).patch(f"{URL}CorridorA/", changes, format="json")
+    assert response.status_code == 400
+    assert "free_thresh" in response.json()
+    submap.refresh_from_db()
+    assert submap.name != "Renamed"
+
+
+def test_it_serves_the_map_as_an_occupancy_grid_bottom_row_first(
+    building: Building, viewer: User
+) -> None:
+    make_submap(building, yaml=map_yaml(origin=[-1.0, -2.0, 0.0]))
+    grid = client_for(viewer).get(f"{URL}CorridorA/grid").json()
+    assert grid["header"]["frame_id"] == "boccioni_1/CorridorA"
+    info = grid["info"]
+    assert (info["width"], info["height"], info["resolution"]) == (40, 30, 0.05)
+    assert info["origin"]["position"]["x"] == -1.0
+    rows = np.array(grid["data"]).reshape(30, 40)
+    assert rows[0, 5] == 100  # the bottom wall
+    assert rows[-2, 2] == -1  # the unknown patch drawn in the image's top-left corner
+    assert rows[10, 10] == 0
+
+
+def test_it_serves_the_image_as_uploaded(building: Building, viewer: User) -> None:
+    make_submap(building)
+    response = client_for(viewer).get(f"{URL}CorridorA/image")
+    assert response.content == map_pgm()
+    assert response["Content-Type"] == "image/x-portable-graymap"
+
+
+def test_export_gives_a_pair_that_loads_to_the_same_grid(building: Building, viewer: User) -> None:
+    make_submap(building, yaml=map_yaml(origin=[1.5, -2.0, 0.0]))
+    client = client_for(viewer)
+    response = client.get(f"{URL}CorridorA/export")
+    with zipfile.ZipFile(io.BytesIO(response.content)) as archive:
+        meta = parse_map_yaml(archive.read("CorridorA.yaml"))
+        image = Image.open(io.BytesIO(archive.read(meta.image)))
+    grid = client.get(f"{URL}CorridorA/grid").json()
+    assert meta.origin == (1.5, -2.0, 0.0)
+    assert occupancy_from_image(image, meta).ravel().tolist() == grid["data"]

@@ -1,0 +1,91 @@
+"""The demo building: the paper's scenario, seeded idempotently."""
+
+from __future__ import annotations
+
+import io
+import json
+from pathlib import Path
+
+import pytest
+from django.contrib.auth import authenticate
+from django.core.management import call_command
+
+from maps.models import Building, EnvironmentalTag, SubMap, TopologyEdge
+from tests.conftest import client_for
+
+PAPER_ROUTE = [
+    "CorridorA",
+    "Atrium1",
+    "CorridorB",
+    "CorridorC",
+    "Atrium2",
+    "CorridorD",
+    "Atrium3",
+    "Office7",
+]
+
+
+@pytest.fixture
+def seeded(db: None, tmp_path: Path) -> Path:
+    tokens = tmp_path / "tokens.json"
+    call_command("seed_demo", "--tokens-file", str(tokens), stdout=io.StringIO())
+    return tokens
+
+
+def test_it_creates_the_papers_sub_maps(seeded: Path) -> None:
+    codes = set(SubMap.objects.values_list("code", flat=True))
+    assert codes == {*PAPER_ROUTE, "RoomA", "RoomB"}
+
+
+def test_the_route_from_corridor_a_to_office_7_is_the_papers(seeded: Path) -> None:
+    token = next(iter(json.loads(seeded.read_text()).values()))
+    steps = (
+        client_for(token)
+        .get("/api/buildings/boccioni_1/route", {"from": "CorridorA", "to": "Office7"})
+        .json()["steps"]
+    )
+    assert [s["map"] for s in steps] == PAPER_ROUTE
+    assert all(s["tag"] for s in steps[:-1])
+
+
+def test_every_edge_can_be_crossed_both_ways(seeded: Path) -> None:
+    token = next(iter(json.loads(seeded.read_text()).values()))
+    report = client_for(token).get("/api/buildings/boccioni_1/topology/validation").json()
+    assert report == {"valid": True, "uncrossable_edges": [], "dangling_tags": []}
+
+
+def test_there_is_an_entrance_tag_at_corridor_a(seeded: Path) -> None:
+    assert EnvironmentalTag.objects.filter(
+        submap__code="CorridorA", links_to__code="CorridorA"
+    ).exists()
+
+
+def test_running_it_again_changes_nothing(seeded: Path) -> None:
+    before = [
+        list(m.objects.order_by("pk").values()) for m in (SubMap, EnvironmentalTag, TopologyEdge)
+    ]
+    tokens = seeded.read_text()
+    call_command("seed_demo", "--tokens-file", str(seeded), stdout=io.StringIO())
+    after = [
+        list(m.objects.order_by("pk").values()) for m in (SubMap, EnvironmentalTag, TopologyEdge)
+    ]
+    assert before == after
+    assert seeded.read_text() == tokens
+
+
+def test_the_demo_users_sign_in_with_the_printed_passwords(db: None, tmp_path: Path) -> None:
+    out = io.StringIO()
+    call_command("seed_demo", "--tokens-file", str(tmp_path / "t.json"), stdout=out)
+    for line in out.getvalue().splitlines():
+        if line.strip().startswith("user "):
+            _, name, _, password = line.split()
+            assert authenticate(username=name, password=password) is not None
+    assert Building.objects.get().members.count() == 3
+
+
+def test_the_printed_robot_tokens_get_maps(seeded: Path) -> None:
+    for token in json.loads(seeded.read_text()).values():
+        assert (
+            client_for(token).get("/api/buildings/boccioni_1/maps/Office7/bundle").status_code
+            == 200
+        )
