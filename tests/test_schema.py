@@ -25,3 +25,10 @@ def test_the_docs_page_loads_its_assets_locally(admin: User) -> None:
     page = client_for(admin).get("/api/docs/").content.decode()
     assert "swagger" in page.lower()
     assert "cdn" not in page.lower()
+
+
+def test_the_docs_assets_are_served_by_the_app(admin: User) -> None:
+    page = client_for(admin).get("/api/docs/").content.decode()
+    asset = next(part.split('"')[0] for part in page.split('src="')[1:] if "swagger" in part)
+    response = client_for(admin).get(asset)
+    assert response.status_code == 200

@@ -1,0 +1,33 @@
+#!/usr/bin/env bash
+# Seed the demo building and run the server on 127.0.0.1:8000 with simulated robots.
+# Ctrl-C stops everything.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+PY=.venv/bin/python
+HOST=${HOST:-127.0.0.1}
+PORT=${PORT:-8000}
+ROBOTS=${ROBOTS:-3}
+export CLOUDNAV_PUBLIC_URL=${CLOUDNAV_PUBLIC_URL:-http://$HOST:$PORT}
+
+$PY manage.py seed_demo --robots "$ROBOTS"
+
+pids=()
+cleanup() { kill "${pids[@]}" 2>/dev/null || true; wait 2>/dev/null || true; }
+trap cleanup EXIT INT TERM
+
+.venv/bin/daphne -b "$HOST" -p "$PORT" cloudnav_web.asgi:application &
+pids+=($!)
+
+for _ in $(seq 1 100); do
+  (exec 3<>"/dev/tcp/$HOST/$PORT") 2>/dev/null && break
+  sleep 0.1
+done
+
+if [ -f robots/agent/__main__.py ]; then
+  $PY -m robots.agent --server "$CLOUDNAV_PUBLIC_URL" --tokens-file var/demo_tokens.json \
+    --count "$ROBOTS" &
+  pids+=($!)
+fi
+
+echo "CloudNav is running at $CLOUDNAV_PUBLIC_URL (sign in as admin / admin-demo). Ctrl-C stops it."
+wait -n "${pids[@]}"
