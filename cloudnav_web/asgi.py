@@ -1,4 +1,9 @@
-"""ASGI entry point: HTTP through Django, WebSockets through Channels."""
+"""ASGI entry point: HTTP through Django, WebSockets (rosbridge) through Channels.
+
+Browsers authenticate with their Django session (``AuthMiddlewareStack``); the rosbridge
+consumer checks their origin and robot tokens itself. ``TransportProbe`` sits outermost so
+the consumer can reach daphne's own ``send`` (see ``telemetry.transport``).
+"""
 
 from __future__ import annotations
 
@@ -9,6 +14,15 @@ from django.core.asgi import get_asgi_application
 os.environ.setdefault("DJANGO_SETTINGS_MODULE", "cloudnav_web.settings")
 django_asgi_app = get_asgi_application()
 
-from channels.routing import ProtocolTypeRouter  # noqa: E402
+from channels.auth import AuthMiddlewareStack  # noqa: E402
+from channels.routing import ProtocolTypeRouter, URLRouter  # noqa: E402
 
-application = ProtocolTypeRouter({"http": django_asgi_app})
+from telemetry.routing import websocket_urlpatterns  # noqa: E402
+from telemetry.transport import TransportProbe  # noqa: E402
+
+application = ProtocolTypeRouter(
+    {
+        "http": django_asgi_app,
+        "websocket": TransportProbe(AuthMiddlewareStack(URLRouter(websocket_urlpatterns))),
+    }
+)

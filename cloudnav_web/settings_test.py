@@ -1,7 +1,19 @@
-"""Test override: the same settings, with fast password hashing and an isolated database."""
+"""Test override: the same settings, with fast password hashing and a file-based test database.
+
+The test database is a file (not SQLite's in-memory default) so that a live daphne started
+by ``tests.fixtures_live`` in a subprocess opens the very database the test writes to. Its
+name carries the test run's process id, so two runs in one checkout never share it.
+"""
 
 from __future__ import annotations
 
+import os
+
 from .settings import *  # noqa: F403
+from .settings import BASE_DIR, DATABASES
 
 PASSWORD_HASHERS = ["django.contrib.auth.hashers.MD5PasswordHasher"]
+
+if DATABASES["default"]["ENGINE"] == "django.db.backends.sqlite3":
+    (BASE_DIR / "var").mkdir(exist_ok=True)
+    DATABASES["default"]["TEST"] = {"NAME": str(BASE_DIR / "var" / f"test-{os.getpid()}.sqlite3")}

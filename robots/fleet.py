@@ -1,0 +1,171 @@
+"""Fleet state: each connected robot's last pose, Map ID and last-seen time, kept in memory
+and written to ``RobotState`` by a background flush, never once per message.
+
+The rosbridge server calls ``connected``, ``seen``, ``pose``, ``map_id`` and
+``disconnected``; these only touch a dict. ``run`` writes what changed every ``interval``
+seconds (and at once for a change of online state), and refreshes ``last_seen`` of the
+robots still connected, so a server that died leaves them looking stale, not online.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+from dataclasses import dataclass, field
+from datetime import UTC, datetime, timedelta
+
+from channels.db import database_sync_to_async
+from django.db.models import QuerySet
+
+from telemetry.domain.messages import Pose2D
+
+from .models import RobotState
+
+logger = logging.getLogger(__name__)
+
+
+NEVER = datetime.min.replace(tzinfo=UTC)
+
+
+@dataclass
+class _Entry:
+    online: bool = True
+    pose: Pose2D | None = None
+    map_id: str | None = None
+    last_seen: datetime = field(default_factory=lambda: datetime.now(UTC))
+    connections: int = 0
+    written: datetime = field(default=NEVER)
+
+
+class FleetTracker:
+    """The fleet state of the robots connected to this process, flushed in the background."""
+
+    def __init__(self, interval: float = 1.0) -> None:
+        self.interval = interval
+        self._entries: dict[int, _Entry] = {}
+        self._dirty: set[int] = set()
+        self._urgent = asyncio.Event()
+        self._task: asyncio.Task[None] | None = None
+
+    def _entry(self, robot_pk: int) -> _Entry:
+        entry = self._entries.get(robot_pk)
+        if entry is None:
+            entry = self._entries[robot_pk] = _Entry()
+        return entry
+
+    def connected(self, robot_pk: int) -> None:
+        entry = self._entry(robot_pk)
+        entry.connections += 1
+        entry.online = True
+        self._touch(robot_pk, entry, urgent=True)
+
+    def disconnected(self, robot_pk: int) -> None:
+        entry = self._entry(robot_pk)
+        entry.connections = max(0, entry.connections - 1)
+        if entry.connections == 0:
+            entry.online = False
+            self._touch(robot_pk, entry, urgent=True)
+
+    def seen(self, robot_pk: int) -> None:
+        entry = self._entries.get(robot_pk)
+        if entry is not None:
+            self._touch(robot_pk, entry)
+
+    def pose(self, robot_pk: int, pose: Pose2D) -> None:
+        entry = self._entry(robot_pk)
+        entry.pose = pose
+        if pose.map_id:
+            entry.map_id = pose.map_id
+        self._touch(robot_pk, entry)
+
+    def map_id(self, robot_pk: int, map_id: str) -> None:
+        entry = self._entry(robot_pk)
+        entry.map_id = map_id
+        self._touch(robot_pk, entry)
+
+    def _touch(self, robot_pk: int, entry: _Entry, urgent: bool = False) -> None:
+        entry.last_seen = datetime.now(UTC)
+        self._dirty.add(robot_pk)
+        if urgent:
+            self._urgent.set()
+        self._ensure_running()
+
+    def _ensure_running(self) -> None:
+        if self._task is None or self._task.done():
+            self._task = asyncio.get_running_loop().create_task(self.run())
+
+    async def run(self) -> None:
+        """Flush until nothing is connected; restarted by the next change."""
+        while True:
+            with contextlib.suppress(TimeoutError):
+                await asyncio.wait_for(self._urgent.wait(), self.interval)
+            self._urgent.clear()
+            await self.flush()
+            if not self._entries:
+                return
+
+    async def flush(self) -> None:
+        """Write every changed robot's state, and a heartbeat for the quiet connected ones."""
+        now = datetime.now(UTC)
+        for pk, entry in self._entries.items():
+            if entry.online and now - entry.written > HEARTBEAT:
+                entry.last_seen = now
+                self._dirty.add(pk)
+        batch = {pk: self._entries[pk] for pk in self._dirty if pk in self._entries}
+        self._dirty.clear()
+        for pk in [pk for pk, e in batch.items() if not e.online]:
+            del self._entries[pk]
+        if batch:
+            try:
+                await database_sync_to_async(write_states)(batch)
+                for entry in batch.values():
+                    entry.written = now
+            except Exception:
+                logger.exception("fleet state flush failed; retrying with the next one")
+                self._dirty.update(batch)
+
+    async def close(self) -> None:
+        """Write the final state of every robot; used at shutdown."""
+        for entry in self._entries.values():
+            entry.online = False
+        self._dirty.update(self._entries)
+        if self._task is not None:
+            self._task.cancel()
+        await self.flush()
+
+
+def write_states(batch: dict[int, _Entry]) -> None:
+    """Upsert the rows of ``batch``: one query per combination of known fields."""
+    groups: dict[tuple[str, ...], list[RobotState]] = {}
+    for pk, entry in batch.items():
+        fields: list[str] = ["online", "last_seen"]
+        row = RobotState(robot_id=pk, online=entry.online, last_seen=entry.last_seen)
+        if entry.map_id is not None:
+            row.map_id = entry.map_id
+            fields.append("map_id")
+        if entry.pose is not None:
+            row.x, row.y, row.yaw = entry.pose.x, entry.pose.y, entry.pose.yaw
+            fields += ["x", "y", "yaw"]
+        groups.setdefault(tuple(fields), []).append(row)
+    for known, rows in groups.items():
+        RobotState.objects.bulk_create(
+            rows, update_conflicts=True, unique_fields=["robot"], update_fields=list(known)
+        )
+
+
+# Connected robots are written at least this often, even when nothing changed...
+HEARTBEAT = timedelta(seconds=10)
+# ...so a robot whose row is older than this is shown offline whatever the row says: the
+# process that served it stopped without saying goodbye.
+STALE_AFTER = timedelta(seconds=30)
+
+
+def fleet_states(robots: QuerySet[RobotState]) -> QuerySet[RobotState]:
+    return robots.select_related("robot").order_by("robot__name")
+
+
+def is_online(state: RobotState, now: datetime | None = None) -> bool:
+    """True if the robot is connected to a live server process."""
+    now = now or datetime.now(UTC)
+    return bool(state.online and state.last_seen and now - state.last_seen < STALE_AFTER)

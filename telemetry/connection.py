@@ -1,0 +1,104 @@
+"""One rosbridge connection as the bus sees it: a peer with a bounded outbox and a sink.
+
+``deliver`` never blocks and never raises. When the socket can take a frame at once (the
+daphne sink, not paused, nothing queued) the frame is written synchronously, so fan-out to
+a healthy subscriber costs one buffer append; otherwise it waits in the outbox, which drops
+its oldest frames past its bounds, and is written when the socket drains.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import itertools
+import logging
+from typing import Any
+
+from telemetry.domain.encoding import Outgoing, Wire
+from telemetry.domain.outbox import Outbox
+from telemetry.domain.protocol import Json, level_shows, status
+from telemetry.domain.rules import Principal
+from telemetry.transport import AsgiSend, DaphneSink, daphne_protocol, send_via_asgi
+
+logger = logging.getLogger(__name__)
+_keys = itertools.count(1)
+
+
+class Connection:
+    """A connected client: who it is, what it wants to hear, and how to reach it."""
+
+    def __init__(
+        self,
+        principal: Principal,
+        asgi_send: AsgiSend,
+        transport_send: Any,
+        max_frames: int,
+        max_bytes: int,
+    ) -> None:
+        self.key = f"c{next(_keys)}"
+        self.principal = principal
+        self.level = "none"
+        self.outbox = Outbox(max_frames, max_bytes)
+        self.open = True
+        self._asgi_send = asgi_send
+        self._wakeup = asyncio.Event()
+        self._writer: asyncio.Task[None] | None = None
+        protocol = daphne_protocol(transport_send)
+        self._sink = DaphneSink(protocol, self._drain) if protocol is not None else None
+
+    def __repr__(self) -> str:
+        return f"<Connection {self.key} {self.principal.label}>"
+
+    @property
+    def direct(self) -> bool:
+        """True when frames go straight to daphne's transport."""
+        return self._sink is not None
+
+    def start(self) -> None:
+        """Begin sending; call after the handshake was accepted."""
+        if self._sink is None:
+            self._writer = asyncio.get_running_loop().create_task(self._write_loop())
+        else:
+            self._drain()
+
+    def deliver(self, wire: Wire) -> None:
+        sink = self._sink
+        if sink is not None and not self.outbox and sink.writable():
+            sink.write(wire)
+            return
+        if not self.open:
+            return
+        self.outbox.push(wire)
+        if sink is None:
+            self._wakeup.set()
+
+    def send(self, frame: dict[str, Any]) -> None:
+        """Send one control frame (answers, requests, status) as JSON."""
+        self.deliver(Outgoing(frame).wire())
+
+    def report(self, level: str, message: str, id: Json = None) -> None:
+        """Send a ``status`` frame if the client asked for this level with ``set_level``."""
+        if level_shows(self.level, level):
+            self.send(dict(status(level, message, id)))
+
+    def _drain(self) -> None:
+        sink = self._sink
+        while sink is not None and self.outbox and sink.writable():
+            wire = self.outbox.pop()
+            if wire is not None:
+                sink.write(wire)
+
+    async def _write_loop(self) -> None:
+        while self.open:
+            await self._wakeup.wait()
+            self._wakeup.clear()
+            while self.open and (wire := self.outbox.pop()) is not None:
+                await send_via_asgi(self._asgi_send, wire)
+
+    def close(self) -> None:
+        """Stop sending; queued frames are discarded."""
+        self.open = False
+        self.outbox.clear()
+        if self._sink is not None:
+            self._sink.close()
+        if self._writer is not None:
+            self._writer.cancel()

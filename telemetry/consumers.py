@@ -1,0 +1,199 @@
+"""The rosbridge v2 WebSocket consumer: parse a frame, authorise it, call one hub function.
+
+Connections without a valid credential are refused during the handshake (HTTP 403), so no
+frame ever flows on them. A frame that fails is answered in ``replies`` and dropped; the
+connection stays up.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Awaitable, Callable
+from typing import Any
+
+from channels.exceptions import StopConsumer
+from channels.generic.websocket import AsyncWebsocketConsumer
+
+from telemetry import replies
+from telemetry.connection import Connection
+from telemetry.domain import names, protocol
+from telemetry.domain.bus import SubscribeParams
+from telemetry.domain.fragments import Reassembler
+from telemetry.domain.protocol import SUPPORTED_COMPRESSIONS, decode_frame, parse_op
+from telemetry.exceptions import BadFrame, RosbridgeError
+from telemetry.hub import Client, Hub, get_hub
+from telemetry.server_services import ServiceCall
+from telemetry.services import Access, authenticate
+from telemetry.transport import SCOPE_KEY
+
+logger = logging.getLogger(__name__)
+
+
+class RosbridgeConsumer(AsyncWebsocketConsumer):
+    # Connections need no channel of their own: fan-out is in-process, and scaled mode has
+    # one channel per server process (see ``telemetry.relay``). An alias that names no
+    # layer makes Channels skip the per-connection channel.
+    channel_layer_alias = "rosbridge-connections-have-no-channel"
+
+    hub: Hub
+    conn: Connection | None = None
+    access: Access
+    fragments: Reassembler
+
+    async def websocket_connect(self, message: dict[str, Any]) -> None:
+        identity = await authenticate(self.scope)
+        if identity is None:
+            await self.close()
+            return
+        self.hub = get_hub()
+        config = self.hub.config
+        self.access = Access(identity.principal)
+        self.fragments = Reassembler(max_chars=config.max_frame_bytes)
+        self.conn = Connection(
+            identity.principal,
+            self.base_send,
+            self.scope.get(SCOPE_KEY),
+            config.send_queue_frames,
+            config.send_queue_bytes,
+        )
+        await self.accept()
+        self.conn.start()
+        self.hub.join(Client(self.conn, self.access, identity.robot_pk))
+        logger.info("%s connected as %s", identity.principal.label, self.conn.key)
+
+    async def websocket_receive(self, message: dict[str, Any]) -> None:
+        if self.conn is None:
+            return
+        data = message.get("text")
+        await self.handle(data if data is not None else message.get("bytes") or b"")
+
+    async def websocket_disconnect(self, message: dict[str, Any]) -> None:
+        if self.conn is not None:
+            await self.hub.leave(self.conn)
+            logger.info("%s disconnected (%s)", self.conn.principal.label, self.conn.key)
+        raise StopConsumer()
+
+    async def handle(self, data: str | bytes, reassembled: bool = False) -> None:
+        """Carry out one frame; any RosbridgeError is answered and the frame dropped."""
+        conn = self._conn
+        frame = None
+        try:
+            frame = decode_frame(data, self.hub.config.max_frame_bytes)
+            op = parse_op(frame)
+            if reassembled and isinstance(op, protocol.Fragment):
+                raise BadFrame("a fragment cannot hold another fragment", op="fragment")
+            await _HANDLERS[type(op)](self, op)
+        except RosbridgeError as error:
+            replies.answer(conn, error, frame)
+
+    # ------------------------------------------------------------ topics
+
+    async def on_publish(self, op: protocol.Publish) -> None:
+        name = self.access.resolve(op.topic)
+        if not self.access.granted("publish", name):
+            await self.access.require("publish", name)
+        conn = self._conn
+        if conn.principal.robot is None and name.endswith(_CMD_VEL_SUFFIX):
+            self.hub.check_command(conn, name, op.msg)
+        self.hub.publish(conn, name, op.msg, op.latch)
+
+    async def on_subscribe(self, op: protocol.Subscribe) -> None:
+        name = self.access.resolve(op.topic)
+        await self.access.require("subscribe", name)
+        compression = op.compression
+        if compression not in SUPPORTED_COMPRESSIONS:
+            self._conn.report("warning", f"compression {compression} is not offered; using none")
+            compression = "none"
+        params = SubscribeParams(op.throttle_rate, op.queue_length, op.fragment_size, compression)
+        self.hub.subscribe(self._conn, name, op.type, params, op.id)
+
+    async def on_unsubscribe(self, op: protocol.Unsubscribe) -> None:
+        self.hub.unsubscribe(self._conn, self.access.resolve(op.topic), op.id)
+
+    async def on_advertise(self, op: protocol.Advertise) -> None:
+        name = self.access.resolve(op.topic)
+        await self.access.require("advertise", name)
+        self.hub.advertise(self._conn, name, op.type, op.latch, op.id)
+
+    async def on_unadvertise(self, op: protocol.Unadvertise) -> None:
+        self.hub.unadvertise(self._conn, self.access.resolve(op.topic), op.id)
+
+    # ------------------------------------------------------------ services
+
+    async def on_call_service(self, op: protocol.CallService) -> None:
+        name = self.access.resolve(op.service)
+        call = ServiceCall(self.hub, self._conn, self.access, name, op.args)
+        await self.hub.call_service(call, op)
+
+    async def on_service_response(self, op: protocol.ServiceResponse) -> None:
+        self.hub.service_response(self._conn, self.access.resolve(op.service), op)
+
+    async def on_advertise_service(self, op: protocol.AdvertiseService) -> None:
+        name = self.access.resolve(op.service)
+        await self.access.require("advertise_service", name)
+        self.hub.advertise_service(self._conn, name, op.type)
+
+    async def on_unadvertise_service(self, op: protocol.UnadvertiseService) -> None:
+        self.hub.unadvertise_service(self._conn, self.access.resolve(op.service))
+
+    # ------------------------------------------------------------ actions
+
+    async def on_advertise_action(self, op: protocol.AdvertiseAction) -> None:
+        name = self.access.resolve(op.action)
+        await self.access.require("advertise_service", name)
+        self.hub.advertise_action(self._conn, name, op.type)
+
+    async def on_unadvertise_action(self, op: protocol.UnadvertiseAction) -> None:
+        self.hub.unadvertise_action(self._conn, self.access.resolve(op.action))
+
+    async def on_send_action_goal(self, op: protocol.SendActionGoal) -> None:
+        name = self.access.resolve(op.action)
+        await self.hub.send_action_goal(self._conn, self.access, name, op)
+
+    async def on_cancel_action_goal(self, op: protocol.CancelActionGoal) -> None:
+        self.hub.cancel_action_goal(self._conn, self.access.resolve(op.action), op)
+
+    async def on_action_feedback(self, op: protocol.ActionFeedback) -> None:
+        self.hub.action_feedback(self._conn, self.access.resolve(op.action), op)
+
+    async def on_action_result(self, op: protocol.ActionResult) -> None:
+        self.hub.action_result(self._conn, self.access.resolve(op.action), op)
+
+    # ------------------------------------------------------------ framing and status
+
+    async def on_fragment(self, op: protocol.Fragment) -> None:
+        text = self.fragments.add(op.id, op.num, op.total, op.data)
+        if text is not None:
+            await self.handle(text, reassembled=True)
+
+    async def on_set_level(self, op: protocol.SetLevel) -> None:
+        self._conn.level = op.level
+
+    @property
+    def _conn(self) -> Connection:
+        if self.conn is None:
+            raise RosbridgeError("connection is not open")
+        return self.conn
+
+
+_CMD_VEL_SUFFIX = "/" + names.CMD_VEL
+_Handler = Callable[[RosbridgeConsumer, Any], Awaitable[None]]
+_HANDLERS: dict[type, _Handler] = {
+    protocol.Publish: RosbridgeConsumer.on_publish,
+    protocol.Subscribe: RosbridgeConsumer.on_subscribe,
+    protocol.Unsubscribe: RosbridgeConsumer.on_unsubscribe,
+    protocol.Advertise: RosbridgeConsumer.on_advertise,
+    protocol.Unadvertise: RosbridgeConsumer.on_unadvertise,
+    protocol.CallService: RosbridgeConsumer.on_call_service,
+    protocol.ServiceResponse: RosbridgeConsumer.on_service_response,
+    protocol.AdvertiseService: RosbridgeConsumer.on_advertise_service,
+    protocol.UnadvertiseService: RosbridgeConsumer.on_unadvertise_service,
+    protocol.AdvertiseAction: RosbridgeConsumer.on_advertise_action,
+    protocol.UnadvertiseAction: RosbridgeConsumer.on_unadvertise_action,
+    protocol.SendActionGoal: RosbridgeConsumer.on_send_action_goal,
+    protocol.CancelActionGoal: RosbridgeConsumer.on_cancel_action_goal,
+    protocol.ActionFeedback: RosbridgeConsumer.on_action_feedback,
+    protocol.ActionResult: RosbridgeConsumer.on_action_result,
+    protocol.Fragment: RosbridgeConsumer.on_fragment,
+    protocol.SetLevel: RosbridgeConsumer.on_set_level,
+}

@@ -1,0 +1,367 @@
+"""The topic bus of one server process: topics, publishers, subscriptions and fan-out.
+
+Semantics follow rosbridge_suite: a connection's subscriptions to one topic are merged
+(lowest ``throttle_rate``, lowest ``queue_length``, smallest ``fragment_size``, CBOR if any
+asked for it) and each ``id`` can be unsubscribed alone; publishing registers the publisher
+(implicit advertise) when the topic's type is known; a latched topic's last message goes to
+every new subscriber; a publisher subscribed to its own topic receives its own messages.
+
+Fan-out encodes each message once per variant (see ``encoding``) and hands the result to
+each peer's ``deliver``, which must not block: peers queue or drop, the bus never waits.
+"""
+
+from __future__ import annotations
+
+import time
+from collections import deque
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from typing import Any, Protocol
+
+from telemetry.exceptions import TypeConflict, UnknownTopic
+
+from .encoding import Outgoing, Wire
+from .names import canonical_type
+from .protocol import Json, PublishFrame
+
+
+class Peer(Protocol):
+    """A connection as the bus sees it."""
+
+    @property
+    def key(self) -> str: ...
+
+    def deliver(self, wire: Wire) -> None:
+        """Send or queue one encoded message; never blocks, never raises."""
+
+
+class Cancellable(Protocol):
+    def cancel(self) -> None: ...
+
+
+# call_later(delay_seconds, callback) -> a handle that can be cancelled (asyncio's signature)
+Scheduler = Callable[[float, Callable[[], None]], Cancellable]
+
+
+class BusListener(Protocol):
+    """What the bus tells the layer above (the scaled-mode relay) about local activity."""
+
+    def published(self, topic: Topic, out: Outgoing) -> None: ...
+
+    def interest(self, topic: str, interested: bool) -> None: ...
+
+
+@dataclass(slots=True, frozen=True)
+class SubscribeParams:
+    throttle_rate: int = 0
+    queue_length: int = 0
+    fragment_size: int | None = None
+    compression: str = "none"
+
+
+class Subscription:
+    """One peer's merged subscriptions to one topic, with rosbridge's throttle and queue.
+
+    ``throttle_rate`` (ms) is the least time between two messages; with ``queue_length`` 0
+    the messages in between are dropped, otherwise the newest ``queue_length`` wait and are
+    released one per interval.
+    """
+
+    __slots__ = (
+        "_queue",
+        "_timer",
+        "bus",
+        "compression",
+        "fragment_size",
+        "last_sent",
+        "peer",
+        "queue_length",
+        "requests",
+        "throttle",
+    )
+
+    def __init__(self, bus: TopicBus, peer: Peer) -> None:
+        self.bus = bus
+        self.peer = peer
+        self.requests: dict[Json, SubscribeParams] = {}
+        self.throttle = 0.0
+        self.queue_length = 0
+        self.fragment_size: int | None = None
+        self.compression = "none"
+        self.last_sent = float("-inf")
+        self._queue: deque[Outgoing] = deque()
+        self._timer: Cancellable | None = None
+
+    def add(self, sid: Json, params: SubscribeParams) -> None:
+        self.requests[sid] = params
+        self._merge()
+
+    def remove(self, sid: Json) -> bool:
+        """Remove one request (all of them when ``sid`` is None); True if none is left."""
+        if sid is None:
+            self.requests.clear()
+        else:
+            self.requests.pop(sid, None)
+        if self.requests:
+            self._merge()
+        else:
+            self.close()
+        return not self.requests
+
+    def _merge(self) -> None:
+        params = self.requests.values()
+        self.throttle = min(p.throttle_rate for p in params) / 1000.0
+        self.queue_length = min(p.queue_length for p in params)
+        sizes = [p.fragment_size for p in params if p.fragment_size is not None]
+        self.fragment_size = min(sizes) if sizes else None
+        self.compression = "cbor" if any(p.compression == "cbor" for p in params) else "none"
+        self._queue = deque(self._queue, maxlen=self.queue_length or None)
+        if self.throttle == 0:
+            self._flush()
+
+    def offer(self, out: Outgoing, now: float) -> None:
+        """Send ``out`` now, drop it, or queue it, as the throttle and queue say."""
+        if self.throttle == 0 or (now - self.last_sent >= self.throttle and not self._queue):
+            self._send(out, now)
+        elif self.queue_length:
+            self._queue.append(out)
+            self._arm(now)
+
+    def _send(self, out: Outgoing, now: float) -> None:
+        self.last_sent = now
+        self.peer.deliver(out.wire(self.compression, self.fragment_size))
+
+    def _arm(self, now: float) -> None:
+        if self._timer is None:
+            delay = max(0.0, self.last_sent + self.throttle - now)
+            self._timer = self.bus.scheduler(delay, self._release)
+
+    def _release(self) -> None:
+        self._timer = None
+        if self._queue:
+            self._send(self._queue.popleft(), self.bus.clock())
+        if self._queue:
+            self._arm(self.bus.clock())
+
+    def _flush(self) -> None:
+        now = self.bus.clock()
+        while self._queue:
+            self._send(self._queue.popleft(), now)
+
+    def close(self) -> None:
+        if self._timer is not None:
+            self._timer.cancel()
+            self._timer = None
+        self._queue.clear()
+
+
+class Topic:
+    """A topic: its type, who publishes it, who subscribes, and its latched message."""
+
+    __slots__ = ("last", "latched", "name", "publishers", "subscriptions", "type")
+
+    def __init__(self, name: str, type_name: str | None) -> None:
+        self.name = name
+        self.type = type_name
+        self.latched = False
+        self.last: Outgoing | None = None
+        self.publishers: dict[str, set[Json]] = {}
+        self.subscriptions: dict[str, Subscription] = {}
+
+    def check_type(self, type_name: str | None) -> None:
+        """Adopt ``type_name`` if the topic has none; raise TypeConflict if it differs."""
+        if not type_name:
+            return
+        if self.type is None:
+            self.type = type_name
+        elif canonical_type(self.type) != canonical_type(type_name):
+            raise TypeConflict(
+                f"{self.name} is of type {self.type}, not {type_name}", op=None, id=None
+            )
+
+    @property
+    def idle(self) -> bool:
+        return not self.publishers and not self.subscriptions
+
+
+class TopicBus:
+    """All topics of this process.
+
+    ``type_hint(name)`` gives the type of topics the server knows in advance (the fleet's),
+    ``latch_hint(name)`` says which topics are latched whatever their publisher asks.
+    """
+
+    def __init__(
+        self,
+        scheduler: Scheduler,
+        clock: Callable[[], float] = time.monotonic,
+        type_hint: Callable[[str], str | None] = lambda name: None,
+        latch_hint: Callable[[str], bool] = lambda name: False,
+    ) -> None:
+        self.scheduler = scheduler
+        self.clock = clock
+        self.type_hint = type_hint
+        self.latch_hint = latch_hint
+        self.listener: BusListener | None = None
+        self._topics: dict[str, Topic] = {}
+        self._peer_topics: dict[str, set[str]] = {}
+
+    def get(self, name: str) -> Topic | None:
+        return self._topics.get(name)
+
+    def _topic(self, name: str, type_name: str | None, need_type: bool) -> Topic:
+        topic = self._topics.get(name)
+        if topic is None:
+            known = type_name or self.type_hint(name)
+            if known is None and need_type:
+                raise UnknownTopic(f"{name} does not exist and no type was given")
+            topic = self._topics[name] = Topic(name, self.type_hint(name) or known)
+            topic.latched = self.latch_hint(name)
+        topic.check_type(type_name)
+        return topic
+
+    def _remember(self, peer: Peer, name: str) -> None:
+        self._peer_topics.setdefault(peer.key, set()).add(name)
+
+    def advertise(
+        self, peer: Peer, name: str, type_name: str, latch: bool = False, aid: Json = None
+    ) -> Topic:
+        """Register ``peer`` as a publisher of ``name``. Raises TypeConflict."""
+        topic = self._topic(name, type_name, need_type=True)
+        topic.publishers.setdefault(peer.key, set()).add(aid)
+        topic.latched = topic.latched or latch
+        self._remember(peer, name)
+        return topic
+
+    def unadvertise(self, peer: Peer, name: str, aid: Json = None) -> None:
+        """Withdraw one advertisement (all of the peer's when ``aid`` is None)."""
+        topic = self._topics.get(name)
+        if topic is None or peer.key not in topic.publishers:
+            return
+        ids = topic.publishers[peer.key]
+        if aid is None:
+            ids.clear()
+        else:
+            ids.discard(aid)
+        if not ids:
+            del topic.publishers[peer.key]
+            self._after_publisher_left(topic)
+
+    def publish(
+        self, peer: Peer | None, name: str, msg: dict[str, Json], latch: bool = False
+    ) -> Outgoing:
+        """Publish ``msg`` from ``peer`` (None: the server itself) and fan it out.
+
+        Registers the publisher if needed. Raises UnknownTopic if no one established the
+        topic's type and the server does not know it.
+        """
+        topic = self._topic(name, None, need_type=True)
+        if peer is not None and peer.key not in topic.publishers:
+            topic.publishers[peer.key] = {None}
+            self._remember(peer, name)
+        topic.latched = topic.latched or latch
+        out = Outgoing(PublishFrame(op="publish", topic=name, msg=msg))
+        self.fan_out(topic, out)
+        if self.listener is not None:
+            self.listener.published(topic, out)
+        return out
+
+    def fan_out(self, topic: Topic, out: Outgoing) -> None:
+        """Hand ``out`` to every subscriber of ``topic``; remember it if the topic is latched."""
+        if topic.latched:
+            topic.last = out
+        now = self.clock()
+        for subscription in list(topic.subscriptions.values()):
+            subscription.offer(out, now)
+
+    def receive_remote(
+        self, name: str, type_name: str | None, msg: dict[str, Json], latched: bool
+    ) -> None:
+        """Fan out a message published on another server process to local subscribers."""
+        topic = self._topics.get(name)
+        if topic is None or not topic.subscriptions:
+            return
+        topic.latched = topic.latched or latched
+        self.fan_out(topic, Outgoing(PublishFrame(op="publish", topic=name, msg=msg)))
+
+    def subscribe(
+        self,
+        peer: Peer,
+        name: str,
+        type_name: str | None,
+        params: SubscribeParams,
+        sid: Json = None,
+    ) -> bool:
+        """Add a subscription request; return True if a latched message was replayed to it.
+
+        Raises TypeConflict, or UnknownTopic when neither the topic nor its type is known.
+        """
+        topic = self._topic(name, type_name, need_type=True)
+        subscription = topic.subscriptions.get(peer.key)
+        first = subscription is None
+        if subscription is None:
+            subscription = topic.subscriptions[peer.key] = Subscription(self, peer)
+            self._remember(peer, name)
+        subscription.add(sid, params)
+        if first and len(topic.subscriptions) == 1 and self.listener is not None:
+            self.listener.interest(name, True)
+        if topic.last is not None and first:
+            subscription.offer(topic.last, self.clock())
+            return True
+        return False
+
+    def unsubscribe(self, peer: Peer, name: str, sid: Json = None) -> None:
+        topic = self._topics.get(name)
+        subscription = topic.subscriptions.get(peer.key) if topic else None
+        if topic is None or subscription is None:
+            return
+        if subscription.remove(sid):
+            del topic.subscriptions[peer.key]
+            self._after_subscriber_left(topic)
+
+    def drop(self, peer: Peer) -> None:
+        """Forget everything ``peer`` published or subscribed (it disconnected)."""
+        for name in self._peer_topics.pop(peer.key, ()):
+            topic = self._topics.get(name)
+            if topic is None:
+                continue
+            subscription = topic.subscriptions.pop(peer.key, None)
+            if subscription is not None:
+                subscription.close()
+                self._after_subscriber_left(topic)
+            if topic.publishers.pop(peer.key, None) is not None:
+                self._after_publisher_left(topic)
+
+    def _after_subscriber_left(self, topic: Topic) -> None:
+        if not topic.subscriptions and self.listener is not None:
+            self.listener.interest(topic.name, False)
+        self._forget_if_idle(topic)
+
+    def _after_publisher_left(self, topic: Topic) -> None:
+        if not topic.publishers:
+            topic.last = None
+        self._forget_if_idle(topic)
+
+    def _forget_if_idle(self, topic: Topic) -> None:
+        if topic.idle and self._topics.get(topic.name) is topic:
+            del self._topics[topic.name]
+
+    def published_topics(self) -> Iterator[tuple[str, str]]:
+        """Yield ``(name, type)`` of every topic someone advertised or published here."""
+        for topic in self._topics.values():
+            if topic.publishers and topic.type:
+                yield topic.name, topic.type
+
+    def subscribers(self, name: str) -> int:
+        topic = self._topics.get(name)
+        return len(topic.subscriptions) if topic else 0
+
+    def peers_publishing(self, name: str) -> list[str]:
+        topic = self._topics.get(name)
+        return list(topic.publishers) if topic else []
+
+    def stats(self) -> dict[str, Any]:
+        return {
+            "topics": len(self._topics),
+            "subscriptions": sum(len(t.subscriptions) for t in self._topics.values()),
+        }

@@ -1,0 +1,106 @@
+"""Outgoing frames encoded once per variant, however many connections receive them.
+
+A variant is a ``(compression, fragment_size)`` pair: ``none`` gives JSON text frames (cut
+into ``fragment`` frames past ``fragment_size``), ``cbor`` one binary CBOR frame. ``Wire``
+keeps the payloads and, on demand, the same bytes framed as RFC 6455 server frames; server
+frames are unmasked, so those bytes are identical for every connection and can be written
+to each socket as they are.
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+import math
+import struct
+from typing import Any
+
+import cbor2
+
+from .fragments import split
+from .protocol import OutFrame
+
+_fragment_ids = itertools.count(1)
+_dumps = json.JSONEncoder(separators=(",", ":"), allow_nan=False, ensure_ascii=False).encode
+
+
+def to_json(value: Any) -> str:
+    """Return compact JSON; NaN and infinities become ``null`` as in rosbridge's JSON."""
+    try:
+        return _dumps(value)
+    except ValueError:
+        return _dumps(_without_nan(value))
+
+
+def _without_nan(value: Any) -> Any:
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {k: _without_nan(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_without_nan(v) for v in value]
+    return value
+
+
+def ws_frame(payload: bytes, binary: bool) -> bytes:
+    """Return ``payload`` as one final, unmasked WebSocket data frame (RFC 6455 section 5.2)."""
+    first = 0x82 if binary else 0x81
+    size = len(payload)
+    if size < 126:
+        header = bytes((first, size))
+    elif size < 65536:
+        header = struct.pack("!BBH", first, 126, size)
+    else:
+        header = struct.pack("!BBQ", first, 127, size)
+    return header + payload
+
+
+class Wire:
+    """One message encoded for one variant: its frame payloads, in order."""
+
+    __slots__ = ("_framed", "binary", "nbytes", "payloads")
+
+    def __init__(self, payloads: tuple[bytes, ...], binary: bool) -> None:
+        self.payloads = payloads
+        self.binary = binary
+        self.nbytes = sum(len(p) for p in payloads)
+        self._framed: bytes | None = None
+
+    def framed(self) -> bytes:
+        """Return every payload as a WebSocket frame, concatenated; computed once."""
+        if self._framed is None:
+            self._framed = b"".join(ws_frame(p, self.binary) for p in self.payloads)
+        return self._framed
+
+    def texts(self) -> list[str]:
+        """Return the payloads of a text message as strings (for the generic ASGI path)."""
+        return [p.decode("utf-8") for p in self.payloads]
+
+
+def encode(frame: OutFrame | dict[str, Any], compression: str, fragment_size: int | None) -> Wire:
+    """Encode ``frame`` for one variant; unknown compressions fall back to JSON."""
+    if compression == "cbor":
+        return Wire((cbor2.dumps(frame),), binary=True)
+    text = to_json(frame)
+    if fragment_size is None or len(text) <= fragment_size:
+        return Wire((text.encode("utf-8"),), binary=False)
+    pieces = split(text, fragment_size, f"fragment:{next(_fragment_ids)}")
+    return Wire(tuple(to_json(p).encode("utf-8") for p in pieces), binary=False)
+
+
+class Outgoing:
+    """A frame about to go to many connections, with its encodings cached by variant."""
+
+    __slots__ = ("_variants", "frame")
+
+    def __init__(self, frame: OutFrame | dict[str, Any]) -> None:
+        self.frame = frame
+        self._variants: dict[tuple[str, int | None], Wire] = {}
+
+    def wire(self, compression: str = "none", fragment_size: int | None = None) -> Wire:
+        """Return the encoding for one variant, encoding it on first use only."""
+        key = (compression, fragment_size)
+        wire = self._variants.get(key)
+        if wire is None:
+            wire = self._variants[key] = encode(self.frame, compression, fragment_size)
+        return wire

@@ -1,0 +1,114 @@
+"""ROS names, the fleet's topic names and the channel-layer group names, built here only.
+
+A name is normalised to its absolute form (``rosapi/topics`` is ``/rosapi/topics``); a robot
+connection's relative names resolve into its namespace ``/{robot}/...``, except the global
+service namespaces (``rosapi``, ``cloudnav``), which every client calls by relative name.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import re
+
+from telemetry.exceptions import InvalidName
+
+# One token of a ROS 2 name: a letter or underscore, then letters, digits, underscores.
+_NAME = re.compile(r"^/?[A-Za-z_][A-Za-z0-9_]*(/[A-Za-z_][A-Za-z0-9_]*)*/?$")
+MAX_NAME_LENGTH = 256
+
+ROSAPI = "/rosapi"
+CLOUDNAV = "/cloudnav"
+GLOBAL_NAMESPACES = frozenset({ROSAPI.strip("/"), CLOUDNAV.strip("/")})
+RESERVED_NAMESPACES = GLOBAL_NAMESPACES
+
+# Topics of each robot, relative to its namespace, with their message types (DESIGN.md).
+ROBOT_TOPIC_TYPES = {
+    "pose": "geometry_msgs/PoseStamped",
+    "odom": "nav_msgs/Odometry",
+    "scan": "sensor_msgs/LaserScan",
+    "plan": "nav_msgs/Path",
+    "nav_status": "actionlib_msgs/GoalStatusArray",
+    "map_id": "std_msgs/String",
+    "camera/image/compressed": "sensor_msgs/CompressedImage",
+    "cmd_vel": "geometry_msgs/Twist",
+    "goal": "geometry_msgs/PoseStamped",
+    "initialpose": "geometry_msgs/PoseWithCovarianceStamped",
+}
+# What operators may publish to a robot they may drive.
+COMMAND_TOPICS = frozenset({"cmd_vel", "goal", "initialpose"})
+# Topics whose last message every new subscriber receives, whatever the publisher asked.
+LATCHED_TOPICS = frozenset({"map_id"})
+CMD_VEL = "cmd_vel"
+POSE = "pose"
+MAP_ID = "map_id"
+
+
+def absolute(name: str, namespace: str = "") -> str:
+    """Return ``name`` as an absolute ROS name, resolving a relative one into ``namespace``.
+
+    Raises InvalidName for anything that is not a ROS name (including ``~`` private names).
+    """
+    if not isinstance(name, str) or len(name) > MAX_NAME_LENGTH or not _NAME.match(name):
+        raise InvalidName(f"'{name}' is not a valid ROS name")
+    name = name.rstrip("/")
+    if name.startswith("/"):
+        return name
+    if namespace and name.split("/", 1)[0] not in GLOBAL_NAMESPACES:
+        return f"{namespace}/{name}"
+    return "/" + name
+
+
+def robot_namespace(robot: str) -> str:
+    return "/" + robot
+
+
+def robot_topic(robot: str, suffix: str) -> str:
+    """Return the absolute name of one of ``robot``'s topics, e.g. ``/r1/cmd_vel``."""
+    return f"/{robot}/{suffix}"
+
+
+def first_segment(name: str) -> str:
+    """Return the first segment of an absolute name: ``/r1/pose`` -> ``r1``."""
+    return name[1:].split("/", 1)[0]
+
+
+def suffix_in(name: str, namespace_segment: str) -> str | None:
+    """Return what follows ``/{namespace_segment}/`` in ``name``, or None outside it."""
+    prefix = f"/{namespace_segment}/"
+    return name[len(prefix) :] if name.startswith(prefix) else None
+
+
+def is_reserved(name: str) -> bool:
+    """True for names in the server's own service namespaces, which no client may advertise."""
+    return first_segment(name) in RESERVED_NAMESPACES
+
+
+def canonical_type(type_name: str) -> str:
+    """Return a message type in the ROS 1 spelling so ``pkg/msg/T`` and ``pkg/T`` compare equal."""
+    parts = type_name.strip().split("/")
+    if len(parts) == 3 and parts[1] in {"msg", "srv", "action"}:
+        return f"{parts[0]}/{parts[2]}"
+    return type_name.strip()
+
+
+def _group(kind: str, name: str) -> str:
+    # Channel-layer group names allow [A-Za-z0-9._-] below 100 characters; ROS tokens have
+    # no dots, so turning slashes into dots keeps names unique and readable.
+    readable = f"rb.{kind}{name.replace('/', '.')}"
+    if len(readable) < 100:
+        return readable
+    return f"rb.{kind}.h" + hashlib.sha256(name.encode()).hexdigest()[:40]
+
+
+def topic_group(topic: str) -> str:
+    """Return the group of the server processes with subscribers to ``topic``."""
+    return _group("t", topic)
+
+
+PROCESS_CHANNEL_PREFIX = "rb.process"
+REDIS_KEY_PREFIX = "cloudnav:rb:"
+
+
+def redis_key(*parts: str) -> str:
+    """Return the key of one piece of shared rosbridge state in Redis (scaled mode)."""
+    return REDIS_KEY_PREFIX + ":".join(parts)

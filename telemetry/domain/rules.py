@@ -1,0 +1,97 @@
+"""Fleet rules: who may subscribe, publish, call and advertise which names.
+
+A name whose first segment is a registered robot belongs to that robot (``/r1/pose``);
+other names are shared. The rules:
+
+- a robot may publish, advertise and serve only inside its own namespace, and may
+  subscribe to its own names, to robots sharing one of its buildings, and to shared names;
+- people see the robots of the buildings they are members of (viewer and up); operators
+  and admins may publish a robot's command topics and call its services and actions;
+  viewers publish nothing;
+- only admins publish or advertise shared names; nobody advertises in ``/rosapi`` or
+  ``/cloudnav``, the server's own.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from .names import COMMAND_TOPICS, first_segment, is_reserved, suffix_in
+
+
+@dataclass(frozen=True, slots=True)
+class Principal:
+    """Who is on a connection, taken once when it opens."""
+
+    label: str
+    robot: str | None
+    buildings: frozenset[int]
+    drive_buildings: frozenset[int] = frozenset()
+    admin: bool = False
+
+    @property
+    def namespace(self) -> str:
+        return f"/{self.robot}" if self.robot else ""
+
+
+@dataclass(frozen=True, slots=True)
+class Owner:
+    """The robot a name belongs to, and that robot's buildings."""
+
+    robot: str
+    buildings: frozenset[int]
+
+
+def owner_segment(name: str) -> str:
+    """Return the segment of ``name`` that may name its robot."""
+    return first_segment(name)
+
+
+def may_see(principal: Principal, owner: Owner | None) -> bool:
+    if owner is None or owner.robot == principal.robot:
+        return True
+    return bool(owner.buildings & principal.buildings)
+
+
+def may_drive(principal: Principal, owner: Owner | None) -> bool:
+    """True if ``principal`` is a person who may command the robot ``owner``."""
+    if owner is None or principal.robot is not None:
+        return False
+    return bool(owner.buildings & principal.drive_buildings)
+
+
+def may_subscribe(principal: Principal, owner: Owner | None) -> bool:
+    return may_see(principal, owner)
+
+
+def may_publish(principal: Principal, name: str, owner: Owner | None) -> bool:
+    if principal.robot is not None:
+        return owner is not None and owner.robot == principal.robot
+    if owner is None:
+        return principal.admin and not is_reserved(name)
+    return suffix_in(name, owner.robot) in COMMAND_TOPICS and may_drive(principal, owner)
+
+
+def may_advertise(principal: Principal, name: str, owner: Owner | None) -> bool:
+    """Rule for advertising a topic, a service or an action under ``name``."""
+    if is_reserved(name):
+        return False
+    if principal.robot is not None:
+        return owner is not None and owner.robot == principal.robot
+    if owner is None:
+        return principal.admin
+    return False
+
+
+def may_advertise_topic(principal: Principal, name: str, owner: Owner | None) -> bool:
+    """Advertising a topic is announcing a publication: operators may announce commands."""
+    return may_advertise(principal, name, owner) or may_publish(principal, name, owner)
+
+
+def may_call(principal: Principal, owner: Owner | None) -> bool:
+    """Rule for calling a client's service or sending a goal to a client's action."""
+    if owner is None:
+        return True
+    if principal.robot is not None:
+        return owner.robot == principal.robot
+    return may_drive(principal, owner)

@@ -1,0 +1,49 @@
+"""ROS times in both spellings: ROS 2's ``sec/nanosec`` and ROS 1's ``secs/nsecs``.
+
+Clients of either generation talk to one server, so every time the server reads accepts
+both, and every time it writes carries both (roslibpy reads ``secs``, roslib reads ``sec``).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Mapping
+from typing import Any
+
+NANOS = 1_000_000_000
+
+
+def parse_stamp(value: Mapping[str, Any]) -> tuple[int, int]:
+    """Return ``(sec, nanosec)`` from a time in either spelling.
+
+    Raises ValueError when neither spelling is present or the numbers are not integers.
+    """
+    for sec_key, nsec_key in (("sec", "nanosec"), ("secs", "nsecs")):
+        if sec_key in value:
+            sec, nsec = value[sec_key], value.get(nsec_key, 0)
+            if not _is_int(sec) or not _is_int(nsec):
+                raise ValueError(f"time fields must be integers, got {sec!r}, {nsec!r}")
+            return normalise(int(sec), int(nsec))
+    raise ValueError("a time needs sec/nanosec or secs/nsecs")
+
+
+def _is_int(value: Any) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool)
+
+
+def normalise(sec: int, nanosec: int) -> tuple[int, int]:
+    """Carry whole seconds out of ``nanosec`` so that 0 <= nanosec < 1e9."""
+    extra, nanosec = divmod(nanosec, NANOS)
+    return sec + extra, nanosec
+
+
+def stamp(sec: int, nanosec: int) -> dict[str, int]:
+    """Return a time that readers of either spelling understand."""
+    return {"sec": sec, "nanosec": nanosec, "secs": sec, "nsecs": nanosec}
+
+
+def now_stamp(clock: Any = time.time) -> dict[str, int]:
+    """Return the current wall-clock time in both spellings."""
+    fraction, whole = math.modf(clock())
+    return stamp(int(whole), round(fraction * NANOS) % NANOS)

@@ -1,0 +1,158 @@
+"""The rosapi services a dashboard calls, answering as rosapi does.
+
+Listings show only what the caller may see: a robot's topics, services and parameters are
+visible to those who may see that robot. ``get_time`` answers in both time spellings.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterable
+
+from telemetry.domain import names
+from telemetry.domain.names import canonical_type
+from telemetry.domain.protocol import Json
+from telemetry.domain.times import now_stamp
+from telemetry.exceptions import NotAllowed, ServiceFailed
+from telemetry.server_services import ServerService, ServiceCall
+from telemetry.services import Access
+
+SERVER_NODE = "/cloudnav"
+
+
+async def _visible(access: Access, items: Iterable[tuple[str, str]]) -> list[tuple[str, str]]:
+    shown = []
+    for name, type_name in sorted(set(items)):
+        try:
+            await access.require("see", name)
+        except NotAllowed:
+            continue
+        shown.append((name, type_name))
+    return shown
+
+
+async def _topics(call: ServiceCall) -> list[tuple[str, str]]:
+    return await _visible(call.access, call.hub.bus.published_topics())
+
+
+async def topics(call: ServiceCall) -> Json:
+    listed = await _topics(call)
+    return {"topics": [n for n, _ in listed], "types": [t for _, t in listed]}
+
+
+async def topic_type(call: ServiceCall) -> Json:
+    wanted = _name(call, "topic")
+    return {"type": next((t for n, t in await _topics(call) if n == wanted), "")}
+
+
+async def topics_for_type(call: ServiceCall) -> Json:
+    wanted = canonical_type(str(call.arg("type", "")))
+    return {"topics": [n for n, t in await _topics(call) if canonical_type(t) == wanted]}
+
+
+async def _services(call: ServiceCall) -> list[tuple[str, str]]:
+    own = [(name, service.type) for name, service in call.hub.server_services.items()]
+    return await _visible(call.access, own + call.hub.services.names())
+
+
+async def list_services(call: ServiceCall) -> Json:
+    return {"services": [n for n, _ in await _services(call)]}
+
+
+async def service_type(call: ServiceCall) -> Json:
+    wanted = _name(call, "service")
+    return {"type": next((t for n, t in await _services(call) if n == wanted), "")}
+
+
+async def action_servers(call: ServiceCall) -> Json:
+    listed = await _visible(call.access, call.hub.actions.names())
+    return {"action_servers": [n for n, _ in listed]}
+
+
+async def nodes(call: ServiceCall) -> Json:
+    robots = {
+        (names.robot_namespace(c.conn.principal.robot), "")
+        for c in call.hub.clients.values()
+        if c.conn.principal.robot is not None
+    }
+    return {"nodes": [SERVER_NODE] + [n for n, _ in await _visible(call.access, robots)]}
+
+
+def _name(call: ServiceCall, key: str) -> str:
+    value = call.arg(key, "")
+    if not isinstance(value, str) or not value:
+        raise ServiceFailed(f"'{key}' must be a name")
+    return call.access.resolve(value)
+
+
+async def _param(call: ServiceCall, need: str) -> str:
+    name = _name(call, "name")
+    await call.access.require(need, name)
+    return name
+
+
+async def get_param(call: ServiceCall) -> Json:
+    """Answer ``value`` as a JSON string, with ROS 2's ``successful`` and ``reason``."""
+    name = await _param(call, "see")
+    value = call.hub.params.get(name)
+    if value is not None:
+        return {"value": value, "successful": True, "reason": ""}
+    default = call.arg("default_value", call.arg("default", ""))
+    found = isinstance(default, str) and default != ""
+    reason = "" if found else f"Parameter {name} is not set"
+    return {"value": default if found else "null", "successful": found, "reason": reason}
+
+
+async def set_param(call: ServiceCall) -> Json:
+    name = await _param(call, "set_param")
+    value = call.arg("value", "null")
+    if not isinstance(value, str):
+        raise ServiceFailed("'value' must be a JSON string")
+    try:
+        json.loads(value)
+    except ValueError:
+        raise ServiceFailed(f"'value' is not JSON: {value!r}") from None
+    call.hub.params[name] = value
+    return {"successful": True, "reason": ""}
+
+
+async def delete_param(call: ServiceCall) -> Json:
+    name = await _param(call, "set_param")
+    found = call.hub.params.pop(name, None) is not None
+    return {"successful": found, "reason": "" if found else f"Parameter {name} is not set"}
+
+
+async def has_param(call: ServiceCall) -> Json:
+    name = await _param(call, "see")
+    return {"exists": name in call.hub.params}
+
+
+async def get_param_names(call: ServiceCall) -> Json:
+    listed = await _visible(call.access, ((n, "") for n in call.hub.params))
+    return {"names": [n for n, _ in listed]}
+
+
+async def get_time(call: ServiceCall) -> Json:
+    return {"time": now_stamp()}
+
+
+def services() -> dict[str, ServerService]:
+    handlers = {
+        "topics": (topics, "rosapi/Topics"),
+        "topic_type": (topic_type, "rosapi/TopicType"),
+        "topics_for_type": (topics_for_type, "rosapi/TopicsForType"),
+        "services": (list_services, "rosapi/Services"),
+        "service_type": (service_type, "rosapi/ServiceType"),
+        "action_servers": (action_servers, "rosapi/GetActionServers"),
+        "nodes": (nodes, "rosapi/Nodes"),
+        "get_param": (get_param, "rosapi/GetParam"),
+        "set_param": (set_param, "rosapi/SetParam"),
+        "delete_param": (delete_param, "rosapi/DeleteParam"),
+        "has_param": (has_param, "rosapi/HasParam"),
+        "get_param_names": (get_param_names, "rosapi/GetParamNames"),
+        "get_time": (get_time, "rosapi/GetTime"),
+    }
+    return {
+        f"{names.ROSAPI}/{name}": ServerService(type_name, handler)
+        for name, (handler, type_name) in handlers.items()
+    }
