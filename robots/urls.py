@@ -4,10 +4,11 @@ from __future__ import annotations
 
 from django.urls import path
 
-from . import views
+from . import fleet_views, views
 
 urlpatterns = [
     path("robots/", views.RobotList.as_view(), name="robot-list"),
     path("robots/<slug:name>/", views.RobotDetail.as_view(), name="robot-detail"),
     path("robots/<slug:name>/rotate_token", views.RotateToken.as_view(), name="robot-rotate"),
+    path("fleet/", fleet_views.FleetList.as_view(), name="fleet"),
 ]

@@ -73,6 +73,19 @@ class RosClient:
             lambda f: f.get("op") == "service_response" and f.get("id") == id
         )
 
+    async def quiet(self) -> bool:
+        """True if nothing was sent to this client before a round trip started now.
+
+        Frames to one client are delivered in order, so once the sender of a frame has
+        ``sync``-ed, this tells without waiting whether that frame reached this client.
+        """
+        await self.send(op="call_service", id="quiet", service="/rosapi/get_time")
+        frame = await self.receive()
+        if frame.get("op") == "service_response" and frame.get("id") == "quiet":
+            return True
+        await self.receive_until(lambda f: f.get("id") == "quiet")
+        return False
+
     async def sync(self) -> None:
         """Return once the server has handled every frame sent so far on this connection."""
         await self.call("/rosapi/get_time", id="sync")
@@ -123,7 +136,7 @@ async def rosbridge() -> AsyncIterator[Connect]:
         communicator = WebsocketCommunicator(application, path, headers=headers)
         connected, _ = await communicator.connect(timeout=TIMEOUT)
         if not connected:
-            await communicator.wait()
+            await communicator.disconnect(timeout=TIMEOUT)
             raise Refused(path)
         client = RosClient(communicator)
         opened.append(client)

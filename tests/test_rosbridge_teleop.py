@@ -1,0 +1,125 @@
+"""Teleop: one lock holder drives a robot; silence or leaving stops the robot."""
+
+from __future__ import annotations
+
+import time
+
+import pytest
+
+from tests.conftest import make_robot, make_user
+
+pytestmark = pytest.mark.django_db(transaction=True)
+
+GO = {"linear": {"x": 0.3, "y": 0.0, "z": 0.0}, "angular": {"x": 0.0, "y": 0.0, "z": 0.1}}
+ZERO = {"linear": {"x": 0.0, "y": 0.0, "z": 0.0}, "angular": {"x": 0.0, "y": 0.0, "z": 0.0}}
+
+
+@pytest.fixture
+def robot_token(building):
+    return make_robot(name="r1", buildings=[building])[1]
+
+
+@pytest.fixture
+def second_operator(building):
+    user = make_user("operator2", "operator")
+    building.members.add(user)
+    return user
+
+
+async def robot_listening(rosbridge, token):
+    robot = await rosbridge(token=token)
+    await robot.send(op="subscribe", topic="cmd_vel")
+    await robot.sync()
+    return robot
+
+
+async def acquire(client, action="acquire"):
+    response = await client.call("/cloudnav/teleop_lock", {"robot": "r1", "action": action})
+    return response["values"]
+
+
+async def test_cmd_vel_without_the_lock_is_dropped(rosbridge, robot_token, operator):
+    robot = await robot_listening(rosbridge, robot_token)
+    driver = await rosbridge(user=operator)
+    await driver.send(op="publish", topic="/r1/cmd_vel", msg=GO)
+    await driver.sync()
+    assert await robot.quiet()
+
+
+async def test_the_lock_holder_drives(rosbridge, robot_token, operator):
+    robot = await robot_listening(rosbridge, robot_token)
+    driver = await rosbridge(user=operator)
+    assert (await acquire(driver))["success"] is True
+    await driver.send(op="publish", topic="/r1/cmd_vel", msg=GO)
+    assert (await robot.receive())["msg"] == GO
+
+
+async def test_one_holder_at_a_time(rosbridge, robot_token, operator, second_operator):
+    robot = await robot_listening(rosbridge, robot_token)
+    first, second = await rosbridge(user=operator), await rosbridge(user=second_operator)
+    assert (await acquire(first))["success"] is True
+    refused = await acquire(second)
+    assert refused["success"] is False
+    assert refused["holder"] == "user:operator"
+    await second.send(op="publish", topic="/r1/cmd_vel", msg=GO)
+    await second.sync()
+    assert await robot.quiet()
+
+
+async def test_releasing_stops_the_robot_and_frees_the_lock(
+    rosbridge, robot_token, operator, second_operator
+):
+    robot = await robot_listening(rosbridge, robot_token)
+    first, second = await rosbridge(user=operator), await rosbridge(user=second_operator)
+    await acquire(first)
+    assert (await acquire(first, "release"))["success"] is True
+    assert (await robot.receive())["msg"] == ZERO
+    assert (await acquire(second))["success"] is True
+
+
+async def test_silence_stops_the_robot_after_half_a_second(rosbridge, robot_token, operator):
+    robot = await robot_listening(rosbridge, robot_token)
+    driver = await rosbridge(user=operator)
+    await acquire(driver)
+    await driver.send(op="publish", topic="/r1/cmd_vel", msg=GO)
+    assert (await robot.receive())["msg"] == GO
+    started = time.monotonic()
+    assert (await robot.receive(wait=2.0))["msg"] == ZERO
+    assert 0.4 <= time.monotonic() - started < 1.5
+
+
+async def test_commands_keep_the_robot_going(rosbridge, robot_token, operator):
+    robot = await robot_listening(rosbridge, robot_token)
+    driver = await rosbridge(user=operator)
+    await acquire(driver)
+    deadline = time.monotonic() + 1.0
+    while time.monotonic() < deadline:
+        await driver.send(op="publish", topic="/r1/cmd_vel", msg=GO)
+        assert (await robot.receive())["msg"] == GO  # never a zero Twist in between
+
+
+async def test_disconnecting_stops_the_robot_and_frees_the_lock(
+    rosbridge, robot_token, operator, second_operator
+):
+    robot = await robot_listening(rosbridge, robot_token)
+    first = await rosbridge(user=operator)
+    await acquire(first)
+    await first.close()
+    assert (await robot.receive())["msg"] == ZERO
+    second = await rosbridge(user=second_operator)
+    assert (await acquire(second))["success"] is True
+
+
+async def test_an_idle_lock_lapses(rosbridge, robot_token, operator, second_operator, settings):
+    settings.CLOUDNAV_TELEOP_LOCK_TTL = 0.2
+    first, second = await rosbridge(user=operator), await rosbridge(user=second_operator)
+    await acquire(first)
+    deadline = time.monotonic() + 3
+    while not (await acquire(second))["success"]:
+        assert time.monotonic() < deadline, "the lock never lapsed"
+
+
+async def test_a_robot_drives_itself_without_a_lock(rosbridge, robot_token):
+    robot = await robot_listening(rosbridge, robot_token)
+    await robot.send(op="publish", topic="cmd_vel", msg=GO)
+    assert (await robot.receive())["msg"] == GO
