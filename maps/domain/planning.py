@@ -144,11 +144,13 @@ def inflate(
     ``origin`` (x, y[, yaw ignored]) places cell (0, 0)'s corner in the map frame.
     Raises ValueError on a grid that is not 2-D or a non-positive resolution.
     """
-    clearance = _clearance(grid, resolution, unknown_is_obstacle, occupied_threshold)
-    blocked = clearance <= radius_m
+    cells = _clearance_in_cells(grid, resolution, unknown_is_obstacle, occupied_threshold)
+    # Compared in cells, with a hair of slack, so that a radius of exactly k cells blocks
+    # the cells k away at every resolution (float32 metres would round either way).
+    blocked = cells <= radius_m / resolution + 1e-4
     penalty = None
     if gradient_m > 0:
-        ramp = 1.0 - (clearance - radius_m) / gradient_m
+        ramp = 1.0 - (cells * resolution - radius_m) / gradient_m
         penalty = (gradient_weight * np.clip(ramp, 0.0, 1.0)).astype(np.float32)
         penalty[blocked] = 0.0
         penalty.flags.writeable = False
@@ -156,13 +158,13 @@ def inflate(
     return Costmap(blocked, penalty, resolution, (origin[0], origin[1]), radius_m)
 
 
-def _clearance(
+def _clearance_in_cells(
     grid: npt.NDArray[np.int8],
     resolution: float,
     unknown_is_obstacle: bool,
     occupied_threshold: int,
 ) -> npt.NDArray[np.float32]:
-    """Return each cell's distance in metres to the nearest obstacle cell (0 on one)."""
+    """Return each cell's distance in cells to the nearest obstacle cell (0 on one)."""
     if grid.ndim != 2:
         raise ValueError(f"an occupancy grid is 2-D, not {grid.ndim}-D")
     if not resolution > 0:
@@ -172,8 +174,7 @@ def _clearance(
         obstacle |= grid < 0
     # The exact Euclidean transform (Felzenszwalb's, in OpenCV) costs ~5 ms a megacell.
     cells = cv2.distanceTransform((~obstacle).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
-    clearance: npt.NDArray[np.float32] = cells * np.float32(resolution)
-    return clearance
+    return np.asarray(cells, dtype=np.float32)
 
 
 # ---------------------------------------------------------------------------------------
@@ -289,18 +290,35 @@ _jit = numba.njit(cache=True, nogil=True)
 def _heap_push(heap, size, f, g, cell):
     """Insert (f, g, cell) at ``size``; return the heap (reallocated when full)."""
     if size == heap.shape[0]:
-        bigger = np.empty((2 * size, 3), dtype=np.float64)
-        bigger[:size] = heap
-        heap = bigger
+        heap = _doubled(heap)
     i = size
     while i > 0:
         parent = (i - 1) >> 1
         if heap[parent, 0] < f or (heap[parent, 0] == f and heap[parent, 1] >= g):
             break
-        heap[i] = heap[parent]
+        _heap_move(heap, parent, i)
         i = parent
     heap[i, 0], heap[i, 1], heap[i, 2] = f, g, cell
     return heap
+
+
+@_jit
+def _doubled(heap):
+    """A heap twice as long holding the same rows."""
+    bigger = np.empty((2 * heap.shape[0], 3), dtype=np.float64)
+    # A plain loop: a slice assignment costs numba seconds of compiling.
+    for row in range(heap.shape[0]):
+        for column in range(3):
+            bigger[row, column] = heap[row, column]
+    return bigger
+
+
+@_jit
+def _heap_move(heap, source, target):
+    # Element by element: a row assignment makes numba build slices, three times slower.
+    heap[target, 0] = heap[source, 0]
+    heap[target, 1] = heap[source, 1]
+    heap[target, 2] = heap[source, 2]
 
 
 @_jit
@@ -321,7 +339,7 @@ def _heap_pop(heap, size):
         ):
             child = right
         if heap[child, 0] < f or (heap[child, 0] == f and heap[child, 1] > g):
-            heap[i] = heap[child]
+            _heap_move(heap, child, i)
             i = child
         else:
             break
@@ -515,6 +533,7 @@ def _astar(free, cost, stride, start, goal):
     state = np.zeros(free.size, dtype=np.uint8)
     parent = np.empty(free.size, dtype=np.int64)
     heap = np.empty((1024, 3), dtype=np.float64)
+    moves, lengths = _moves(stride)
     g[start], parent[start], state[start] = 0.0, -1, _OPEN
     heap = _heap_push(heap, 0, 0.0, 0.0, start)
     size = 1
@@ -526,29 +545,44 @@ def _astar(free, cost, stride, start, goal):
         state[cell] = _CLOSED
         if cell == goal:
             return _chain(parent, goal)
-        for dr in (-1, 0, 1):
-            for dc in (-1, 0, 1):
-                nxt = cell + dr * stride + dc
-                if not _can_step(free, cell, dr, dc, stride) or state[nxt] == _CLOSED:
-                    continue
-                length = _SQRT2 if dr != 0 and dc != 0 else 1.0
-                new_g = g[cell] + length * (1.0 + 0.5 * (cost[cell] + cost[nxt]))
-                if state[nxt] == _OPEN and new_g >= g[nxt]:
-                    continue
-                g[nxt], parent[nxt], state[nxt] = new_g, cell, _OPEN
-                heap = _heap_push(heap, size, new_g + _octile(nxt, goal, stride), new_g, nxt)
-                size += 1
+        for k in range(8):
+            nxt = cell + moves[k, 0]
+            # A straight move's "sides" are the move itself, so one test serves both kinds.
+            if state[nxt] == _CLOSED or not (
+                free[nxt] and free[cell + moves[k, 1]] and free[cell + moves[k, 2]]
+            ):
+                continue
+            new_g = g[cell] + lengths[k] * (1.0 + 0.5 * (cost[cell] + cost[nxt]))
+            if state[nxt] == _OPEN and new_g >= g[nxt]:
+                continue
+            g[nxt], parent[nxt], state[nxt] = new_g, cell, _OPEN
+            heap = _heap_push(heap, size, new_g + _octile(nxt, goal, stride), new_g, nxt)
+            size += 1
     return np.empty(0, dtype=np.int64)
 
 
 @_jit
-def _can_step(free, cell, dr, dc, stride):
-    """Whether the step (dr, dc) from ``cell`` is a move onto a free cell cutting no corner."""
-    if dr == 0 and dc == 0:
-        return False
-    if not free[cell + dr * stride + dc]:
-        return False
-    return dr == 0 or dc == 0 or (free[cell + dr * stride] and free[cell + dc])
+def _moves(stride):
+    """The eight moves as rows (step, side, side) with their lengths.
+
+    A diagonal's sides are its row and column components, which must both be free (no
+    corner cutting); a straight move's are the move itself.
+    """
+    moves = np.empty((8, 3), dtype=np.int64)
+    lengths = np.empty(8, dtype=np.float64)
+    k = 0
+    for dr in (-1, 0, 1):
+        for dc in (-1, 0, 1):
+            if dr == 0 and dc == 0:
+                continue
+            step = dr * stride + dc
+            diagonal = dr != 0 and dc != 0
+            moves[k, 0] = step
+            moves[k, 1] = dr * stride if diagonal else step
+            moves[k, 2] = dc if diagonal else step
+            lengths[k] = _SQRT2 if diagonal else 1.0
+            k += 1
+    return moves, lengths
 
 
 @_jit

@@ -1,0 +1,1 @@
+"""Benchmarks: each module offers add_arguments(parser) and run(options) to `manage.py bench`."""
