@@ -11,6 +11,7 @@ import pytest
 from skimage.graph import route_through_array
 
 from benchmarks.planner import obstacle_course, submap_grid
+from benchmarks.planner import run as run_benchmark
 from maps.domain import planning
 from maps.domain.demo_building import demo_building
 from maps.domain.grid import Point, cell_of, centre_of
@@ -128,7 +129,11 @@ def test_an_endpoint_in_an_obstacle_beyond_tolerance_raises(which: str) -> None:
 
 @pytest.mark.parametrize(
     ("start", "goal", "which"),
-    [((-0.01, 1.0), (1.0, 1.0), "start"), ((1.0, 1.0), (1.0, 3.0), "goal")],
+    [
+        ((-0.01, 1.0), (1.0, 1.0), "start"),
+        ((1.0, 1.0), (1.0, 3.0), "goal"),
+        ((1.0, 1.0), (math.nan, 1.0), "goal"),
+    ],
 )
 def test_an_endpoint_outside_the_map_raises(start: Point, goal: Point, which: str) -> None:
     with pytest.raises(OutOfMapError) as caught:
@@ -201,3 +206,25 @@ def test_a_demo_sub_map_is_crossed_from_its_entry_to_the_tag_leading_on() -> Non
     assert_clear(costmap, path)
     assert math.dist(path[0], building.start_pose[:2]) < corridor.resolution
     assert math.dist(path[-1], goal) < corridor.resolution
+
+
+@pytest.mark.parametrize("resolution", [1.0, 0.1, 0.05, 0.03])
+def test_inflation_blocks_the_cells_exactly_a_radius_away_at_any_resolution(
+    resolution: float,
+) -> None:
+    grid = empty(11, 11)
+    grid[5, 5] = 100
+    blocked = inflate(grid, 3 * resolution, resolution).blocked
+    assert blocked[5, 8]
+    assert blocked[5, 2]
+    assert blocked[8, 5]
+    assert not blocked[5, 9]  # 4 cells away
+    assert not blocked[7, 8]  # sqrt(13) cells away
+
+
+def test_the_planner_benchmark_runs_on_a_small_grid(capsys: pytest.CaptureFixture[str]) -> None:
+    options = {"size": 300, "seed": 3, "repeat": 1, "resolution": RES, "radius": 0.2}
+    run_benchmark({**options, "skip_networkx": False})
+    printed = capsys.readouterr().out
+    assert "networkx astar_path" in printed
+    assert "plan, JPS" in printed

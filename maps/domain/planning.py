@@ -57,7 +57,7 @@ class PlanningError(Exception):
 
 
 class OutOfMapError(PlanningError):
-    """The start or goal (``which``) lies outside the grid."""
+    """The start or goal (``which``) lies outside the grid, or is not a finite point."""
 
     def __init__(self, which: Endpoint, point: Point) -> None:
         super().__init__(f"The {which} ({point[0]:.3f}, {point[1]:.3f}) is outside the map.")
@@ -233,6 +233,8 @@ def warm_up() -> None:
 
 def _endpoint(costmap: Costmap, point: Point, which: Endpoint, tolerance: float) -> Cell:
     """Return the free cell to plan from or to for ``point``; raises as ``plan_on`` says."""
+    if not (math.isfinite(point[0]) and math.isfinite(point[1])):
+        raise OutOfMapError(which, point)
     cell = cell_of(point, costmap.origin, costmap.resolution)
     if not contains(costmap.blocked.shape, cell):
         raise OutOfMapError(which, point)
