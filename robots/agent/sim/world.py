@@ -217,23 +217,33 @@ def _cast(world: World, x: float, y: float, angles: Floats, max_range: float) ->
     gy = (y - world.origin[1]) / world.resolution + 1
     dx, dy = np.cos(angles), np.sin(angles)
     reach = max_range / world.resolution
-    if _lookup(padded, np.array([math.floor(gy)]), np.array([math.floor(gx)]))[0]:
-        return _hits(world, padded, (gx, gy, dx, dy), np.zeros(angles.shape), dx == 0, reach)
+    start_cell = (math.floor(gy), math.floor(gx))
     best = np.full(angles.shape, np.inf)
+    cell = np.zeros((angles.size, 2), np.intp)
     x_face = np.zeros(angles.shape, bool)
+    if padded[start_cell] != FREE:
+        best[:], cell[:] = 0.0, start_cell
+        return _hits(world, padded, best, cell, x_face, reach)
     pending = np.arange(angles.size)
     for start in range(1, math.ceil(reach) + 2, _CROSSING_CHUNK):
         ks = np.arange(start, start + _CROSSING_CHUNK, dtype=np.float64)
-        tx, x_end = _first_crossing(padded, gx, gy, dx[pending], dy[pending], ks, across_x=True)
-        ty, y_end = _first_crossing(padded, gy, gx, dy[pending], dx[pending], ks, across_x=False)
+        tx, x_cell, x_end = _first_crossing(
+            padded, gx, gy, dx[pending], dy[pending], ks, across_x=True
+        )
+        ty, y_cell, y_end = _first_crossing(
+            padded, gy, gx, dy[pending], dx[pending], ks, across_x=False
+        )
+        through_x = tx <= ty
         found = np.minimum(tx, ty) < best[pending]
-        x_face[pending[found]] = (tx <= ty)[found]
-        best[pending] = np.minimum(best[pending], np.minimum(tx, ty))
+        best[pending[found]] = np.minimum(tx, ty)[found]
+        cell[pending[found]] = np.where(through_x[:, None], x_cell, y_cell)[found]
+        x_face[pending[found]] = through_x[found]
         # A hit counts once no untested boundary on either axis can come before it.
         pending = pending[best[pending] > np.minimum(x_end, y_end)]
         if pending.size == 0:
             break
-    return _hits(world, padded, (gx, gy, dx, dy), best, x_face, reach)
+    x_face = _exposed_face(padded, cell, dx, dy, x_face)
+    return _hits(world, padded, best, cell, x_face, reach)
 
 
 def _first_crossing(
@@ -245,10 +255,11 @@ def _first_crossing(
     ks: Floats,
     *,
     across_x: bool,
-) -> tuple[Floats, Floats]:
-    """Ray parameters (cells travelled) of the first solid cell entered across the
-    ``ks``-th boundaries perpendicular to one axis (x when ``across_x``), ``inf`` when none
-    is solid, and of the last of those boundaries (how far this chunk has looked).
+) -> tuple[Floats, NDArray[np.intp], Floats]:
+    """For the ``ks``-th cell boundaries perpendicular to one axis (x when ``across_x``):
+    the ray parameter (cells travelled) of the first solid cell entered across one of
+    them (``inf`` if none), that cell's ``(row, col)``, and the parameter of the last
+    boundary (how far this chunk has looked).
 
     From cell ``floor(g)`` a ray moving up that axis crosses boundaries ``floor(g) + k``
     into the cell of that index; moving down, ``floor(g) - k + 1`` into the cell below.
@@ -263,7 +274,18 @@ def _first_crossing(
     across = np.floor(g_other + np.where(np.isfinite(t), t, 0.0) * d_other[:, None])
     rows, cols = (across, entered) if across_x else (entered, across)
     solid = _lookup(padded, rows, cols) & np.isfinite(t)
-    return np.where(solid, t, np.inf).min(axis=1), t[:, -1]
+    first = np.argmax(solid, axis=1)
+    picked = np.arange(t.shape[0])
+    hit = np.where(solid[picked, first], t[picked, first], np.inf)
+    cell = np.stack([rows[picked, first], cols[picked, first]], axis=1)
+    return hit, _clipped(padded, cell), t[:, -1]
+
+
+def _clipped(padded: Cells, cell: Floats) -> NDArray[np.intp]:
+    """Cell indices clipped into the padded grid (non-finite ones to 0)."""
+    safe = np.nan_to_num(cell, nan=0, posinf=0, neginf=0)
+    limit = np.array(padded.shape) - 1
+    return np.clip(safe, 0, limit).astype(np.intp)
 
 
 def _lookup(padded: Cells, rows: Floats, cols: Floats) -> NDArray[np.bool_]:
@@ -274,21 +296,30 @@ def _lookup(padded: Cells, rows: Floats, cols: Floats) -> NDArray[np.bool_]:
     return padded[safe_rows, safe_cols] != FREE
 
 
+def _exposed_face(
+    padded: Cells, cell: NDArray[np.intp], dx: Floats, dy: Floats, x_face: NDArray[np.bool_]
+) -> NDArray[np.bool_]:
+    """Which face of the hit cell the ray met. A ray through a cell corner crosses both
+    boundaries at once, and rounding picks either; the face it sees is the one whose
+    neighbour (on the ray's side) is free, so a flat wall shades evenly."""
+    rows, cols = cell[:, 0], cell[:, 1]
+    side_x = np.clip(cols - np.sign(dx).astype(np.intp), 0, padded.shape[1] - 1)
+    side_y = np.clip(rows - np.sign(dy).astype(np.intp), 0, padded.shape[0] - 1)
+    x_open = (padded[rows, side_x] == FREE) & (dx != 0)
+    y_open = (padded[side_y, cols] == FREE) & (dy != 0)
+    return np.where(x_open != y_open, x_open, x_face)
+
+
 def _hits(
     world: World,
     padded: Cells,
-    ray: tuple[float, float, Floats, Floats],
     t: Floats,
+    cell: NDArray[np.intp],
     x_face: NDArray[np.bool_],
     reach: float,
 ) -> RayHits:
-    """Turn ray parameters (cells) into distances and the materials hit."""
-    gx, gy, dx, dy = ray
+    """Distances in metres and the materials of the cells hit, for hits within reach."""
     t = np.where(t <= reach, t, np.inf)
     finite = np.isfinite(t)
-    # Step a hair past the boundary to read the cell that was entered.
-    probe = np.where(finite, t + 1e-6, 0.0)
-    rows = np.floor(gy + probe * dy)
-    cols = np.floor(gx + probe * dx)
-    material = np.where(finite, padded[rows.astype(np.intp), cols.astype(np.intp)], FREE)
+    material = np.where(finite, padded[cell[:, 0], cell[:, 1]], FREE)
     return RayHits(t * world.resolution, material.astype(np.uint8), x_face & finite)
