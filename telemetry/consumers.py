@@ -105,10 +105,10 @@ class RosbridgeConsumer(AsyncWebsocketConsumer):
             self._conn.report("warning", f"compression {compression} is not offered; using none")
             compression = "none"
         params = SubscribeParams(op.throttle_rate, op.queue_length, op.fragment_size, compression)
-        self.hub.subscribe(self._conn, name, op.type, params, op.id)
+        self.hub.subscribe(self._conn, name, op, params)
 
     async def on_unsubscribe(self, op: protocol.Unsubscribe) -> None:
-        self.hub.unsubscribe(self._conn, self.access.resolve(op.topic), op.id)
+        self.hub.unsubscribe(self._conn, self.access.resolve(op.topic), op)
 
     async def on_advertise(self, op: protocol.Advertise) -> None:
         name = self.access.resolve(op.topic)
@@ -131,7 +131,7 @@ class RosbridgeConsumer(AsyncWebsocketConsumer):
     async def on_advertise_service(self, op: protocol.AdvertiseService) -> None:
         name = self.access.resolve(op.service)
         await self.access.require("advertise_service", name)
-        self.hub.advertise_service(self._conn, name, op.type)
+        self.hub.advertise_service(self._conn, name, op)
 
     async def on_unadvertise_service(self, op: protocol.UnadvertiseService) -> None:
         self.hub.unadvertise_service(self._conn, self.access.resolve(op.service))
@@ -141,7 +141,7 @@ class RosbridgeConsumer(AsyncWebsocketConsumer):
     async def on_advertise_action(self, op: protocol.AdvertiseAction) -> None:
         name = self.access.resolve(op.action)
         await self.access.require("advertise_service", name)
-        self.hub.advertise_action(self._conn, name, op.type)
+        self.hub.advertise_action(self._conn, name, op)
 
     async def on_unadvertise_action(self, op: protocol.UnadvertiseAction) -> None:
         self.hub.unadvertise_action(self._conn, self.access.resolve(op.action))

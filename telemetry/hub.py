@@ -129,12 +129,12 @@ class Hub:
             self.fleet.map_id(robot_pk, map_id)
 
     def subscribe(
-        self, conn: Connection, name: str, type_name: str | None, params: SubscribeParams, sid: Json
+        self, conn: Connection, name: str, op: protocol.Subscribe, params: SubscribeParams
     ) -> None:
-        self.bus.subscribe(conn, name, type_name, params, sid)
+        self.bus.subscribe(conn, name, op.type, params, op.id, spelling=op.topic)
 
-    def unsubscribe(self, conn: Connection, name: str, sid: Json) -> None:
-        self.bus.unsubscribe(conn, name, sid)
+    def unsubscribe(self, conn: Connection, name: str, op: protocol.Unsubscribe) -> None:
+        self.bus.unsubscribe(conn, name, op.id, spelling=op.topic)
 
     # ------------------------------------------------------------ teleop
 
@@ -162,29 +162,32 @@ class Hub:
         server = self.server_services.get(call.name)
         if server is not None:
             values = await server.handler(call)
-            reply = protocol.service_response(call.name, op.id, values, True)
+            reply = protocol.service_response(op.service, op.id, values, True)
             call.conn.deliver(Outgoing(reply).wire("none", op.fragment_size))
             return
         provider = self.services.provider(call.name)
         if provider is None:
             raise ServiceFailed(f"Service {call.name} does not exist")
         await call.access.require("call", call.name)
-        pending = self.services.start(provider, call.conn, op.id, op.fragment_size, op.compression)
-        provider.peer.deliver(
-            Outgoing(protocol.call_service(call.name, pending.request_id, op.args)).wire()
+        pending = self.services.start(
+            provider, call.conn, op.id, op.service, op.fragment_size, op.compression
         )
+        request = protocol.call_service(provider.spelling, pending.request_id, op.args)
+        provider.peer.deliver(Outgoing(request).wire())
 
     def service_response(self, conn: Connection, name: str, op: protocol.ServiceResponse) -> None:
         call = self.services.finish(name, conn, op.id)
         if call is None:
             raise RosbridgeError(f"no request {op.id!r} of {name} is waiting for an answer")
-        reply = protocol.service_response(name, call.caller_id, op.values, op.result)
+        reply = protocol.service_response(
+            call.caller_spelling, call.caller_id, op.values, op.result
+        )
         call.caller.deliver(Outgoing(reply).wire("none", call.fragment_size))
 
-    def advertise_service(self, conn: Connection, name: str, type_name: str) -> None:
+    def advertise_service(self, conn: Connection, name: str, op: protocol.AdvertiseService) -> None:
         if name in self.server_services:
             raise NotAllowed(f"{name} is a service of the server")
-        for call in self.services.advertise(name, type_name, conn):
+        for call in self.services.advertise(name, op.type, conn, op.service):
             self._fail_call(call, f"Service {name} was advertised again")
 
     def unadvertise_service(self, conn: Connection, name: str) -> None:
@@ -195,14 +198,13 @@ class Hub:
             self._fail_call(call, f"Service {name} was unadvertised")
 
     def _fail_call(self, call: PendingCall, reason: str) -> None:
-        call.caller.deliver(
-            Outgoing(protocol.service_response(call.name, call.caller_id, reason, False)).wire()
-        )
+        reply = protocol.service_response(call.caller_spelling, call.caller_id, reason, False)
+        call.caller.deliver(Outgoing(reply).wire())
 
     # ------------------------------------------------------------ actions
 
-    def advertise_action(self, conn: Connection, name: str, type_name: str) -> None:
-        for call in self.actions.advertise(name, type_name, conn):
+    def advertise_action(self, conn: Connection, name: str, op: protocol.AdvertiseAction) -> None:
+        for call in self.actions.advertise(name, op.type, conn, op.action):
             self._fail_goal(call, f"Action {name} was advertised again")
 
     def unadvertise_action(self, conn: Connection, name: str) -> None:
@@ -220,9 +222,11 @@ class Hub:
             raise ActionFailed(f"Action {name} does not exist")
         await access.require("call", name)
         pending = self.actions.start(
-            provider, conn, op.id, op.fragment_size, op.compression, feedback=op.feedback
+            provider, conn, op.id, op.action, op.fragment_size, op.compression, op.feedback
         )
-        goal = protocol.send_action_goal(name, pending.request_id, op.action_type, op.args)
+        goal = protocol.send_action_goal(
+            provider.spelling, pending.request_id, op.action_type, op.args
+        )
         provider.peer.deliver(Outgoing(goal).wire())
 
     def cancel_action_goal(
@@ -232,7 +236,7 @@ class Hub:
         if found is None or found[0].name != name:
             raise RosbridgeError(f"no goal {op.id!r} of {name} is in progress")
         provider, pending = found
-        cancel = protocol.cancel_action_goal(name, pending.request_id)
+        cancel = protocol.cancel_action_goal(provider.spelling, pending.request_id)
         provider.peer.deliver(Outgoing(cancel).wire())
 
     def action_feedback(self, conn: Connection, name: str, op: protocol.ActionFeedback) -> None:
@@ -240,19 +244,21 @@ class Hub:
         if call is None:
             raise RosbridgeError(f"no goal {op.id!r} of {name} is in progress")
         if call.feedback:
-            feedback = protocol.action_feedback(name, call.caller_id, op.values)
+            feedback = protocol.action_feedback(call.caller_spelling, call.caller_id, op.values)
             call.caller.deliver(Outgoing(feedback).wire("none", call.fragment_size))
 
     def action_result(self, conn: Connection, name: str, op: protocol.ActionResult) -> None:
         call = self.actions.finish(name, conn, op.id)
         if call is None:
             raise RosbridgeError(f"no goal {op.id!r} of {name} is in progress")
-        result = protocol.action_result(name, call.caller_id, op.values, op.status, op.result)
+        result = protocol.action_result(
+            call.caller_spelling, call.caller_id, op.values, op.status, op.result
+        )
         call.caller.deliver(Outgoing(result).wire("none", call.fragment_size))
 
     def _fail_goal(self, call: PendingCall, reason: str) -> None:
         result = protocol.action_result(
-            call.name, call.caller_id, reason, protocol.STATUS_UNKNOWN, False
+            call.caller_spelling, call.caller_id, reason, protocol.STATUS_UNKNOWN, False
         )
         call.caller.deliver(Outgoing(result).wire())
 

@@ -5,14 +5,24 @@ opens a ``channels.testing.WebsocketCommunicator`` on the real application and r
 ``RosClient`` speaking rosbridge JSON. Tests using it need ``transactional_db``: the consumer
 reads the database from other threads.
 
-Live servers: see the second half of this module.
+Live servers (``daphne_server``, ``daphne_servers``): real daphne processes on loopback
+ports, for network behaviour and unmodified clients; see the second half of this module.
 """
 
 from __future__ import annotations
 
 import asyncio
 import json
-from collections.abc import AsyncIterator, Awaitable, Callable
+import os
+import socket
+import subprocess
+import sys
+import time
+import urllib.error
+import urllib.request
+from collections.abc import AsyncIterator, Awaitable, Callable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import cbor2
@@ -145,3 +155,166 @@ async def rosbridge() -> AsyncIterator[Connect]:
     yield connect
     for client in opened:
         await client.close()
+
+
+# ---------------------------------------------------------------- live servers
+#
+# ``daphne_servers`` starts real daphne processes on free loopback ports; ``daphne_server``
+# is one such server for the common case. Each server serves ``cloudnav_web.asgi`` with the
+# test settings against the test database (or ``database_url``), so data a transactional
+# test writes is what the server sees. Extra environment (``env=``) overrides settings the
+# server reads from the environment, e.g. ``REDIS_URL`` or ``CLOUDNAV_ROSBRIDGE_...``.
+
+STARTUP_DEADLINE = 30.0
+BASE_DIR = Path(__file__).resolve().parent.parent
+
+
+@dataclass
+class LiveServer:
+    """A daphne process serving the project on ``host:port``."""
+
+    host: str
+    port: int
+    process: subprocess.Popen[bytes]
+    log_path: Path
+
+    @property
+    def url(self) -> str:
+        return f"http://{self.host}:{self.port}"
+
+    @property
+    def ws_url(self) -> str:
+        return f"ws://{self.host}:{self.port}"
+
+    def rosbridge_url(self, token: str | None = None, path: str = "/rosbridge") -> str:
+        return f"{self.ws_url}{path}" + (f"?token={token}" if token else "")
+
+    def log(self) -> str:
+        return self.log_path.read_text(errors="replace")
+
+    def stop(self) -> None:
+        if self.process.poll() is None:
+            self.process.terminate()
+            try:
+                self.process.wait(10)
+            except subprocess.TimeoutExpired:
+                self.process.kill()
+                self.process.wait(10)
+
+
+def free_port(host: str = "127.0.0.1") -> int:
+    with socket.socket() as probe:
+        probe.bind((host, 0))
+        return int(probe.getsockname()[1])
+
+
+def tests_database_url() -> str:
+    """Return a URL of the database the tests use, for a server process to open."""
+    from django.db import connection
+
+    settings_dict = connection.settings_dict
+    if settings_dict["ENGINE"] == "django.db.backends.sqlite3":
+        return f"sqlite:///{settings_dict['NAME']}"
+    user, password = settings_dict.get("USER", ""), settings_dict.get("PASSWORD", "")
+    credentials = f"{user}:{password}@" if password else (f"{user}@" if user else "")
+    port = f":{settings_dict['PORT']}" if settings_dict.get("PORT") else ""
+    return f"postgres://{credentials}{settings_dict['HOST']}{port}/{settings_dict['NAME']}"
+
+
+def start_daphne(
+    log_dir: Path,
+    database_url: str,
+    env: dict[str, str] | None = None,
+    host: str = "127.0.0.1",
+    attempts: int = 3,
+) -> LiveServer:
+    """Start daphne on a free port and return once it answers HTTP.
+
+    Retries on a new port if the chosen one was taken meanwhile. Raises RuntimeError with
+    the server's log if it does not come up within ``STARTUP_DEADLINE`` seconds.
+    """
+    environment = {
+        **os.environ,
+        "DJANGO_SETTINGS_MODULE": "cloudnav_web.settings_test",
+        "DATABASE_URL": database_url,
+        "REDIS_URL": "",
+        "PYTHONUNBUFFERED": "1",
+        **(env or {}),
+    }
+    for attempt in range(attempts):
+        port = free_port(host)
+        log_path = log_dir / f"daphne-{port}.log"
+        with log_path.open("wb") as log:
+            process = subprocess.Popen(
+                [
+                    sys.executable,
+                    "-m",
+                    "daphne",
+                    "-b",
+                    host,
+                    "-p",
+                    str(port),
+                    "--websocket_timeout",
+                    "-1",
+                    "cloudnav_web.asgi:application",
+                ],
+                cwd=BASE_DIR,
+                env=environment,
+                stdout=log,
+                stderr=subprocess.STDOUT,
+            )
+        server = LiveServer(host, port, process, log_path)
+        if wait_until_serving(server):
+            return server
+        server.stop()
+        if attempt == attempts - 1 or "Address already in use" not in server.log():
+            raise RuntimeError(f"daphne did not start on port {port}:\n{server.log()}")
+    raise AssertionError("unreachable")
+
+
+def wait_until_serving(server: LiveServer, deadline: float = STARTUP_DEADLINE) -> bool:
+    """Poll the server with HTTP requests until it answers; False if it died or timed out."""
+    give_up = time.monotonic() + deadline
+    while time.monotonic() < give_up and server.process.poll() is None:
+        try:
+            with urllib.request.urlopen(f"{server.url}/api/", timeout=1):
+                return True
+        except urllib.error.HTTPError:
+            return True  # any HTTP answer means the application is up
+        except OSError:
+            time.sleep(0.05)
+    return False
+
+
+class LiveServers:
+    """Starts daphne processes on demand and stops them all at the end of a test."""
+
+    def __init__(self, log_dir: Path, database_url: str) -> None:
+        self.log_dir = log_dir
+        self.database_url = database_url
+        self.started: list[LiveServer] = []
+
+    def start(
+        self, env: dict[str, str] | None = None, database_url: str | None = None
+    ) -> LiveServer:
+        server = start_daphne(self.log_dir, database_url or self.database_url, env)
+        self.started.append(server)
+        return server
+
+    def stop_all(self) -> None:
+        for server in self.started:
+            server.stop()
+
+
+@pytest.fixture
+def daphne_servers(transactional_db: None, tmp_path: Path) -> Iterator[LiveServers]:
+    """A factory of live daphne servers on the test database; ``.start(env=...)``."""
+    servers = LiveServers(tmp_path, tests_database_url())
+    yield servers
+    servers.stop_all()
+
+
+@pytest.fixture
+def daphne_server(daphne_servers: LiveServers) -> LiveServer:
+    """One live daphne server (embedded mode) on the test database."""
+    return daphne_servers.start()

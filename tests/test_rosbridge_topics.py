@@ -33,7 +33,7 @@ async def test_a_publisher_gets_its_own_messages_back(rosbridge, token):
     robot = await rosbridge(token=token)
     await robot.send(op="subscribe", topic="pose")
     await robot.send(op="publish", topic="/r1/pose", msg=POSE)
-    assert (await robot.receive())["topic"] == "/r1/pose"
+    assert (await robot.receive())["topic"] == "pose"
 
 
 async def test_publish_advertises_a_known_topic_implicitly(rosbridge, token, admin):
@@ -168,7 +168,7 @@ async def test_fragment_size_splits_messages_with_integer_totals(rosbridge, toke
     assert [p["num"] for p in pieces] == list(range(first["total"]))
     assert all(len(p["data"]) <= 40 for p in pieces)
     whole = json.loads("".join(p["data"] for p in pieces))
-    assert whole == {"op": "publish", "topic": "/r1/pose", "msg": POSE}
+    assert whole == {"op": "publish", "topic": "pose", "msg": POSE}
 
 
 async def test_cbor_compression_sends_binary_frames(rosbridge, token):
@@ -180,7 +180,7 @@ async def test_cbor_compression_sends_binary_frames(rosbridge, token):
     assert raw.get("text") is None
     import cbor2
 
-    assert cbor2.loads(raw["bytes"]) == {"op": "publish", "topic": "/r1/pose", "msg": POSE}
+    assert cbor2.loads(raw["bytes"]) == {"op": "publish", "topic": "pose", "msg": POSE}
 
 
 async def test_incoming_fragments_are_reassembled(rosbridge, token):
@@ -191,3 +191,14 @@ async def test_incoming_fragments_are_reassembled(rosbridge, token):
     for num, piece in enumerate(pieces):
         await robot.send(op="fragment", id="f1", data=piece, num=num, total=len(pieces))
     assert (await robot.receive())["msg"] == POSE
+
+
+async def test_messages_carry_the_topic_as_the_subscriber_spelled_it(rosbridge, token, operator):
+    robot, watcher = await rosbridge(token=token), await rosbridge(user=operator)
+    await robot.send(op="subscribe", topic="cmd_vel")
+    await robot.send(op="subscribe", topic="pose")
+    await watcher.send(op="subscribe", topic="/r1/pose")
+    await watcher.sync()
+    await robot.send(op="publish", topic="pose", msg=POSE)
+    assert (await robot.receive())["topic"] == "pose"
+    assert (await watcher.receive())["topic"] == "/r1/pose"

@@ -77,12 +77,14 @@ class Subscription:
         "peer",
         "queue_length",
         "requests",
+        "spelling",
         "throttle",
     )
 
-    def __init__(self, bus: TopicBus, peer: Peer) -> None:
+    def __init__(self, bus: TopicBus, peer: Peer, spelling: str) -> None:
         self.bus = bus
         self.peer = peer
+        self.spelling = spelling
         self.requests: dict[Json, SubscribeParams] = {}
         self.throttle = 0.0
         self.queue_length = 0
@@ -129,7 +131,7 @@ class Subscription:
 
     def _send(self, out: Outgoing, now: float) -> None:
         self.last_sent = now
-        self.peer.deliver(out.wire(self.compression, self.fragment_size))
+        self.peer.deliver(out.wire(self.compression, self.fragment_size, self.spelling))
 
     def _arm(self, now: float) -> None:
         if self._timer is None:
@@ -155,6 +157,9 @@ class Subscription:
         self._queue.clear()
 
 
+SubscriptionKey = tuple[str, str]  # (peer key, the topic as that peer spelled it)
+
+
 class Topic:
     """A topic: its type, who publishes it, who subscribes, and its latched message."""
 
@@ -166,7 +171,7 @@ class Topic:
         self.latched = False
         self.last: Outgoing | None = None
         self.publishers: dict[str, set[Json]] = {}
-        self.subscriptions: dict[str, Subscription] = {}
+        self.subscriptions: dict[SubscriptionKey, Subscription] = {}
 
     def check_type(self, type_name: str | None) -> None:
         """Adopt ``type_name`` if the topic has none; raise TypeConflict if it differs."""
@@ -291,16 +296,21 @@ class TopicBus:
         type_name: str | None,
         params: SubscribeParams,
         sid: Json = None,
+        spelling: str | None = None,
     ) -> bool:
         """Add a subscription request; return True if a latched message was replayed to it.
 
-        Raises TypeConflict, or UnknownTopic when neither the topic nor its type is known.
+        ``spelling`` is the topic as the peer wrote it (default: ``name``); messages go to
+        it under that name, and requests under different spellings are separate, as in
+        rosbridge. Raises TypeConflict, or UnknownTopic when neither the topic nor its type
+        is known.
         """
         topic = self._topic(name, type_name, need_type=True)
-        subscription = topic.subscriptions.get(peer.key)
+        key = (peer.key, spelling or name)
+        subscription = topic.subscriptions.get(key)
         first = subscription is None
         if subscription is None:
-            subscription = topic.subscriptions[peer.key] = Subscription(self, peer)
+            subscription = topic.subscriptions[key] = Subscription(self, peer, key[1])
             self._remember(peer, name)
         subscription.add(sid, params)
         if first and len(topic.subscriptions) == 1 and self.listener is not None:
@@ -310,13 +320,16 @@ class TopicBus:
             return True
         return False
 
-    def unsubscribe(self, peer: Peer, name: str, sid: Json = None) -> None:
+    def unsubscribe(
+        self, peer: Peer, name: str, sid: Json = None, spelling: str | None = None
+    ) -> None:
         topic = self._topics.get(name)
-        subscription = topic.subscriptions.get(peer.key) if topic else None
+        key = (peer.key, spelling or name)
+        subscription = topic.subscriptions.get(key) if topic else None
         if topic is None or subscription is None:
             return
         if subscription.remove(sid):
-            del topic.subscriptions[peer.key]
+            del topic.subscriptions[key]
             self._after_subscriber_left(topic)
 
     def drop(self, peer: Peer) -> None:
@@ -325,9 +338,10 @@ class TopicBus:
             topic = self._topics.get(name)
             if topic is None:
                 continue
-            subscription = topic.subscriptions.pop(peer.key, None)
-            if subscription is not None:
-                subscription.close()
+            mine = [key for key in topic.subscriptions if key[0] == peer.key]
+            for key in mine:
+                topic.subscriptions.pop(key).close()
+            if mine:
                 self._after_subscriber_left(topic)
             if topic.publishers.pop(peer.key, None) is not None:
                 self._after_publisher_left(topic)

@@ -24,6 +24,7 @@ class PendingCall:
     caller: Peer
     caller_id: Json
     request_id: str
+    caller_spelling: str = ""
     fragment_size: int | None = None
     compression: str = "none"
     feedback: bool = False
@@ -36,6 +37,7 @@ class Provider:
     name: str
     type: str
     peer: Peer
+    spelling: str = ""
     counter: int = 0
     pending: dict[str, PendingCall] = field(default_factory=dict)
 
@@ -59,10 +61,15 @@ class CallTable:
         """Return ``(name, type)`` of every advertised name."""
         return [(p.name, p.type) for p in self._providers.values()]
 
-    def advertise(self, name: str, type_name: str, peer: Peer) -> list[PendingCall]:
-        """Make ``peer`` the provider of ``name``; return the old provider's orphaned calls."""
+    def advertise(
+        self, name: str, type_name: str, peer: Peer, spelling: str | None = None
+    ) -> list[PendingCall]:
+        """Make ``peer`` the provider of ``name``; return the old provider's orphaned calls.
+
+        ``spelling`` is the name as the provider wrote it: its requests carry that name.
+        """
         orphans = self._retire(name)
-        self._providers[name] = Provider(name=name, type=type_name, peer=peer)
+        self._providers[name] = Provider(name, type_name, peer, spelling or name)
         return orphans
 
     def unadvertise(self, name: str, peer: Peer) -> list[PendingCall] | None:
@@ -85,15 +92,23 @@ class CallTable:
         provider: Provider,
         caller: Peer,
         caller_id: Json,
+        caller_spelling: str | None = None,
         fragment_size: int | None = None,
         compression: str = "none",
         feedback: bool = False,
     ) -> PendingCall:
         """Record a request to ``provider`` and return it with the id the provider will see."""
         provider.counter += 1
-        request_id = f"{self.id_prefix}:{provider.name}:{provider.counter}"
+        request_id = f"{self.id_prefix}:{provider.spelling}:{provider.counter}"
         call = PendingCall(
-            provider.name, caller, caller_id, request_id, fragment_size, compression, feedback
+            provider.name,
+            caller,
+            caller_id,
+            request_id,
+            caller_spelling or provider.name,
+            fragment_size,
+            compression,
+            feedback,
         )
         provider.pending[request_id] = call
         if caller_id is not None:

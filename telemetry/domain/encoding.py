@@ -89,18 +89,28 @@ def encode(frame: OutFrame | dict[str, Any], compression: str, fragment_size: in
 
 
 class Outgoing:
-    """A frame about to go to many connections, with its encodings cached by variant."""
+    """A frame about to go to many connections, with its encodings cached by variant.
+
+    A ``publish`` frame names its topic as each subscriber spelled it (``pose`` for a robot
+    that subscribed by relative name), as rosbridge does, because clients route incoming
+    messages by that name; the spelling is therefore part of the variant.
+    """
 
     __slots__ = ("_variants", "frame")
 
     def __init__(self, frame: OutFrame | dict[str, Any]) -> None:
         self.frame = frame
-        self._variants: dict[tuple[str, int | None], Wire] = {}
+        self._variants: dict[tuple[str, int | None, str | None], Wire] = {}
 
-    def wire(self, compression: str = "none", fragment_size: int | None = None) -> Wire:
+    def wire(
+        self, compression: str = "none", fragment_size: int | None = None, topic: str | None = None
+    ) -> Wire:
         """Return the encoding for one variant, encoding it on first use only."""
-        key = (compression, fragment_size)
+        key = (compression, fragment_size, topic)
         wire = self._variants.get(key)
         if wire is None:
-            wire = self._variants[key] = encode(self.frame, compression, fragment_size)
+            frame = self.frame
+            if topic is not None and frame.get("topic") != topic:
+                frame = {**frame, "topic": topic}
+            wire = self._variants[key] = encode(frame, compression, fragment_size)
         return wire
