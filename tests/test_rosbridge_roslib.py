@@ -1,0 +1,83 @@
+"""Unmodified roslib 2.x (npm, ESM) under Node 20 against the live server.
+
+The scenarios live in ``tests/js/roslib_scenarios.mjs``; each runs in its own ``node``
+process and prints what it found as JSON. They need ``npm ci`` (roslib, ws) and Node 20.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from tests.conftest import make_robot
+from tests.fixtures_live import session_cookie
+
+ROOT = Path(__file__).resolve().parent.parent
+SCRIPT = ROOT / "tests" / "js" / "roslib_scenarios.mjs"
+POSE = {"header": {"frame_id": "boccioni_1/Hall"}, "pose": {"position": {"x": 1, "y": 2}}}
+
+pytestmark = pytest.mark.skipif(
+    shutil.which("node") is None or not (ROOT / "node_modules" / "roslib").exists(),
+    reason="needs Node 20 and `npm ci`",
+)
+
+
+@pytest.fixture
+def run(daphne_server, building, operator):
+    args = {
+        "url": daphne_server.rosbridge_url(),
+        "token": make_robot(name="r1", buildings=[building])[1],
+        "cookie": session_cookie(operator).decode(),
+        "origin": daphne_server.url,
+    }
+
+    def run_scenario(name: str) -> dict[str, Any]:
+        done = subprocess.run(
+            ["node", str(SCRIPT), name, json.dumps(args)],
+            cwd=ROOT,
+            capture_output=True,
+            text=True,
+            timeout=60,
+        )
+        assert done.returncode == 0, done.stderr + "\n--- server log ---\n" + daphne_server.log()
+        return json.loads(done.stdout.strip().splitlines()[-1])  # type: ignore[no-any-return]
+
+    return run_scenario
+
+
+def test_roslib_subscribes_in_json_and_cbor_to_what_a_robot_publishes(run):
+    found = run("pubsub")
+    assert found["plain"] == POSE
+    assert found["cbor"] == POSE
+
+
+def test_roslib_rosapi_calls_work(run):
+    found = run("rosapi")
+    assert "/r1/map_id" in found["topics"]["topics"]
+    assert "std_msgs/String" in found["topics"]["types"]
+    assert "/cloudnav/teleop_lock" in found["services"]
+    assert "/r1" in found["nodes"]
+    assert found["param"] == 0.5
+    assert found["time"]["time"]["sec"] > 1_700_000_000
+
+
+def test_roslib_calls_a_cloud_service(run):
+    assert run("cloud_service")["response"]["success"] is True
+
+
+def test_roslib_advertises_and_answers_a_service(run):
+    found = run("advertised_service")
+    assert found["requests"] == [{"data": True}]
+    assert found["response"] == {"success": True, "message": "docked"}
+
+
+def test_roslib_sends_an_action_goal_and_gets_feedback(run):
+    found = run("action")
+    assert found["goals"] == [{"pose": POSE}]
+    assert found["feedback"] == [{"distance_remaining": 2.0}]
+    assert found["result"] == {"reached": True}
