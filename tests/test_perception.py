@@ -113,6 +113,6 @@ def test_it_uses_each_markers_own_size_for_its_distance() -> None:
 def test_it_takes_colour_images_too_and_finds_nothing_in_a_bare_corridor() -> None:
     world = demo_world()
     grey = Camera(world).render(facing(tag_of(world, ENTRANCE), 0.5))
-    colour = cv2.cvtColor(grey, cv2.COLOR_GRAY2BGR)
+    colour = np.asarray(cv2.cvtColor(grey, cv2.COLOR_GRAY2BGR), dtype=np.uint8)
     assert [d.marker_id for d in TagDetector().detect(colour)] == [ENTRANCE]
     assert TagDetector().detect(Camera(world).render((10.0, 23.2, math.pi))) == []
