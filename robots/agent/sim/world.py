@@ -205,45 +205,72 @@ def _nearest_solid(world: World, x: float, y: float, reach: float) -> float:
 # --- ray casting -----------------------------------------------------------------------
 
 
+Crossing = tuple[Floats, NDArray[np.intp]]
+"""Ray parameters of first solid cells across one axis's boundaries, and those cells."""
+
+
+@dataclass
+class _Rays:
+    """Rays from one point, in cell units of the padded grid, and the first solid cell
+    each has met so far: ray parameter ``best``, its ``cell`` and face."""
+
+    gx: float
+    gy: float
+    dx: Floats
+    dy: Floats
+    best: Floats
+    cell: NDArray[np.intp]
+    x_face: NDArray[np.bool_]
+
+    @classmethod
+    def start(cls, world: World, x: float, y: float, angles: Floats) -> _Rays:
+        gx = (x - world.origin[0]) / world.resolution + 1  # + 1: the padding ring
+        gy = (y - world.origin[1]) / world.resolution + 1
+        count = angles.size
+        return cls(
+            gx, gy, np.cos(angles), np.sin(angles), np.full(count, np.inf),
+            np.zeros((count, 2), np.intp), np.zeros(count, bool),
+        )  # fmt: skip
+
+    def record(self, rays: NDArray[np.intp], across_x: Crossing, across_y: Crossing) -> None:
+        """Keep, for ``rays``, the nearer of the two crossings where it beats ``best``."""
+        (tx, x_cell), (ty, y_cell) = across_x, across_y
+        through_x = tx <= ty
+        found = np.minimum(tx, ty) < self.best[rays]
+        self.best[rays[found]] = np.minimum(tx, ty)[found]
+        self.cell[rays[found]] = np.where(through_x[:, None], x_cell, y_cell)[found]
+        self.x_face[rays[found]] = through_x[found]
+
+
 def _cast(world: World, x: float, y: float, angles: Floats, max_range: float) -> RayHits:
     """Vectorised grid traversal: for each ray, the first solid cell entered through a
-    vertical and through a horizontal cell boundary, whichever comes first.
-
-    Boundaries are tested in chunks, and only rays still unresolved go on to the next
-    chunk, so the cost follows the distance to the nearest wall, not ``max_range``.
-    """
+    vertical and through a horizontal cell boundary, whichever comes first."""
     padded = np.pad(world.cells, 1)  # a free ring: clipped indices off the grid stay free
-    gx = (x - world.origin[0]) / world.resolution + 1
-    gy = (y - world.origin[1]) / world.resolution + 1
-    dx, dy = np.cos(angles), np.sin(angles)
+    rays = _Rays.start(world, x, y, angles)
     reach = max_range / world.resolution
-    start_cell = (math.floor(gy), math.floor(gx))
-    best = np.full(angles.shape, np.inf)
-    cell = np.zeros((angles.size, 2), np.intp)
-    x_face = np.zeros(angles.shape, bool)
+    start_cell = (math.floor(rays.gy), math.floor(rays.gx))
     if padded[start_cell] != FREE:
-        best[:], cell[:] = 0.0, start_cell
-        return _hits(world, padded, best, cell, x_face, reach)
-    pending = np.arange(angles.size)
+        rays.best[:], rays.cell[:] = 0.0, start_cell
+    else:
+        _march(padded, rays, reach)
+        rays.x_face = _exposed_face(padded, rays)
+    return _hits(world, padded, rays, reach)
+
+
+def _march(padded: Cells, rays: _Rays, reach: float) -> None:
+    """Test cell boundaries in chunks along every ray; only rays still unresolved go on
+    to the next chunk, so the cost follows the distance to the walls, not ``reach``."""
+    pending = np.arange(rays.dx.size)
     for start in range(1, math.ceil(reach) + 2, _CROSSING_CHUNK):
         ks = np.arange(start, start + _CROSSING_CHUNK, dtype=np.float64)
-        tx, x_cell, x_end = _first_crossing(
-            padded, gx, gy, dx[pending], dy[pending], ks, across_x=True
-        )
-        ty, y_cell, y_end = _first_crossing(
-            padded, gy, gx, dy[pending], dx[pending], ks, across_x=False
-        )
-        through_x = tx <= ty
-        found = np.minimum(tx, ty) < best[pending]
-        best[pending[found]] = np.minimum(tx, ty)[found]
-        cell[pending[found]] = np.where(through_x[:, None], x_cell, y_cell)[found]
-        x_face[pending[found]] = through_x[found]
+        dx, dy = rays.dx[pending], rays.dy[pending]
+        across_x, x_end = _first_crossing(padded, rays.gx, rays.gy, dx, dy, ks, across_x=True)
+        across_y, y_end = _first_crossing(padded, rays.gy, rays.gx, dy, dx, ks, across_x=False)
+        rays.record(pending, across_x, across_y)
         # A hit counts once no untested boundary on either axis can come before it.
-        pending = pending[best[pending] > np.minimum(x_end, y_end)]
+        pending = pending[rays.best[pending] > np.minimum(x_end, y_end)]
         if pending.size == 0:
-            break
-    x_face = _exposed_face(padded, cell, dx, dy, x_face)
-    return _hits(world, padded, best, cell, x_face, reach)
+            return
 
 
 def _first_crossing(
@@ -255,10 +282,10 @@ def _first_crossing(
     ks: Floats,
     *,
     across_x: bool,
-) -> tuple[Floats, NDArray[np.intp], Floats]:
+) -> tuple[Crossing, Floats]:
     """For the ``ks``-th cell boundaries perpendicular to one axis (x when ``across_x``):
     the ray parameter (cells travelled) of the first solid cell entered across one of
-    them (``inf`` if none), that cell's ``(row, col)``, and the parameter of the last
+    them (``inf`` if none) with that cell's ``(row, col)``, and the parameter of the last
     boundary (how far this chunk has looked).
 
     From cell ``floor(g)`` a ray moving up that axis crosses boundaries ``floor(g) + k``
@@ -278,7 +305,7 @@ def _first_crossing(
     picked = np.arange(t.shape[0])
     hit = np.where(solid[picked, first], t[picked, first], np.inf)
     cell = np.stack([rows[picked, first], cols[picked, first]], axis=1)
-    return hit, _clipped(padded, cell), t[:, -1]
+    return (hit, _clipped(padded, cell)), t[:, -1]
 
 
 def _clipped(padded: Cells, cell: Floats) -> NDArray[np.intp]:
@@ -296,30 +323,21 @@ def _lookup(padded: Cells, rows: Floats, cols: Floats) -> NDArray[np.bool_]:
     return padded[safe_rows, safe_cols] != FREE
 
 
-def _exposed_face(
-    padded: Cells, cell: NDArray[np.intp], dx: Floats, dy: Floats, x_face: NDArray[np.bool_]
-) -> NDArray[np.bool_]:
-    """Which face of the hit cell the ray met. A ray through a cell corner crosses both
+def _exposed_face(padded: Cells, rays: _Rays) -> NDArray[np.bool_]:
+    """Which face of the hit cell each ray met. A ray through a cell corner crosses both
     boundaries at once, and rounding picks either; the face it sees is the one whose
     neighbour (on the ray's side) is free, so a flat wall shades evenly."""
-    rows, cols = cell[:, 0], cell[:, 1]
-    side_x = np.clip(cols - np.sign(dx).astype(np.intp), 0, padded.shape[1] - 1)
-    side_y = np.clip(rows - np.sign(dy).astype(np.intp), 0, padded.shape[0] - 1)
-    x_open = (padded[rows, side_x] == FREE) & (dx != 0)
-    y_open = (padded[side_y, cols] == FREE) & (dy != 0)
-    return np.where(x_open != y_open, x_open, x_face)
+    rows, cols = rays.cell[:, 0], rays.cell[:, 1]
+    side_x = np.clip(cols - np.sign(rays.dx).astype(np.intp), 0, padded.shape[1] - 1)
+    side_y = np.clip(rows - np.sign(rays.dy).astype(np.intp), 0, padded.shape[0] - 1)
+    x_open = (padded[rows, side_x] == FREE) & (rays.dx != 0)
+    y_open = (padded[side_y, cols] == FREE) & (rays.dy != 0)
+    return np.where(x_open != y_open, x_open, rays.x_face)
 
 
-def _hits(
-    world: World,
-    padded: Cells,
-    t: Floats,
-    cell: NDArray[np.intp],
-    x_face: NDArray[np.bool_],
-    reach: float,
-) -> RayHits:
+def _hits(world: World, padded: Cells, rays: _Rays, reach: float) -> RayHits:
     """Distances in metres and the materials of the cells hit, for hits within reach."""
-    t = np.where(t <= reach, t, np.inf)
+    t = np.where(rays.best <= reach, rays.best, np.inf)
     finite = np.isfinite(t)
-    material = np.where(finite, padded[cell[:, 0], cell[:, 1]], FREE)
-    return RayHits(t * world.resolution, material.astype(np.uint8), x_face & finite)
+    material = np.where(finite, padded[rays.cell[:, 0], rays.cell[:, 1]], FREE)
+    return RayHits(t * world.resolution, material.astype(np.uint8), rays.x_face & finite)
