@@ -74,6 +74,15 @@ def test_it_stops_at_a_wall_instead_of_passing_through() -> None:
     assert body.limits.radius <= gap < body.limits.radius + 0.01
 
 
+def test_it_can_back_away_from_a_wall_it_touches() -> None:
+    body = DiffDriveBody(demo_world(), (5.0, 24.4 - 0.1, math.pi / 2), noise=EXACT_ODOMETRY)
+    drive(body, 0.3, 0.0, 1.0)
+    assert body.pose[1] == pytest.approx(24.3)  # pushing on: nowhere to go
+    drive(body, -0.3, 0.0, 1.0)
+    assert body.pose[1] < 24.1
+    assert not body.bumped
+
+
 def test_it_stops_by_itself_half_a_second_after_the_last_command() -> None:
     body = make_body()
     drive(body, 0.5, 0.0, 1.0)

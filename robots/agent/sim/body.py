@@ -120,20 +120,26 @@ class DiffDriveBody:
     def _move(self, linear: float, angular: float) -> tuple[float, float]:
         """Move the true pose by one step (exact arc); return ``(distance, turn)`` done.
 
-        A translation that would put the footprint into a solid cell is not made and the
-        linear velocity drops to zero: the robot stops at the wall and may still turn.
+        A translation that would take the footprint into a solid cell is not made and the
+        linear velocity drops to zero: the robot stops at the wall and may still turn, or
+        back away.
         """
         x, y, yaw = self.pose
         distance, turn = linear * self.dt, angular * self.dt
         new_x, new_y = _arc_end(x, y, yaw, distance, turn)
-        self.bumped = distance != 0 and not self.world.disc_is_free(
-            new_x, new_y, self.limits.radius
-        )
+        self.bumped = distance != 0 and self._blocked((x, y), (new_x, new_y))
         if self.bumped:
             new_x, new_y, distance = x, y, 0.0
             self.velocity = (0.0, angular)
         self.pose = (new_x, new_y, _wrap(yaw + turn))
         return distance, turn
+
+    def _blocked(self, start: tuple[float, float], end: tuple[float, float]) -> bool:
+        """Whether moving from ``start`` to ``end`` touches a wall, or moves nearer one
+        while already touching (a robot placed too close may still leave)."""
+        radius = self.limits.radius
+        after = self.world.clearance(*end, radius)
+        return after < radius and after <= self.world.clearance(*start, radius)
 
     def _integrate_odometry(self, distance: float, turn: float) -> None:
         """Add the step's motion, as the wheels misreport it, to ``odom_pose``."""

@@ -119,7 +119,11 @@ class World:
 
     def disc_is_free(self, x: float, y: float, radius: float) -> bool:
         """True unless a solid cell lies closer than ``radius`` to ``(x, y)``."""
-        return _nearest_solid(self, x, y, radius) >= radius
+        return self.clearance(x, y, radius) >= radius
+
+    def clearance(self, x: float, y: float, reach: float) -> float:
+        """Distance from ``(x, y)`` to the nearest solid cell, or ``inf`` beyond ``reach``."""
+        return _nearest_solid(self, x, y, reach)
 
     def cast(self, x: float, y: float, angles: Floats, max_range: float) -> RayHits:
         """Cast rays from ``(x, y)`` at ``angles`` (radians, map frame) up to ``max_range``.
