@@ -6,14 +6,19 @@ import pytest
 
 from robots.agent.experiments import __main__ as experiments
 from robots.agent.experiments import tag_range
-from robots.agent.experiments.tag_range import RangeCase, max_range, padded_payload
+from robots.agent.experiments.tag_range import RangeCase, RangeResult, max_range, padded_payload
 
 QR_BYTES = {3: (33, 53), 4: (54, 78), 8: (155, 192)}  # over version v - 1, within v (level L)
 
 
 @pytest.fixture(scope="module")
-def quick() -> dict[RangeCase, float | None]:
-    return {result.case: result.distance for result in tag_range.run(*tag_range.QUICK)}
+def quick_results() -> list[RangeResult]:
+    return tag_range.run(*tag_range.QUICK)
+
+
+@pytest.fixture
+def quick(quick_results: list[RangeResult]) -> dict[RangeCase, float | None]:
+    return {result.case: result.distance for result in quick_results}
 
 
 def test_the_marker_reads_farther_than_the_qr_code(quick: dict[RangeCase, float | None]) -> None:
@@ -46,9 +51,19 @@ def test_the_padded_payload_needs_exactly_its_qr_version(version: int) -> None:
 
 
 def test_the_command_prints_both_tables_beside_the_papers_figures(
+    quick_results: list[RangeResult],
     capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
 ) -> None:
+    asked = []
+
+    def run(*subset: object) -> list[RangeResult]:  # the quick run, already measured
+        asked.append(subset)
+        return quick_results
+
+    monkeypatch.setattr(tag_range, "run", run)
     assert experiments.main(["tag-range", "--quick"]) == 0
+    assert asked == [tag_range.QUICK]
     out = capsys.readouterr().out
     assert "Table 1" in out
     assert "Table 2" in out
