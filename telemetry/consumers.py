@@ -45,7 +45,7 @@ class RosbridgeConsumer(AsyncWebsocketConsumer):
         if identity is None:
             await self.close()
             return
-        self.hub = get_hub()
+        self.hub = await get_hub()
         config = self.hub.config
         self.access = Access(identity.principal)
         self.fragments = Reassembler(max_chars=config.max_frame_bytes)
@@ -105,7 +105,7 @@ class RosbridgeConsumer(AsyncWebsocketConsumer):
             self._conn.report("warning", f"compression {compression} is not offered; using none")
             compression = "none"
         params = SubscribeParams(op.throttle_rate, op.queue_length, op.fragment_size, compression)
-        self.hub.subscribe(self._conn, name, op, params)
+        await self.hub.subscribe(self._conn, name, op, params)
 
     async def on_unsubscribe(self, op: protocol.Unsubscribe) -> None:
         self.hub.unsubscribe(self._conn, self.access.resolve(op.topic), op)

@@ -11,9 +11,10 @@ import asyncio
 import logging
 import weakref
 from dataclasses import dataclass, field
+from typing import Any
 
 from robots.fleet import FleetTracker
-from robots.teleop import LockStore, MemoryLockStore, TeleopLocks
+from robots.teleop import MemoryLockStore, RedisLockStore, TeleopLocks
 from telemetry.config import RosbridgeConfig
 from telemetry.connection import Connection
 from telemetry.domain import names, protocol
@@ -23,6 +24,8 @@ from telemetry.domain.encoding import Outgoing
 from telemetry.domain.messages import pose_of, string_of, zero_twist
 from telemetry.domain.protocol import Json
 from telemetry.exceptions import ActionFailed, NotAllowed, RosbridgeError, ServiceFailed
+from telemetry.params import MemoryParams, ParamStore, RedisParams
+from telemetry.relay import Relay
 from telemetry.server_services import ServerService, ServiceCall, server_services
 from telemetry.services import Access
 
@@ -53,12 +56,7 @@ class Client:
 class Hub:
     """Topics, advertised services and actions, parameters, teleop locks and fleet state."""
 
-    def __init__(
-        self,
-        config: RosbridgeConfig,
-        services: dict[str, ServerService],
-        lock_store: LockStore | None = None,
-    ) -> None:
+    def __init__(self, config: RosbridgeConfig, services: dict[str, ServerService]) -> None:
         loop = asyncio.get_running_loop()
         self.config = config
         self.bus = TopicBus(
@@ -70,16 +68,34 @@ class Hub:
         self.services = CallTable("service_request")
         self.actions = CallTable("action_goal")
         self.server_services = services
-        self.params: dict[str, str] = {}
+        self.params: ParamStore = MemoryParams()
         self.clients: dict[str, Client] = {}
+        self.relay: Relay | None = None
         self.teleop = TeleopLocks(
-            lock_store or MemoryLockStore(),
+            MemoryLockStore(),
             stop=self.stop_robot,
             ttl=config.teleop_lock_ttl,
             silence=config.teleop_silence,
         )
         self.fleet = FleetTracker(interval=config.fleet_flush_interval)
         self._fleet_topics: dict[str, tuple[int, str]] = {}
+        # goals this process's connections sent to actions on other processes
+        self._remote_goals: dict[tuple[str, Json], str] = {}
+        self._directory: dict[str, set[str]] = {}
+
+    async def start(self) -> None:
+        """Join the other server processes when ``REDIS_URL`` is set (scaled mode)."""
+        if not self.config.redis_url:
+            return
+        from channels.layers import get_channel_layer
+        from redis.asyncio import from_url
+
+        redis = from_url(self.config.redis_url)
+        self.relay = Relay(self, get_channel_layer(), redis)
+        await self.relay.start()
+        self.bus.listener = self.relay
+        self.teleop.store = RedisLockStore(redis)
+        self.params = RedisParams(redis)
 
     # ------------------------------------------------------------ connections
 
@@ -90,6 +106,12 @@ class Hub:
             for kind in (names.POSE, names.MAP_ID):
                 self._fleet_topics[names.robot_topic(robot, kind)] = (client.robot_pk, kind)
             self.fleet.connected(client.robot_pk)
+            if self.relay is not None:
+                self.relay.put("robots", robot, "1")
+
+    def robots(self) -> set[str]:
+        """Names of the robots connected to this process."""
+        return {r for c in self.clients.values() if (r := c.conn.principal.robot) is not None}
 
     async def leave(self, conn: Connection) -> None:
         """Forget a closed connection: its topics, services, actions, locks, fleet state."""
@@ -101,8 +123,15 @@ class Hub:
         for call in self.actions.drop(conn):
             self._fail_goal(call, f"Action {call.name} was unadvertised")
         await self.teleop.drop(conn.key)
+        self._remote_goals = {k: v for k, v in self._remote_goals.items() if k[0] != conn.key}
+        robot = conn.principal.robot
         if client is not None and client.robot_pk is not None:
             self.fleet.disconnected(client.robot_pk)
+        if self.relay is not None and robot is not None and robot not in self.robots():
+            self.relay.remove("robots", robot)
+        if self.relay is not None:
+            for kind, table in (("services", self.services), ("actions", self.actions)):
+                self._publish_directory(kind, table)
 
     # ------------------------------------------------------------ topics
 
@@ -128,10 +157,23 @@ class Hub:
         elif (map_id := string_of(msg)) is not None:
             self.fleet.map_id(robot_pk, map_id)
 
-    def subscribe(
+    async def subscribe(
         self, conn: Connection, name: str, op: protocol.Subscribe, params: SubscribeParams
     ) -> None:
-        self.bus.subscribe(conn, name, op.type, params, op.id, spelling=op.topic)
+        """Subscribe; in scaled mode also join the topic's group and replay a latched
+        message published on another process."""
+        type_name = op.type
+        if type_name is None and self.bus.get(name) is None and self.relay is not None:
+            found = await self.relay.find("topics", name)
+            type_name = found[1] if found else None
+        replayed = self.bus.subscribe(conn, name, type_name, params, op.id, spelling=op.topic)
+        if self.relay is None:
+            return
+        await self.relay.settled()
+        latched = None if replayed else await self.relay.latched(name)
+        if latched is not None:
+            frame = protocol.PublishFrame(op="publish", topic=op.topic, msg=latched[1])
+            conn.deliver(Outgoing(frame).wire(params.compression, params.fragment_size))
 
     def unsubscribe(self, conn: Connection, name: str, op: protocol.Unsubscribe) -> None:
         self.bus.unsubscribe(conn, name, op.id, spelling=op.topic)
@@ -167,7 +209,8 @@ class Hub:
             return
         provider = self.services.provider(call.name)
         if provider is None:
-            raise ServiceFailed(f"Service {call.name} does not exist")
+            await self._call_remote("services", "rb.call", call.conn, call.access, call.name, op)
+            return
         await call.access.require("call", call.name)
         pending = self.services.start(
             provider, call.conn, op.id, op.service, op.fragment_size, op.compression
@@ -189,6 +232,7 @@ class Hub:
             raise NotAllowed(f"{name} is a service of the server")
         for call in self.services.advertise(name, op.type, conn, op.service):
             self._fail_call(call, f"Service {name} was advertised again")
+        self._publish_directory("services", self.services)
 
     def unadvertise_service(self, conn: Connection, name: str) -> None:
         orphans = self.services.unadvertise(name, conn)
@@ -196,6 +240,7 @@ class Hub:
             raise RosbridgeError(f"Service {name} has not been advertised by this client")
         for call in orphans:
             self._fail_call(call, f"Service {name} was unadvertised")
+        self._publish_directory("services", self.services)
 
     def _fail_call(self, call: PendingCall, reason: str) -> None:
         reply = protocol.service_response(call.caller_spelling, call.caller_id, reason, False)
@@ -206,6 +251,7 @@ class Hub:
     def advertise_action(self, conn: Connection, name: str, op: protocol.AdvertiseAction) -> None:
         for call in self.actions.advertise(name, op.type, conn, op.action):
             self._fail_goal(call, f"Action {name} was advertised again")
+        self._publish_directory("actions", self.actions)
 
     def unadvertise_action(self, conn: Connection, name: str) -> None:
         orphans = self.actions.unadvertise(name, conn)
@@ -213,13 +259,16 @@ class Hub:
             raise RosbridgeError(f"Action {name} has not been advertised by this client")
         for call in orphans:
             self._fail_goal(call, f"Action {name} was unadvertised")
+        self._publish_directory("actions", self.actions)
 
     async def send_action_goal(
         self, conn: Connection, access: Access, name: str, op: protocol.SendActionGoal
     ) -> None:
         provider = self.actions.provider(name)
         if provider is None:
-            raise ActionFailed(f"Action {name} does not exist")
+            channel = await self._call_remote("actions", "rb.goal", conn, access, name, op)
+            self._remote_goals[(conn.key, op.id)] = channel
+            return
         await access.require("call", name)
         pending = self.actions.start(
             provider, conn, op.id, op.action, op.fragment_size, op.compression, op.feedback
@@ -233,6 +282,10 @@ class Hub:
         self, conn: Connection, name: str, op: protocol.CancelActionGoal
     ) -> None:
         found = self.actions.of_caller(conn, op.id)
+        channel = self._remote_goals.get((conn.key, op.id))
+        if found is None and channel is not None and self.relay is not None:
+            self.relay.send(channel, self._request("rb.cancel", conn, name, op))
+            return
         if found is None or found[0].name != name:
             raise RosbridgeError(f"no goal {op.id!r} of {name} is in progress")
         provider, pending = found
@@ -262,6 +315,93 @@ class Hub:
         )
         call.caller.deliver(Outgoing(result).wire())
 
+    # ------------------------------------------------------------ other server processes
+
+    def _publish_directory(self, kind: str, table: CallTable) -> None:
+        """Tell the other processes which services (or actions) this one serves."""
+        if self.relay is None:
+            return
+        served = dict(table.names())
+        for name, type_name in served.items():
+            self.relay.put(kind, name, type_name)
+        for name in self._directory.get(kind, set()) - set(served):
+            self.relay.remove(kind, name)
+        self._directory[kind] = set(served)
+
+    async def _call_remote(
+        self,
+        kind: str,
+        request: str,
+        conn: Connection,
+        access: Access,
+        name: str,
+        op: protocol.CallService | protocol.SendActionGoal,
+    ) -> str:
+        """Send a service call or goal to the process serving ``name``; return its channel.
+
+        Raises ServiceFailed (or ActionFailed) when no process serves ``name``.
+        """
+        found = await self.relay.find(kind, name) if self.relay is not None else None
+        if found is None or self.relay is None:
+            what = "Service" if kind == "services" else "Action"
+            error = ServiceFailed if kind == "services" else ActionFailed
+            raise error(f"{what} {name} does not exist")
+        await access.require("call", name)
+        self.relay.send(found[0], self._request(request, conn, name, op))
+        return found[0]
+
+    def _request(self, kind: str, conn: Connection, name: str, op: Any) -> dict[str, Any]:
+        assert self.relay is not None  # only called in scaled mode
+        return {
+            "type": kind,
+            "name": name,
+            "caller": conn.key,
+            "caller_channel": self.relay.channel,
+            "caller_id": op.id,
+            "spelling": getattr(op, "service", None) or getattr(op, "action", None),
+            "args": getattr(op, "args", None),
+            "action_type": getattr(op, "action_type", None),
+            "feedback": getattr(op, "feedback", False),
+            "fragment_size": getattr(op, "fragment_size", None),
+        }
+
+    async def remote_request(self, message: dict[str, Any]) -> None:
+        """Carry out a call, goal or cancel that a connection on another process sent."""
+        assert self.relay is not None  # only the relay calls this
+        caller = self.relay.remote(message["caller_channel"], message["caller"])
+        name, kind = message["name"], message["type"]
+        table = self.services if kind == "rb.call" else self.actions
+        if kind == "rb.cancel":
+            found = self.actions.of_caller(caller, message["caller_id"])
+            if found is not None:
+                cancel = protocol.cancel_action_goal(found[0].spelling, found[1].request_id)
+                found[0].peer.deliver(Outgoing(cancel).wire())
+            return
+        provider = table.provider(name)
+        if provider is None:
+            reason = f"{name} is no longer served"
+            pending = PendingCall(name, caller, message["caller_id"], "", message["spelling"])
+            (self._fail_call if kind == "rb.call" else self._fail_goal)(pending, reason)
+            return
+        pending = table.start(
+            provider,
+            caller,
+            message["caller_id"],
+            message["spelling"],
+            message["fragment_size"],
+            "none",
+            bool(message["feedback"]),
+        )
+        if kind == "rb.call":
+            frame: Any = protocol.call_service(
+                provider.spelling, pending.request_id, message["args"]
+            )
+        else:
+            frame = protocol.send_action_goal(
+                provider.spelling, pending.request_id, message["action_type"], message["args"]
+            )
+        provider.peer.deliver(Outgoing(frame).wire())
+
 
 def _moving(twist: dict[str, Json]) -> bool:
     """True if a Twist asks for any motion at all."""
@@ -272,13 +412,21 @@ def _moving(twist: dict[str, Json]) -> bool:
     return False
 
 
-_hubs: weakref.WeakKeyDictionary[asyncio.AbstractEventLoop, Hub] = weakref.WeakKeyDictionary()
+_hubs: weakref.WeakKeyDictionary[asyncio.AbstractEventLoop, asyncio.Task[Hub]] = (
+    weakref.WeakKeyDictionary()
+)
 
 
-def get_hub() -> Hub:
-    """Return this process's hub (one per event loop), creating it on first use."""
+async def get_hub() -> Hub:
+    """Return this process's hub (one per event loop), creating and starting it on first use."""
     loop = asyncio.get_running_loop()
-    hub = _hubs.get(loop)
-    if hub is None:
-        hub = _hubs[loop] = Hub(RosbridgeConfig.load(), server_services())
+    task = _hubs.get(loop)
+    if task is None:
+        task = _hubs[loop] = loop.create_task(_new_hub())
+    return await asyncio.shield(task)
+
+
+async def _new_hub() -> Hub:
+    hub = Hub(RosbridgeConfig.load(), server_services())
+    await hub.start()
     return hub

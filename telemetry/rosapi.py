@@ -31,8 +31,19 @@ async def _visible(access: Access, items: Iterable[tuple[str, str]]) -> list[tup
     return shown
 
 
+async def _everywhere(
+    call: ServiceCall, kind: str, here: list[tuple[str, str]]
+) -> list[tuple[str, str]]:
+    """Return ``here`` plus, in scaled mode, the entries of ``kind`` on other processes."""
+    relay = call.hub.relay
+    if relay is None:
+        return here
+    return here + [(name, value) for name, value, _ in await relay.entries(kind)]
+
+
 async def _topics(call: ServiceCall) -> list[tuple[str, str]]:
-    return await _visible(call.access, call.hub.bus.published_topics())
+    here = list(call.hub.bus.published_topics())
+    return await _visible(call.access, await _everywhere(call, "topics", here))
 
 
 async def topics(call: ServiceCall) -> Json:
@@ -52,7 +63,8 @@ async def topics_for_type(call: ServiceCall) -> Json:
 
 async def _services(call: ServiceCall) -> list[tuple[str, str]]:
     own = [(name, service.type) for name, service in call.hub.server_services.items()]
-    return await _visible(call.access, own + call.hub.services.names())
+    advertised = await _everywhere(call, "services", call.hub.services.names())
+    return await _visible(call.access, own + advertised)
 
 
 async def list_services(call: ServiceCall) -> Json:
@@ -65,16 +77,15 @@ async def service_type(call: ServiceCall) -> Json:
 
 
 async def action_servers(call: ServiceCall) -> Json:
-    listed = await _visible(call.access, call.hub.actions.names())
+    listed = await _visible(
+        call.access, await _everywhere(call, "actions", call.hub.actions.names())
+    )
     return {"action_servers": [n for n, _ in listed]}
 
 
 async def nodes(call: ServiceCall) -> Json:
-    robots = {
-        (names.robot_namespace(c.conn.principal.robot), "")
-        for c in call.hub.clients.values()
-        if c.conn.principal.robot is not None
-    }
+    here = [(robot, "") for robot in call.hub.robots()]
+    robots = {(names.robot_namespace(r), "") for r, _ in await _everywhere(call, "robots", here)}
     return {"nodes": [SERVER_NODE] + [n for n, _ in await _visible(call.access, robots)]}
 
 
@@ -94,7 +105,7 @@ async def _param(call: ServiceCall, need: str) -> str:
 async def get_param(call: ServiceCall) -> Json:
     """Answer ``value`` as a JSON string, with ROS 2's ``successful`` and ``reason``."""
     name = await _param(call, "see")
-    value = call.hub.params.get(name)
+    value = await call.hub.params.get(name)
     if value is not None:
         return {"value": value, "successful": True, "reason": ""}
     default = call.arg("default_value", call.arg("default", ""))
@@ -112,23 +123,23 @@ async def set_param(call: ServiceCall) -> Json:
         json.loads(value)
     except ValueError:
         raise ServiceFailed(f"'value' is not JSON: {value!r}") from None
-    call.hub.params[name] = value
+    await call.hub.params.set(name, value)
     return {"successful": True, "reason": ""}
 
 
 async def delete_param(call: ServiceCall) -> Json:
     name = await _param(call, "set_param")
-    found = call.hub.params.pop(name, None) is not None
+    found = await call.hub.params.delete(name)
     return {"successful": found, "reason": "" if found else f"Parameter {name} is not set"}
 
 
 async def has_param(call: ServiceCall) -> Json:
     name = await _param(call, "see")
-    return {"exists": name in call.hub.params}
+    return {"exists": await call.hub.params.get(name) is not None}
 
 
 async def get_param_names(call: ServiceCall) -> Json:
-    listed = await _visible(call.access, ((n, "") for n in call.hub.params))
+    listed = await _visible(call.access, ((n, "") for n in await call.hub.params.names()))
     return {"names": [n for n, _ in listed]}
 
 

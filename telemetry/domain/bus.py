@@ -46,9 +46,12 @@ Scheduler = Callable[[float, Callable[[], None]], Cancellable]
 class BusListener(Protocol):
     """What the bus tells the layer above (the scaled-mode relay) about local activity."""
 
-    def published(self, topic: Topic, out: Outgoing) -> None: ...
+    def published(self, topic: Topic, msg: dict[str, Json]) -> None: ...
 
     def interest(self, topic: str, interested: bool) -> None: ...
+
+    def publishers_changed(self, topic: Topic) -> None:
+        """The topic gained its first publisher here, or lost its last one."""
 
 
 @dataclass(slots=True, frozen=True)
@@ -233,10 +236,16 @@ class TopicBus:
     ) -> Topic:
         """Register ``peer`` as a publisher of ``name``. Raises TypeConflict."""
         topic = self._topic(name, type_name, need_type=True)
-        topic.publishers.setdefault(peer.key, set()).add(aid)
+        self._add_publisher(topic, peer, aid)
         topic.latched = topic.latched or latch
-        self._remember(peer, name)
         return topic
+
+    def _add_publisher(self, topic: Topic, peer: Peer, aid: Json) -> None:
+        first = not topic.publishers
+        topic.publishers.setdefault(peer.key, set()).add(aid)
+        self._remember(peer, topic.name)
+        if first and self.listener is not None:
+            self.listener.publishers_changed(topic)
 
     def unadvertise(self, peer: Peer, name: str, aid: Json = None) -> None:
         """Withdraw one advertisement (all of the peer's when ``aid`` is None)."""
@@ -262,13 +271,12 @@ class TopicBus:
         """
         topic = self._topic(name, None, need_type=True)
         if peer is not None and peer.key not in topic.publishers:
-            topic.publishers[peer.key] = {None}
-            self._remember(peer, name)
+            self._add_publisher(topic, peer, None)
         topic.latched = topic.latched or latch
         out = Outgoing(PublishFrame(op="publish", topic=name, msg=msg))
         self.fan_out(topic, out)
         if self.listener is not None:
-            self.listener.published(topic, out)
+            self.listener.published(topic, msg)
         return out
 
     def fan_out(self, topic: Topic, out: Outgoing) -> None:
@@ -354,6 +362,8 @@ class TopicBus:
     def _after_publisher_left(self, topic: Topic) -> None:
         if not topic.publishers:
             topic.last = None
+            if self.listener is not None:
+                self.listener.publishers_changed(topic)
         self._forget_if_idle(topic)
 
     def _forget_if_idle(self, topic: Topic) -> None:
