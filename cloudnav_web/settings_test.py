@@ -10,10 +10,16 @@ from __future__ import annotations
 import os
 
 from .settings import *  # noqa: F403
-from .settings import BASE_DIR, DATABASES
+from .settings import BASE_DIR, DATABASES, env_bool
 
 PASSWORD_HASHERS = ["django.contrib.auth.hashers.MD5PasswordHasher"]
 
 if DATABASES["default"]["ENGINE"] == "django.db.backends.sqlite3":
     (BASE_DIR / "var").mkdir(exist_ok=True)
     DATABASES["default"]["TEST"] = {"NAME": str(BASE_DIR / "var" / f"test-{os.getpid()}.sqlite3")}
+
+# The test run itself is always embedded; live servers that ``tests.fixtures_live`` starts
+# (``CLOUDNAV_LIVE_SERVER=1``) take their mode, scaled or not, from the environment given.
+if not env_bool("CLOUDNAV_LIVE_SERVER", False):
+    REDIS_URL = ""
+    CHANNEL_LAYERS = {"default": {"BACKEND": "channels.layers.InMemoryChannelLayer"}}

@@ -12,6 +12,8 @@ ports, for network behaviour and unmodified clients; see the second half of this
 from __future__ import annotations
 
 import asyncio
+import contextlib
+import itertools
 import json
 import os
 import socket
@@ -19,6 +21,7 @@ import subprocess
 import sys
 import time
 import urllib.error
+import urllib.parse
 import urllib.request
 from collections.abc import AsyncIterator, Awaitable, Callable, Iterator
 from dataclasses import dataclass
@@ -233,43 +236,67 @@ def start_daphne(
     Retries on a new port if the chosen one was taken meanwhile. Raises RuntimeError with
     the server's log if it does not come up within ``STARTUP_DEADLINE`` seconds.
     """
+    return start_daphnes(1, log_dir, database_url, env, host, attempts)[0]
+
+
+def start_daphnes(
+    count: int,
+    log_dir: Path,
+    database_url: str,
+    env: dict[str, str] | None = None,
+    host: str = "127.0.0.1",
+    attempts: int = 3,
+) -> list[LiveServer]:
+    """Start ``count`` daphne processes at once (see ``start_daphne``)."""
     environment = {
         **os.environ,
         "DJANGO_SETTINGS_MODULE": "cloudnav_web.settings_test",
         "DATABASE_URL": database_url,
         "REDIS_URL": "",
+        "CLOUDNAV_LIVE_SERVER": "1",
         "PYTHONUNBUFFERED": "1",
         **(env or {}),
     }
+    ready: list[LiveServer] = []
     for attempt in range(attempts):
-        port = free_port(host)
-        log_path = log_dir / f"daphne-{port}.log"
-        with log_path.open("wb") as log:
-            process = subprocess.Popen(
-                [
-                    sys.executable,
-                    "-m",
-                    "daphne",
-                    "-b",
-                    host,
-                    "-p",
-                    str(port),
-                    "--websocket_timeout",
-                    "-1",
-                    "cloudnav_web.asgi:application",
-                ],
-                cwd=BASE_DIR,
-                env=environment,
-                stdout=log,
-                stderr=subprocess.STDOUT,
-            )
-        server = LiveServer(host, port, process, log_path)
-        if wait_until_serving(server):
-            return server
-        server.stop()
-        if attempt == attempts - 1 or "Address already in use" not in server.log():
-            raise RuntimeError(f"daphne did not start on port {port}:\n{server.log()}")
+        spawned = [spawn_daphne(log_dir, environment, host) for _ in range(count - len(ready))]
+        for server in spawned:
+            if wait_until_serving(server):
+                ready.append(server)
+                continue
+            server.stop()
+            if attempt == attempts - 1 or "Address already in use" not in server.log():
+                for other in ready + spawned:
+                    other.stop()
+                raise RuntimeError(f"daphne did not start on port {server.port}:\n{server.log()}")
+        if len(ready) == count:
+            return ready
     raise AssertionError("unreachable")
+
+
+def spawn_daphne(log_dir: Path, environment: dict[str, str], host: str) -> LiveServer:
+    port = free_port(host)
+    log_path = log_dir / f"daphne-{port}.log"
+    with log_path.open("wb") as log:
+        process = subprocess.Popen(
+            [
+                sys.executable,
+                "-m",
+                "daphne",
+                "-b",
+                host,
+                "-p",
+                str(port),
+                "--websocket_timeout",
+                "-1",
+                "cloudnav_web.asgi:application",
+            ],
+            cwd=BASE_DIR,
+            env=environment,
+            stdout=log,
+            stderr=subprocess.STDOUT,
+        )
+    return LiveServer(host, port, process, log_path)
 
 
 def wait_until_serving(server: LiveServer, deadline: float = STARTUP_DEADLINE) -> bool:
@@ -318,3 +345,135 @@ def daphne_servers(transactional_db: None, tmp_path: Path) -> Iterator[LiveServe
 def daphne_server(daphne_servers: LiveServers) -> LiveServer:
     """One live daphne server (embedded mode) on the test database."""
     return daphne_servers.start()
+
+
+# ---------------------------------------------------------------- scaled mode
+#
+# ``scaled_servers`` gives several daphne processes sharing a real Redis (channel layer and
+# rosbridge state) and a real PostgreSQL database created for the test and dropped after.
+# Defaults are the services this machine runs; the environment can point elsewhere:
+# ``CLOUDNAV_TEST_REDIS_URL`` (else ``REDIS_URL``) and ``CLOUDNAV_TEST_POSTGRES_URL``, a
+# URL of the server's maintenance database, used to create and drop the test's own.
+
+DEFAULT_REDIS_URL = "redis://127.0.0.1:6379/13"
+DEFAULT_POSTGRES_URL = "postgres://postgres@127.0.0.1:5432/postgres"
+
+
+def scaled_redis_url() -> str:
+    return (
+        os.environ.get("CLOUDNAV_TEST_REDIS_URL")
+        or os.environ.get("REDIS_URL")
+        or DEFAULT_REDIS_URL
+    )
+
+
+def scaled_postgres_url() -> str:
+    return os.environ.get("CLOUDNAV_TEST_POSTGRES_URL") or DEFAULT_POSTGRES_URL
+
+
+@dataclass
+class ScaledCluster:
+    """Server processes sharing Redis and PostgreSQL, and the people and robots seeded there.
+
+    ``tokens``: robot name -> token; ``cookies``: username -> session cookie header value.
+    """
+
+    servers: list[LiveServer]
+    tokens: dict[str, str]
+    cookies: dict[str, str]
+
+
+def run_manage(database_url: str, *args: str) -> str:
+    env = {
+        **os.environ,
+        "DJANGO_SETTINGS_MODULE": "cloudnav_web.settings_test",
+        "DATABASE_URL": database_url,
+        "CLOUDNAV_LIVE_SERVER": "1",
+        "REDIS_URL": "",
+    }
+    done = subprocess.run(
+        [sys.executable, *args], cwd=BASE_DIR, env=env, capture_output=True, text=True, timeout=300
+    )
+    if done.returncode != 0:
+        raise RuntimeError(f"{args} failed:\n{done.stdout}\n{done.stderr}")
+    return done.stdout
+
+
+PEOPLE = [("operator", "operator"), ("operator2", "operator"), ("viewer", "viewer")]
+SEED = """
+import json, django
+django.setup()
+from tests.fixtures_live import seed_fleet
+print(json.dumps(seed_fleet()))
+"""
+
+
+def seed_fleet() -> dict[str, dict[str, str]]:
+    """Create a building with ``PEOPLE`` as members and robots r1, r2; return their
+    credentials. Runs in a process of its own against the scaled database."""
+    from tests.conftest import make_building, make_robot, make_user
+
+    people = [make_user(name, role) for name, role in PEOPLE]
+    building = make_building(members=people)
+    tokens = {name: make_robot(name=name, buildings=[building])[1] for name in ("r1", "r2")}
+    cookies = {user.username: session_cookie(user).decode() for user in people}
+    return {"tokens": tokens, "cookies": cookies}
+
+
+@contextlib.contextmanager
+def postgres_database(admin_url: str, template: str | None = None) -> Iterator[str]:
+    """Create a fresh database (a copy of ``template`` if given) on the server of
+    ``admin_url``; yield its URL; drop it."""
+    import psycopg
+
+    name = f"cloudnav_scaled_{os.getpid()}_{next(_database_numbers)}"
+    copy = f' TEMPLATE "{template}"' if template else ""
+    with psycopg.connect(admin_url, autocommit=True) as admin:
+        admin.execute(f'CREATE DATABASE "{name}"{copy}')
+    try:
+        parts = urllib.parse.urlsplit(admin_url)
+        yield urllib.parse.urlunsplit(parts._replace(path=f"/{name}"))
+    finally:
+        with psycopg.connect(admin_url, autocommit=True) as admin:
+            admin.execute(f'DROP DATABASE IF EXISTS "{name}" WITH (FORCE)')
+
+
+_database_numbers = itertools.count(1)
+
+
+def flush_redis(url: str) -> None:
+    import redis
+
+    client = redis.Redis.from_url(url)
+    client.flushdb()
+    client.close()
+
+
+@pytest.fixture(scope="session")
+def scaled_template() -> Iterator[tuple[str, dict[str, Any]]]:
+    """A PostgreSQL database migrated and seeded once per run, copied by each scaled test;
+    yields its name and the seeded credentials."""
+    with postgres_database(scaled_postgres_url()) as url:
+        run_manage(url, "manage.py", "migrate", "--noinput")
+        seeded = json.loads(run_manage(url, "-c", SEED).strip().splitlines()[-1])
+        yield urllib.parse.urlsplit(url).path.lstrip("/"), seeded
+
+
+@pytest.fixture
+def scaled_servers(
+    tmp_path: Path, scaled_template: tuple[str, dict[str, Any]]
+) -> Iterator[Callable[[int], ScaledCluster]]:
+    """``scaled_servers(2)``: that many daphne processes in scaled mode on a fresh copy of
+    the seeded database and an emptied Redis; all stopped and dropped after the test."""
+    template, seeded = scaled_template
+    redis_url = scaled_redis_url()
+    with contextlib.ExitStack() as stack:
+
+        def start(count: int = 2) -> ScaledCluster:
+            database_url = stack.enter_context(postgres_database(scaled_postgres_url(), template))
+            flush_redis(redis_url)
+            servers = start_daphnes(count, tmp_path, database_url, {"REDIS_URL": redis_url})
+            stack.callback(lambda: [server.stop() for server in servers])  # before the drop
+            return ScaledCluster(servers, seeded["tokens"], seeded["cookies"])
+
+        yield start

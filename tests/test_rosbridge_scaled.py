@@ -1,0 +1,174 @@
+"""Scaled mode: two server processes sharing Redis and PostgreSQL behave as one server.
+
+A robot on one process and an operator on the other see each other's topics, services,
+actions, latched messages, parameters and teleop locks.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import time
+from contextlib import AsyncExitStack
+
+import pytest
+import websockets
+
+pytestmark = pytest.mark.scaled
+
+POSE = {"header": {"frame_id": "boccioni_1/Hall"}, "pose": {"position": {"x": 1, "y": 2}}}
+GO = {"linear": {"x": 0.3, "y": 0.0, "z": 0.0}, "angular": {"x": 0.0, "y": 0.0, "z": 0.0}}
+ZERO = {"linear": {"x": 0.0, "y": 0.0, "z": 0.0}, "angular": {"x": 0.0, "y": 0.0, "z": 0.0}}
+WAIT = 5.0
+
+
+class Client:
+    def __init__(self, socket):
+        self.socket = socket
+
+    async def send(self, **frame):
+        await self.socket.send(json.dumps(frame))
+
+    async def receive(self, wait=WAIT):
+        return json.loads(await asyncio.wait_for(self.socket.recv(), wait))
+
+    async def call(self, service, args=None, id="call"):
+        await self.send(op="call_service", id=id, service=service, args=args or {})
+        while (frame := await self.receive()).get("id") != id:
+            pass
+        return frame
+
+    async def sync(self):
+        await self.call("/rosapi/get_time", id="sync")
+
+
+@pytest.fixture
+def cluster(scaled_servers):
+    return scaled_servers(2)
+
+
+@pytest.fixture
+async def connect(cluster):
+    async with AsyncExitStack() as stack:
+
+        async def open_as(who, server):
+            live = cluster.servers[server]
+            if who in cluster.tokens:
+                url, headers = live.rosbridge_url(cluster.tokens[who]), {}
+            else:
+                url, headers = (
+                    live.rosbridge_url(),
+                    {"Cookie": cluster.cookies[who], "Origin": live.url},
+                )
+            socket = await stack.enter_async_context(
+                websockets.connect(url, additional_headers=headers)
+            )
+            return Client(socket)
+
+        yield open_as
+
+
+async def test_a_robot_on_one_process_reaches_an_operator_on_the_other(connect):
+    robot, operator = await connect("r1", 0), await connect("operator", 1)
+    await operator.send(op="subscribe", topic="/r1/pose")
+    await operator.sync()
+    await robot.send(op="publish", topic="pose", msg=POSE)
+    assert await operator.receive() == {"op": "publish", "topic": "/r1/pose", "msg": POSE}
+
+
+async def test_a_command_from_the_other_process_reaches_the_robot(connect):
+    robot, operator = await connect("r1", 0), await connect("operator", 1)
+    await robot.send(op="subscribe", topic="goal")
+    await robot.sync()
+    await operator.send(op="publish", topic="/r1/goal", msg=POSE)
+    assert (await robot.receive())["msg"] == POSE
+
+
+async def test_a_service_advertised_on_one_process_answers_calls_from_the_other(connect):
+    robot, operator = await connect("r1", 0), await connect("operator", 1)
+    await robot.send(op="advertise_service", service="dock", type="std_srvs/SetBool")
+    await robot.sync()
+    await operator.send(op="call_service", id="mine", service="/r1/dock", args={"data": True})
+    request = await robot.receive()
+    assert request["id"] == "service_request:dock:1"
+    await robot.send(
+        op="service_response", service="dock", id=request["id"], values={"ok": 1}, result=True
+    )
+    response = await operator.receive()
+    assert response["id"] == "mine"
+    assert response["values"] == {"ok": 1}
+
+
+async def test_an_action_goal_crosses_processes_with_feedback(connect):
+    robot, operator = await connect("r1", 0), await connect("operator", 1)
+    await robot.send(op="advertise_action", action="navigate", type="a/B")
+    await robot.sync()
+    await operator.send(
+        op="send_action_goal",
+        id="g",
+        action="/r1/navigate",
+        action_type="a/B",
+        args={},
+        feedback=True,
+    )
+    goal = await robot.receive()
+    await robot.send(op="action_feedback", action="navigate", id=goal["id"], values={"left": 1})
+    await robot.send(
+        op="action_result", action="navigate", id=goal["id"], values={}, status=4, result=True
+    )
+    feedback, result = await operator.receive(), await operator.receive()
+    assert (feedback["op"], feedback["id"], feedback["values"]) == (
+        "action_feedback",
+        "g",
+        {"left": 1},
+    )
+    assert (result["op"], result["id"], result["status"]) == ("action_result", "g", 4)
+
+
+async def test_rosapi_lists_topics_published_on_the_other_process(connect):
+    robot, viewer = await connect("r1", 0), await connect("viewer", 1)
+    await robot.send(op="advertise", topic="battery", type="std_msgs/Float32")
+    await robot.sync()
+    listed = (await viewer.call("/rosapi/topics"))["values"]
+    assert "/r1/battery" in listed["topics"]
+    nodes = (await viewer.call("/rosapi/nodes"))["values"]["nodes"]
+    assert "/r1" in nodes
+
+
+async def test_a_latched_message_is_replayed_on_the_other_process(connect):
+    robot = await connect("r1", 0)
+    await robot.send(op="publish", topic="map_id", msg={"data": "boccioni_1/Hall"})
+    await robot.sync()
+    viewer = await connect("viewer", 1)
+    deadline = time.monotonic() + WAIT
+    while True:  # the latched message reaches Redis through the relay's send queue
+        await viewer.send(op="subscribe", topic="/r1/map_id")
+        try:
+            frame = await viewer.receive(wait=0.5)
+            break
+        except TimeoutError:
+            await viewer.send(op="unsubscribe", topic="/r1/map_id")
+            assert time.monotonic() < deadline, "the latched message never arrived"
+    assert frame["msg"] == {"data": "boccioni_1/Hall"}
+
+
+async def test_params_are_shared(connect):
+    robot, viewer = await connect("r1", 0), await connect("viewer", 1)
+    await robot.call("/rosapi/set_param", {"name": "max_speed", "value": "0.7"})
+    got = await viewer.call("/rosapi/get_param", {"name": "/r1/max_speed"})
+    assert got["values"]["value"] == "0.7"
+
+
+async def test_one_teleop_lock_across_processes_and_the_watchdog_stops_the_robot(connect):
+    robot = await connect("r1", 0)
+    first, second = await connect("operator", 1), await connect("operator2", 0)
+    await robot.send(op="subscribe", topic="cmd_vel")
+    await robot.sync()
+    lock = {"robot": "r1", "action": "acquire"}
+    assert (await first.call("/cloudnav/teleop_lock", lock))["values"]["success"] is True
+    refused = (await second.call("/cloudnav/teleop_lock", lock))["values"]
+    assert refused["success"] is False
+    assert refused["holder"] == "user:operator"
+    await first.send(op="publish", topic="/r1/cmd_vel", msg=GO)
+    assert (await robot.receive())["msg"] == GO
+    assert (await robot.receive(wait=3.0))["msg"] == ZERO
