@@ -142,6 +142,8 @@ def test_its_odometry_message_is_rosbridge_json() -> None:
     assert message["pose"]["pose"]["orientation"]["w"] == pytest.approx(1.0)
     assert len(message["pose"]["covariance"]) == 36
     assert message["twist"]["twist"]["linear"]["x"] == pytest.approx(0.2)
+    stamped = body.odometry_message(seconds=1_700_000_000.5)
+    assert stamped["header"]["stamp"] == {"sec": 1_700_000_000, "nanosec": 500_000_000}
 
 
 def _relative_to_start(

@@ -161,15 +161,18 @@ class DiffDriveBody:
         return float(self.rng.normal(0.0, sigma * math.sqrt(motion)))
 
     def odometry_message(
-        self, frame_id: str = "odom", child_frame_id: str = "base_footprint"
+        self,
+        frame_id: str = "odom",
+        child_frame_id: str = "base_footprint",
+        seconds: float | None = None,
     ) -> Json:
         """``nav_msgs/Odometry`` of the odometry pose and the reported velocity, stamped
-        with the simulated clock."""
+        ``seconds`` (wall-clock time, say), by default the simulated clock."""
         linear, angular = self.velocity
         noise = self.noise
         position_var, yaw_var = self.odom_variance
         return {
-            "header": header(frame_id, self.time),
+            "header": header(frame_id, self.time if seconds is None else seconds),
             "child_frame_id": child_frame_id,
             "pose": {
                 "pose": pose_2d(*self.odom_pose),
