@@ -1,1 +1,6 @@
-"""Benchmarks: each module offers add_arguments(parser) and run(options) to `manage.py bench`."""
+"""Benchmarks run by ``python manage.py bench NAME ...``.
+
+Each module here is one benchmark: it exposes ``add_arguments(parser)`` (argparse) and
+``run(options) -> None``, and its docstring's first line is its help. They are measuring
+tools, not tests: they start what they measure as separate processes and print figures.
+"""

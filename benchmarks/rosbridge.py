@@ -1,0 +1,376 @@
+"""rosbridge fan-out: N robots publish PoseStamped at R Hz to M subscribers of every robot.
+
+The server runs as its own daphne process (embedded mode, on a scratch SQLite database
+seeded with the robots and a viewer), or ``--url`` points at a running one together with
+``--tokens``/``--cookie``. This process is the load: ``websockets`` clients, robots
+publishing with their send time in ``header.stamp`` and subscribers (browser-like viewer
+sessions) measuring each message's delay on arrival.
+
+It prints, per run: offered and delivered messages/s, loss, delay p50/p95/p99, and the
+CPU of the server and of the load. ``--saturate`` raises the rate step by step and reports
+the highest delivered rate whose p99 stays under ``--p99-limit`` (100 ms) without loss.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import json
+import os
+import random
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+import urllib.error
+import urllib.request
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import psutil
+import websockets
+
+ROOT = Path(__file__).resolve().parent.parent
+BUILDING = "bench"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--robots", type=int, default=100, help="publishing robots (N)")
+    parser.add_argument("--rate", type=float, default=10.0, help="Hz per robot (R)")
+    parser.add_argument("--subscribers", type=int, default=10, help="subscribers of all (M)")
+    parser.add_argument("--duration", type=float, default=10.0, help="seconds measured")
+    parser.add_argument("--warmup", type=float, default=2.0, help="seconds before measuring")
+    parser.add_argument("--saturate", action="store_true", help="find the highest good rate")
+    parser.add_argument("--p99-limit", type=float, default=100.0, help="ms, for --saturate")
+    parser.add_argument("--step", type=float, default=1.25, help="rate factor per step")
+    parser.add_argument("--url", help="a running server's ws:// base URL instead of starting one")
+    parser.add_argument("--tokens", help="with --url: JSON file {robot: token}")
+    parser.add_argument("--cookie", help="with --url: a viewer's session Cookie header")
+    parser.add_argument("--server-pid", type=int, help="with --url: the server's pid, for CPU")
+    parser.add_argument("--server-env", action="append", default=[], metavar="NAME=VALUE")
+
+
+def run(options: dict[str, Any]) -> None:
+    with Server.for_options(options) as server:
+        if options["saturate"]:
+            saturate(server, options)
+        else:
+            report(asyncio.run(measure(server, options, options["rate"])))
+
+
+# ---------------------------------------------------------------- the server under test
+
+
+@dataclass
+class Server:
+    url: str
+    origin: str
+    tokens: dict[str, str]
+    cookie: str
+    pid: int | None
+    process: subprocess.Popen[bytes] | None = None
+    scratch: tempfile.TemporaryDirectory[str] | None = None
+
+    @classmethod
+    def for_options(cls, options: dict[str, Any]) -> Server:
+        if options["url"]:
+            tokens = json.loads(Path(options["tokens"]).read_text())
+            origin = options["url"].replace("ws://", "http://").split("/rosbridge")[0]
+            return cls(options["url"], origin, tokens, options["cookie"], options["server_pid"])
+        return start_server(options["robots"], options["server_env"])
+
+    def __enter__(self) -> Server:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if self.process is not None and self.process.poll() is None:
+            self.process.terminate()
+            self.process.wait(10)
+        if self.scratch is not None:
+            self.scratch.cleanup()
+
+
+def start_server(robots: int, extra_env: list[str]) -> Server:
+    """Migrate and seed a scratch database, then start daphne on it on a free port."""
+    scratch = tempfile.TemporaryDirectory(prefix="cloudnav-bench-")
+    env = {
+        **os.environ,
+        "DJANGO_SETTINGS_MODULE": "cloudnav_web.settings",
+        "DATABASE_URL": f"sqlite:///{scratch.name}/bench.sqlite3",
+        "REDIS_URL": "",
+        "LOG_LEVEL": "WARNING",
+        **dict(item.split("=", 1) for item in extra_env),
+    }
+    python = sys.executable
+    subprocess.run([python, "manage.py", "migrate", "-v0"], cwd=ROOT, env=env, check=True)
+    seeded = subprocess.run(
+        [python, "-c", f"from benchmarks.rosbridge import seed; seed({robots})"],
+        cwd=ROOT,
+        env=env,
+        check=True,
+        capture_output=True,
+        text=True,
+    )
+    credentials = json.loads(seeded.stdout.strip().splitlines()[-1])
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    process = subprocess.Popen(
+        [
+            python,
+            "-m",
+            "daphne",
+            "-b",
+            "127.0.0.1",
+            "-p",
+            str(port),
+            "--websocket_timeout",
+            "-1",
+            "cloudnav_web.asgi:application",
+        ],
+        cwd=ROOT,
+        env=env,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    wait_for_http(f"http://127.0.0.1:{port}/", process)
+    return Server(
+        f"ws://127.0.0.1:{port}/rosbridge",
+        f"http://127.0.0.1:{port}",
+        credentials["tokens"],
+        credentials["cookie"],
+        process.pid,
+        process,
+        scratch,
+    )
+
+
+def wait_for_http(url: str, process: subprocess.Popen[bytes], deadline: float = 30.0) -> None:
+    give_up = time.monotonic() + deadline
+    while time.monotonic() < give_up and process.poll() is None:
+        try:
+            urllib.request.urlopen(url, timeout=1).close()
+            return
+        except urllib.error.HTTPError:
+            return
+        except OSError:
+            time.sleep(0.05)
+    raise RuntimeError("the server did not start")
+
+
+def seed(robots: int) -> None:
+    """Create the building, ``robots`` robots and a viewer; print their credentials as JSON.
+
+    Runs in a process of its own, against the scratch database.
+    """
+    import django
+
+    django.setup()
+    from django.contrib.auth.models import Group, User
+    from django.test import Client
+
+    from maps.models import Building
+    from robots.services import register_robot
+
+    building = Building.objects.create(code=BUILDING, name="Benchmark building")
+    viewer = User.objects.create_user("bench-viewer", password="unused-password-1")
+    viewer.groups.add(Group.objects.get_or_create(name="viewer")[0])
+    building.members.add(viewer)
+    tokens = {f"b{n}": register_robot(f"b{n}", [building])[1] for n in range(robots)}
+    client = Client()
+    client.force_login(viewer)
+    cookie = f"sessionid={client.cookies['sessionid'].value}"
+    print(json.dumps({"tokens": tokens, "cookie": cookie}))
+
+
+# ---------------------------------------------------------------- the load
+
+
+@dataclass
+class Result:
+    robots: int
+    rate: float
+    subscribers: int
+    seconds: float
+    sent: int = 0
+    received: int = 0
+    delays: list[float] = field(default_factory=list)
+    server_cpu: float | None = None
+    load_cpu: float = 0.0
+
+    @property
+    def offered(self) -> float:
+        return self.sent * self.subscribers / self.seconds
+
+    @property
+    def delivered(self) -> float:
+        return self.received / self.seconds
+
+    @property
+    def loss(self) -> float:
+        expected = self.sent * self.subscribers
+        return 1.0 - self.received / expected if expected else 0.0
+
+    def percentile(self, p: float) -> float:
+        if not self.delays:
+            return float("nan")
+        ordered = sorted(self.delays)
+        return 1000.0 * ordered[min(len(ordered) - 1, int(p / 100 * len(ordered)))]
+
+
+class Window:
+    """The measured interval, in wall-clock time shared by every process on the machine."""
+
+    def __init__(self, start: float, seconds: float) -> None:
+        self.start, self.end = start, start + seconds
+
+    def holds(self, stamp: float) -> bool:
+        return self.start <= stamp < self.end
+
+
+def pose(seq: int, now: float) -> str:
+    sec = int(now)
+    msg = {
+        "header": {
+            "frame_id": f"{BUILDING}/Floor",
+            "stamp": {"sec": sec, "nanosec": int((now - sec) * 1e9)},
+        },
+        "pose": {
+            "position": {"x": seq * 0.01, "y": 1.0, "z": 0.0},
+            "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0},
+        },
+    }
+    return json.dumps({"op": "publish", "topic": "pose", "msg": msg})
+
+
+async def publisher(server: Server, name: str, rate: float, window: Window, result: Result) -> None:
+    async with websockets.connect(
+        f"{server.url}?token={server.tokens[name]}", compression=None
+    ) as ws:
+        period = 1.0 / rate
+        due = time.time() + random.random() * period
+        seq = 0
+        while due < window.end:
+            await asyncio.sleep(max(0.0, due - time.time()))
+            now = time.time()
+            await ws.send(pose(seq, now))
+            seq += 1
+            if window.holds(now):
+                result.sent += 1
+            due += period
+
+
+async def subscriber(
+    server: Server, robots: list[str], window: Window, result: Result, ready: asyncio.Event
+) -> None:
+    headers = {"Cookie": server.cookie, "Origin": server.origin}
+    async with websockets.connect(
+        server.url, additional_headers=headers, compression=None, max_queue=None
+    ) as ws:
+        for name in robots:
+            await ws.send(json.dumps({"op": "subscribe", "topic": f"/{name}/pose"}))
+        await ws.send(
+            json.dumps({"op": "call_service", "id": "ready", "service": "/rosapi/get_time"})
+        )
+        async for frame in ws:
+            if '"ready"' in frame:
+                ready.set()
+                continue
+            now = time.time()
+            stamp = json.loads(frame)["msg"]["header"]["stamp"]
+            sent = stamp["sec"] + stamp["nanosec"] * 1e-9
+            if window.holds(sent):
+                result.received += 1
+                result.delays.append(now - sent)
+            elif sent >= window.end and now > window.end + 2.0:
+                return
+
+
+async def measure(server: Server, options: dict[str, Any], rate: float) -> Result:
+    """Run the load once at ``rate`` Hz per robot and return what was measured."""
+    robots = sorted(server.tokens)[: options["robots"]]
+    result = Result(len(robots), rate, options["subscribers"], options["duration"])
+    window = Window(time.time() + 3600, options["duration"])  # placed once all are connected
+    readies = [asyncio.Event() for _ in range(options["subscribers"])]
+    subscribers = [
+        asyncio.create_task(subscriber(server, robots, window, result, ready)) for ready in readies
+    ]
+    await asyncio.wait_for(asyncio.gather(*(r.wait() for r in readies)), 60)
+    window.start = time.time() + options["warmup"] + 1.0
+    window.end = window.start + options["duration"]
+    server_process = psutil.Process(server.pid) if server.pid else None
+    me = psutil.Process()
+    publishers = [
+        asyncio.create_task(publisher(server, name, rate, window, result)) for name in robots
+    ]
+    await asyncio.sleep(max(0.0, window.start - time.time()))
+    cpu_before = server_process.cpu_times() if server_process else None
+    mine_before = me.cpu_times()
+    await asyncio.sleep(max(0.0, window.end - time.time()))
+    if server_process and cpu_before:
+        after = server_process.cpu_times()
+        used = (after.user - cpu_before.user) + (after.system - cpu_before.system)
+        result.server_cpu = 100.0 * used / options["duration"]
+    mine = me.cpu_times()
+    result.load_cpu = (
+        100.0
+        * ((mine.user - mine_before.user) + (mine.system - mine_before.system))
+        / options["duration"]
+    )
+    await asyncio.gather(*publishers)
+    try:
+        await asyncio.wait_for(asyncio.gather(*subscribers), 15)
+    except TimeoutError:
+        for task in subscribers:
+            task.cancel()
+    return result
+
+
+# ---------------------------------------------------------------- reporting
+
+
+HEADER = (
+    f"{'robots':>6} {'Hz':>6} {'subs':>4} {'offered/s':>10} {'delivered/s':>11} "
+    f"{'loss':>7} {'p50 ms':>7} {'p95 ms':>7} {'p99 ms':>7} {'server CPU':>10} {'load CPU':>8}"
+)
+
+
+def line(result: Result) -> str:
+    server_cpu = f"{result.server_cpu:.0f}%" if result.server_cpu is not None else "-"
+    return (
+        f"{result.robots:>6} {result.rate:>6.1f} {result.subscribers:>4} "
+        f"{result.offered:>10.0f} {result.delivered:>11.0f} {100 * result.loss:>6.2f}% "
+        f"{result.percentile(50):>7.1f} {result.percentile(95):>7.1f} "
+        f"{result.percentile(99):>7.1f} {server_cpu:>10} {result.load_cpu:>7.0f}%"
+    )
+
+
+def report(result: Result) -> None:
+    print(HEADER)
+    print(line(result), flush=True)
+
+
+def good(result: Result, limit_ms: float) -> bool:
+    return result.loss <= 0.0 and result.percentile(99) < limit_ms
+
+
+def saturate(server: Server, options: dict[str, Any]) -> None:
+    """Raise the rate by ``--step`` until p99 or loss fails, then print the best good run."""
+    print(HEADER, flush=True)
+    rate, best = options["rate"], None
+    while True:
+        result = asyncio.run(measure(server, options, rate))
+        print(line(result), flush=True)
+        if not good(result, options["p99_limit"]):
+            break
+        best = result
+        rate *= options["step"]
+    if best is None:
+        print(f"no rate met p99 < {options['p99_limit']:.0f} ms without loss")
+    else:
+        print(
+            f"saturation: {best.delivered:.0f} delivered msg/s at {best.rate:.1f} Hz "
+            f"(p99 {best.percentile(99):.1f} ms, server CPU {best.server_cpu or 0:.0f}%)"
+        )
