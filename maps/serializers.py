@@ -11,7 +11,7 @@ from rest_framework import serializers
 
 from . import services
 from .domain.mapfile import LoadedMap, load_map_archive, load_map_upload
-from .domain.markers import marker_id_limit
+from .domain.tagart import marker_id_limit
 from .exceptions import TagPayloadError
 from .models import Building, EnvironmentalTag, SubMap
 
@@ -28,7 +28,7 @@ class BuildingSerializer(serializers.ModelSerializer):
     def validate_marker_dictionary(self, value: str) -> str:
         try:
             marker_id_limit(value)
-        except ValueError as exc:
+        except TagPayloadError as exc:
             raise serializers.ValidationError(str(exc)) from None
         return value
 

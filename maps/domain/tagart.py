@@ -120,6 +120,14 @@ def aruco_dictionary(name: str) -> cv2.aruco.Dictionary:
     return cv2.aruco.getPredefinedDictionary(ident)
 
 
+def marker_id_limit(dictionary: str) -> int:
+    """How many marker ids ``dictionary`` holds (ids run from 0 to this minus one).
+
+    Raises ``TagPayloadError`` for a name OpenCV does not define.
+    """
+    return int(aruco_dictionary(dictionary).bytesList.shape[0])
+
+
 def marker_image(marker_id: int, dictionary: str, pixels: int) -> Grey:
     """The marker, ``pixels`` square, black border included and no white margin.
 
