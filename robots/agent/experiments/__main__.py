@@ -5,10 +5,11 @@ from __future__ import annotations
 import sys
 from collections.abc import Callable, Sequence
 
-from robots.agent.experiments import tag_range
+from robots.agent.experiments import localisation, tag_range
 
 EXPERIMENTS: dict[str, Callable[[Sequence[str]], int]] = {
     "tag-range": tag_range.main,
+    "localisation": localisation.main,
 }
 
 
