@@ -1,0 +1,331 @@
+"""An asyncio rosbridge v2 client for a robot: publish, subscribe, serve and call services,
+and stay connected.
+
+The client keeps what the robot declared (advertised topics, subscriptions, services) and
+declares it all again on every connection, since a restarted server remembers nothing.
+It authenticates with the robot's token in an ``Authorization: Token`` header (a URL
+would put the secret in access logs).
+
+Connection loss: ``run`` reconnects with exponential backoff and full jitter (so a fleet
+does not reconnect in lock step after a server restart). While disconnected, ``publish``
+drops the message and returns False: a robot's pose from ten seconds ago is worth less
+than nothing to an operator. Latched topics (``map_id``) are the exception: their latest
+message is kept and sent again after each reconnection. Nothing else is queued.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import inspect
+import itertools
+import json
+import logging
+import random
+from collections.abc import Awaitable, Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import websockets
+from websockets.asyncio.client import ClientConnection
+from websockets.exceptions import ConnectionClosed, InvalidHandshake
+
+from robots.agent.sim.messages import Json
+
+logger = logging.getLogger(__name__)
+
+Callback = Callable[[Json], None]
+Handler = Callable[[Any], Json | Awaitable[Json]]
+
+
+class ServiceError(Exception):
+    """A service call answered ``result: false``; the message is the server's reason."""
+
+
+class NotConnected(ConnectionError):
+    """The client has no connection now (or lost it while a call was waiting)."""
+
+
+@dataclass(frozen=True)
+class Backoff:
+    """Reconnection delays: ``initial * factor**attempt`` capped at ``maximum``, each
+    drawn uniformly between half of that and all of it (jitter)."""
+
+    initial: float = 0.5
+    factor: float = 2.0
+    maximum: float = 10.0
+
+    def delay(self, attempt: int, rng: random.Random) -> float:
+        """Seconds to wait before reconnection attempt number ``attempt`` (0 first)."""
+        ceiling = min(self.maximum, self.initial * self.factor**attempt)
+        return rng.uniform(ceiling / 2, ceiling)
+
+
+@dataclass
+class _Topic:
+    type: str
+    latch: bool
+    last: Json | None = None  # the latest message of a latched topic
+
+
+@dataclass
+class _Subscription:
+    type: str
+    callbacks: list[Callback] = field(default_factory=list)
+    throttle_rate: int = 0
+    queue_length: int = 1
+
+
+class RosbridgeClient:
+    """One robot's connection to ``url`` (``ws://host:port/rosbridge``) with ``token``.
+
+    Declare topics and services at any time, then ``await run()`` (it returns after
+    ``close``). ``call_timeout`` bounds service calls that name no timeout.
+    """
+
+    def __init__(
+        self,
+        url: str,
+        token: str,
+        *,
+        backoff: Backoff | None = None,
+        call_timeout: float = 5.0,
+        seed: int | None = None,
+    ) -> None:
+        self.url = url
+        self.token = token
+        self.backoff = backoff or Backoff()
+        self.call_timeout = call_timeout
+        self.connections = 0  # how many times a connection opened
+        self._rng = random.Random(seed)
+        self._topics: dict[str, _Topic] = {}
+        self._subscriptions: dict[str, _Subscription] = {}
+        self._services: dict[str, tuple[str, Handler]] = {}
+        self._calls: dict[str, asyncio.Future[Json]] = {}
+        self._ids = itertools.count(1)
+        self._ws: ClientConnection | None = None
+        self._connected = asyncio.Event()
+        self._closing = False
+        self._serving: set[asyncio.Task[None]] = set()  # held so they are not collected
+
+    # --- declarations (kept across reconnections) --------------------------------------
+
+    def advertise(self, topic: str, type_name: str, *, latch: bool = False) -> None:
+        """Declare a topic this robot publishes."""
+        self._topics[topic] = _Topic(type_name, latch)
+
+    def subscribe(
+        self,
+        topic: str,
+        type_name: str,
+        callback: Callback,
+        *,
+        throttle_rate: int = 0,
+        queue_length: int = 1,
+    ) -> None:
+        """Call ``callback(msg)`` for each message on ``topic``; exceptions it raises are
+        logged, never propagated into the connection."""
+        subscription = self._subscriptions.setdefault(
+            topic, _Subscription(type_name, [], throttle_rate, queue_length)
+        )
+        subscription.callbacks.append(callback)
+
+    def advertise_service(self, service: str, type_name: str, handler: Handler) -> None:
+        """Serve ``service``: ``handler(args)`` (plain or async) returns the response
+        values; an exception answers ``result: false`` with its text."""
+        self._services[service] = (type_name, handler)
+
+    # --- traffic -----------------------------------------------------------------------
+
+    @property
+    def connected(self) -> bool:
+        return self._connected.is_set()
+
+    async def wait_connected(self) -> None:
+        """Return once connected (bound it with ``asyncio.timeout``)."""
+        await self._connected.wait()
+
+    async def publish(self, topic: str, msg: Json) -> bool:
+        """Send ``msg`` on the advertised ``topic`` now; False (and dropped) when not
+        connected. A latched topic's message is also kept for the next connection.
+
+        Raises KeyError for a topic never advertised."""
+        declared = self._topics[topic]
+        if declared.latch:
+            declared.last = msg
+        return await self._send({"op": "publish", "topic": topic, "msg": msg})
+
+    async def call_service(
+        self, service: str, args: Json | None = None, within: float | None = None
+    ) -> Json:
+        """Call ``service`` and return its response values.
+
+        Raises NotConnected when there is no connection (or it drops while waiting),
+        ServiceError when the call fails, TimeoutError after ``within`` (default
+        ``call_timeout``) seconds.
+        """
+        call_id = f"call:{next(self._ids)}"
+        future: asyncio.Future[Json] = asyncio.get_running_loop().create_future()
+        self._calls[call_id] = future
+        try:
+            frame = {"op": "call_service", "id": call_id, "service": service, "args": args or {}}
+            if not await self._send(frame):
+                raise NotConnected(f"cannot call {service}: not connected")
+            async with asyncio.timeout(self.call_timeout if within is None else within):
+                return await future
+        finally:
+            self._calls.pop(call_id, None)
+
+    # --- connection --------------------------------------------------------------------
+
+    async def run(self) -> None:
+        """Connect, declare everything, dispatch incoming frames; on loss, wait a backoff
+        delay and do it again, until ``close``."""
+        attempt = 0
+        while not self._closing:
+            if await self._session():
+                attempt = 0  # a connection that opened starts the backoff afresh
+            if self._closing:
+                break
+            delay = self.backoff.delay(attempt, self._rng)
+            attempt += 1
+            logger.info("rosbridge: reconnecting to %s in %.1f s", self.url, delay)
+            await asyncio.sleep(delay)
+
+    async def close(self) -> None:
+        """Stop reconnecting and close the connection; ``run`` then returns."""
+        self._closing = True
+        if self._ws is not None:
+            await self._ws.close()
+
+    async def _session(self) -> bool:
+        """One connection's life; True if it opened."""
+        try:
+            async with websockets.connect(
+                self.url,
+                additional_headers={"Authorization": f"Token {self.token}"},
+                open_timeout=10,
+                max_size=None,
+            ) as ws:
+                await self._opened(ws)
+                await self._receive(ws)
+        except (OSError, InvalidHandshake, ConnectionClosed, TimeoutError) as error:
+            logger.warning("rosbridge: connection to %s: %s", self.url, error)
+        finally:
+            opened = self._ws is not None
+            self._lost()
+        return opened
+
+    async def _opened(self, ws: ClientConnection) -> None:
+        """Declare everything on a new connection, then let publishing through."""
+        self._ws = ws
+        self.connections += 1
+        for frame in self._declarations():
+            await ws.send(json.dumps(frame))
+        self._connected.set()
+        logger.info("rosbridge: connected to %s", self.url)
+
+    def _declarations(self) -> list[Json]:
+        """Frames that re-create this robot's state on a server that knows nothing of it:
+        advertisements, latched messages, subscriptions, services."""
+        frames: list[Json] = []
+        for topic, declared in self._topics.items():
+            frames.append({"op": "advertise", "topic": topic, "type": declared.type})
+            if declared.latch:
+                frames[-1]["latch"] = True
+                if declared.last is not None:
+                    frames.append({"op": "publish", "topic": topic, "msg": declared.last})
+        for topic, sub in self._subscriptions.items():
+            frames.append(
+                {
+                    "op": "subscribe",
+                    "topic": topic,
+                    "type": sub.type,
+                    "throttle_rate": sub.throttle_rate,
+                    "queue_length": sub.queue_length,
+                }
+            )
+        for service, (type_name, _) in self._services.items():
+            frames.append({"op": "advertise_service", "service": service, "type": type_name})
+        return frames
+
+    def _lost(self) -> None:
+        """Forget the connection and fail the calls that waited on it."""
+        self._ws = None
+        self._connected.clear()
+        for future in self._calls.values():
+            if not future.done():
+                future.set_exception(NotConnected("the connection was lost"))
+
+    async def _send(self, frame: Json) -> bool:
+        ws = self._ws
+        if ws is None or not self._connected.is_set():
+            return False
+        try:
+            await ws.send(json.dumps(frame))
+        except ConnectionClosed:
+            return False
+        return True
+
+    # --- incoming ----------------------------------------------------------------------
+
+    async def _receive(self, ws: ClientConnection) -> None:
+        async for data in ws:
+            try:
+                frame = json.loads(data)
+            except ValueError:
+                logger.warning("rosbridge: a frame that is not JSON was dropped")
+                continue
+            if isinstance(frame, dict):
+                self._dispatch(frame)
+
+    def _dispatch(self, frame: Json) -> None:
+        op = frame.get("op")
+        if op == "publish":
+            self._deliver(frame.get("topic"), frame.get("msg"))
+        elif op == "service_response":
+            self._answered(frame)
+        elif op == "call_service":
+            task = asyncio.create_task(self._serve(frame))
+            self._serving.add(task)
+            task.add_done_callback(self._serving.discard)
+        elif op == "status":
+            logger.info("rosbridge status: %s", frame.get("msg"))
+
+    def _deliver(self, topic: Any, msg: Any) -> None:
+        subscription = self._subscriptions.get(topic) if isinstance(topic, str) else None
+        if subscription is None or not isinstance(msg, dict):
+            return
+        for callback in subscription.callbacks:
+            try:
+                callback(msg)
+            except Exception:
+                logger.exception("rosbridge: the callback of %s failed", topic)
+
+    def _answered(self, frame: Json) -> None:
+        future = self._calls.get(str(frame.get("id")))
+        if future is None or future.done():
+            return
+        values = frame.get("values")
+        if frame.get("result", True):
+            # ROS service responses are messages (objects); anything else has no fields.
+            future.set_result(values if isinstance(values, dict) else {})
+        else:
+            future.set_exception(ServiceError(str(values)))
+
+    async def _serve(self, frame: Json) -> None:
+        """Answer a call to one of our services, by id, under the name it was called by."""
+        service = frame.get("service")
+        declared = self._services.get(service) if isinstance(service, str) else None
+        reply: Json = {"op": "service_response", "service": service, "id": frame.get("id")}
+        try:
+            if declared is None:
+                raise ServiceError(f"{service} is not served here")
+            values = declared[1](frame.get("args"))
+            if inspect.isawaitable(values):
+                values = await values
+            reply.update(values=values, result=True)
+        except Exception as error:  # the caller gets the reason, as rosbridge does
+            reply.update(values=str(error), result=False)
+        with contextlib.suppress(Exception):
+            await self._send(reply)
