@@ -63,6 +63,17 @@ def test_a_tag_behind_an_obstacle_is_not_detected() -> None:
     assert TagDetector().detect(image) == []
 
 
+def test_a_tag_with_a_bigger_qr_version_reads_back_its_longer_payload() -> None:
+    entrance = tag_of(demo_world(), ENTRANCE)
+    long_text = entrance.payload + "x" * 130  # 181 bytes: version 8 at level L
+    big = SimTag(44, entrance.x, entrance.y, entrance.yaw, long_text, qr_version=8)
+    base = demo_world()
+    world = World(base.cells, base.origin, base.resolution, (big,))
+    image = Camera(world).render(facing(big, 0.2))
+    (detection,) = TagDetector().detect(image)
+    assert detection.qr_text == long_text
+
+
 def test_a_tag_half_hidden_shows_only_its_uncovered_part() -> None:
     world = demo_world()
     tag = tag_of(world, ENTRANCE)

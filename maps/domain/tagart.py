@@ -51,6 +51,7 @@ import cv2
 import numpy as np
 import qrcode
 import qrcode.constants
+import qrcode.exceptions
 from numpy.typing import NDArray
 from PIL import Image, ImageDraw, ImageFont
 
@@ -145,21 +146,28 @@ def marker_image(marker_id: int, dictionary: str, pixels: int) -> Grey:
     return _scale_nearest(grid == 0, pixels)
 
 
-def qr_image(payload: str, pixels: int) -> Grey:
+def qr_image(payload: str, pixels: int, version: int = QR_VERSION) -> Grey:
     """The version 3-L QR code of ``payload``, ``pixels`` square, without quiet zone.
 
     Modules are scaled with nearest neighbour (exact when ``pixels`` is a multiple of 29).
-    Raises ``TagPayloadError`` if the UTF-8 payload exceeds ``MAX_PAYLOAD_BYTES``,
-    ``ValueError`` if ``pixels`` is smaller than 29.
+    ``version`` other than 3 draws that version instead, at level L, for experiments on
+    reading range (printed tags are always version 3). Raises ``TagPayloadError`` if the
+    UTF-8 payload exceeds ``MAX_PAYLOAD_BYTES`` (or, for another version, what that
+    version holds), ``ValueError`` if ``pixels`` is smaller than the module count.
     """
     data = payload.encode("utf-8")
-    if len(data) > MAX_PAYLOAD_BYTES:
+    if version == QR_VERSION and len(data) > MAX_PAYLOAD_BYTES:
         raise TagPayloadError(f"payload is {len(data)} bytes; QR 3-L holds {MAX_PAYLOAD_BYTES}")
     code = qrcode.QRCode(
-        version=QR_VERSION, error_correction=qrcode.constants.ERROR_CORRECT_L, border=0
+        version=version, error_correction=qrcode.constants.ERROR_CORRECT_L, border=0
     )
     code.add_data(data, optimize=0)  # one segment: byte mode capacity is what we promise
-    code.make(fit=False)  # keep version 3 even for short payloads: one module size for all
+    try:
+        code.make(fit=False)  # keep the version even for short payloads: one module size
+    except qrcode.exceptions.DataOverflowError as exc:
+        raise TagPayloadError(
+            f"payload is {len(data)} bytes; QR {version}-L cannot hold it"
+        ) from exc
     return _scale_nearest(np.array(code.get_matrix(), dtype=bool), pixels)
 
 
@@ -215,9 +223,17 @@ class TagFace:
 
 
 def tag_face(
-    marker_id: int, payload: str, dictionary: str, pixels_per_metre: float, size: float
+    marker_id: int,
+    payload: str,
+    dictionary: str,
+    pixels_per_metre: float,
+    size: float,
+    qr_version: int = QR_VERSION,
 ) -> TagFace:
     """Draw the plate face of the layout contract (no text) at ``pixels_per_metre``.
+
+    ``qr_version`` draws a QR code of another version in the same square (``qr_image``),
+    for the simulated camera's range experiments.
 
     Every edge is placed at its nominal position rounded to the nearest pixel and each code
     is ``size`` wide within half a pixel, so the drawing is within a pixel of the contract
@@ -232,7 +248,7 @@ def tag_face(
     code, band, qr_left = pixels(1), pixels(QUIET_ZONE), pixels(1 + 2 * QUIET_ZONE)
     image = np.full((pixels(FACE_HEIGHT), pixels(FACE_WIDTH)), 255, np.uint8)
     image[band : band + code, band : band + code] = marker_image(marker_id, dictionary, code)
-    image[band : band + code, qr_left : qr_left + code] = qr_image(payload, code)
+    image[band : band + code, qr_left : qr_left + code] = qr_image(payload, code, qr_version)
     centre = (band + code / 2) / pixels_per_metre
     return TagFace(image, pixels_per_metre, (centre, centre))
 

@@ -248,7 +248,9 @@ def _qr_modules(version: int) -> int:
 def _tag_face(tag: SimTag, module_pixels: int) -> TagFace:
     """The tag's face drawn with exactly ``module_pixels`` pixels per QR module."""
     pixels_per_metre = module_pixels * _qr_modules(tag.qr_version) / tag.size
-    return tag_face(tag.marker_id, tag.payload, tag.dictionary, pixels_per_metre, tag.size)
+    return tag_face(
+        tag.marker_id, tag.payload, tag.dictionary, pixels_per_metre, tag.size, tag.qr_version
+    )
 
 
 def _pixel_box(points: Floats, model: CameraModel) -> tuple[int, int, int, int] | None:
