@@ -7,16 +7,16 @@ bottom-left cell, yaw 0) and neighbouring sub-maps agree cell for cell where the
 overlap. Tags stand on the wall faces beside each doorway, one per direction, inside
 the overlap of the two windows.
 
-The floor plan (y up; every space is 2.4 m corridor, 8 x 8 m atrium, office or room)::
+The floor plan (y up, x east; corridors 2.4 m wide, atria 8 x 8 m)::
 
-                                      +-Atrium3-+-Office7
-   porch   CorridorA      +-Atrium1-+ |         |
-   (start) ============== |         | +---D-----+
-                          +--B------+     D
-                             B            D
-                             B  +---RoomB--------+-Atrium2-+
-                             +==CorridorC========|         |
-                                +-RoomA-+        +---------+
+                                            +-Atrium3-+-Office7-+
+      +-----+---CorridorA---+-Atrium1-+     |         |         |
+     start  > =============  |         |     +---D-----+---------+
+      porch +---------------+--B------+         D
+                               B                D
+                               B  +----RoomB----+-Atrium2-+
+                               +==CorridorC=====|         |
+                                  +-RoomA-+     +---------+
 
 The main route runs CorridorA, Atrium1, CorridorB, CorridorC, Atrium2, CorridorD,
 Atrium3, Office7. RoomB is a long laboratory with a back door into Atrium2, so a robot
@@ -135,8 +135,8 @@ class DemoBuilding:
     resolution: float
     world_origin: tuple[float, float]
     world: Grid = field(compare=False, repr=False)
-    start_pose: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    cloud_location: str = ""
+    start_pose: tuple[float, float, float]
+    cloud_location: str
 
 
 # ---------------------------------------------------------------------------------------
@@ -311,9 +311,8 @@ def occupancy_to_pgm(grid: Grid) -> bytes:
 # Rasterising the world and cutting the windows
 
 
-@lru_cache(maxsize=1)
 def _world() -> tuple[Grid, tuple[float, float]]:
-    """Rasterise the floor plan; return the read-only grid and its origin."""
+    """Rasterise the floor plan; return the grid (made read-only) and its origin."""
     bounds = _bounding(_window(space) for space in _SPACES)
     origin = (bounds.x0, bounds.y0)
     width, height = _cells(bounds.x1 - bounds.x0), _cells(bounds.y1 - bounds.y0)
@@ -352,12 +351,12 @@ def _cells(metres: float) -> int:
 
 
 def _bounding(rects: Iterable[_Rect]) -> _Rect:
-    rects = list(rects)
+    listed = list(rects)
     return _Rect(
-        min(r.x0 for r in rects),
-        min(r.y0 for r in rects),
-        max(r.x1 for r in rects),
-        max(r.y1 for r in rects),
+        min(r.x0 for r in listed),
+        min(r.y0 for r in listed),
+        max(r.x1 for r in listed),
+        max(r.y1 for r in listed),
     )
 
 
