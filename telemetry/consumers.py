@@ -40,6 +40,31 @@ class RosbridgeConsumer(AsyncWebsocketConsumer):
     access: Access
     fragments: Reassembler
 
+    async def __call__(self, scope: Any, receive: Any, send: Any) -> None:
+        """Take each message straight from ``receive`` and dispatch it.
+
+        Channels' own loop multiplexes the client with the connection's channel-layer
+        channel, at the price of a task and an ``asyncio.wait`` per frame; this consumer has
+        no such channel, so a plain loop does the same work for much less.
+        """
+        self.scope = scope
+        self.channel_layer = None
+        self.base_send = send
+        try:
+            while True:
+                await self.dispatch(await receive())
+        except StopConsumer:
+            pass
+
+    async def dispatch(self, message: dict[str, Any]) -> None:
+        """Frames skip Channels' per-message database-connection cleanup (a thread hop):
+        the frame path reads the database only through ``database_sync_to_async``, which
+        cleans up itself."""
+        if message["type"] == "websocket.receive":
+            await self.websocket_receive(message)
+        else:
+            await super().dispatch(message)
+
     async def websocket_connect(self, message: dict[str, Any]) -> None:
         identity = await authenticate(self.scope)
         if identity is None:
