@@ -23,6 +23,7 @@ from telemetry.domain.calls import CallTable, PendingCall
 from telemetry.domain.encoding import Outgoing
 from telemetry.domain.messages import pose_of, string_of, zero_twist
 from telemetry.domain.protocol import Json
+from telemetry.domain.times import complete_header_stamp
 from telemetry.exceptions import ActionFailed, NotAllowed, RosbridgeError, ServiceFailed
 from telemetry.params import MemoryParams, ParamStore, RedisParams
 from telemetry.relay import Relay
@@ -144,6 +145,7 @@ class Hub:
         self.bus.unadvertise(conn, name, aid)
 
     def publish(self, conn: Connection, name: str, msg: dict[str, Json], latch: bool) -> None:
+        complete_header_stamp(msg)
         self.bus.publish(conn, name, msg, latch)
         tracked = self._fleet_topics.get(name)
         if tracked is not None:
@@ -421,7 +423,8 @@ async def get_hub() -> Hub:
     """Return this process's hub (one per event loop), creating and starting it on first use."""
     loop = asyncio.get_running_loop()
     task = _hubs.get(loop)
-    if task is None:
+    if task is None or (task.done() and task.exception() is not None):
+        # a hub that failed to start (Redis unreachable) is retried by the next connection
         task = _hubs[loop] = loop.create_task(_new_hub())
     return await asyncio.shield(task)
 

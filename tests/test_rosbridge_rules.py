@@ -195,3 +195,63 @@ async def test_listing_a_robots_topics(connect_as, who, expected):
         return "/r1/map_id" in response["values"]["topics"]
 
     assert await outcome(connect_as, who, attempt) == expected
+
+
+@pytest.mark.parametrize(
+    ("who", "expected"),
+    expect(admin=True, operator=True, viewer=False, foreign_robot=False, peer_robot=False),
+)
+async def test_sending_a_goal_to_a_robots_action(connect_as, who, expected):
+    robot = await connect_as("r1")
+    await robot.send(op="advertise_action", action="navigate", type="nav2_msgs/NavigateToPose")
+    await robot.sync()
+
+    async def attempt(client):
+        await client.send(
+            op="send_action_goal", id="g", action="/r1/navigate", action_type="a/B", args={}
+        )
+        await client.sync()
+        return not await robot.quiet()
+
+    assert await outcome(connect_as, who, attempt) == expected
+
+
+@pytest.mark.parametrize(
+    ("who", "expected"),
+    expect(admin=True, operator=True, viewer=False, foreign_robot=False, peer_robot=False),
+)
+async def test_setting_a_robots_parameter(connect_as, who, expected):
+    async def attempt(client):
+        response = await client.call("/rosapi/set_param", {"name": "/r1/max_speed", "value": "1"})
+        return response["result"]
+
+    assert await outcome(connect_as, who, attempt) == expected
+
+
+@pytest.mark.parametrize(
+    ("who", "expected"),
+    expect(admin=False, operator=False, viewer=False, foreign_robot=False, peer_robot=False),
+)
+async def test_advertising_a_service_in_a_robots_namespace(connect_as, who, expected):
+    async def attempt(client):
+        await client.send(op="advertise_service", service="/r1/dock", type="std_srvs/Trigger")
+        listed = (await client.call("/rosapi/services"))["values"]["services"]
+        return "/r1/dock" in listed
+
+    assert await outcome(connect_as, who, attempt) == expected
+
+
+@pytest.mark.parametrize(
+    ("who", "expected"),
+    expect(admin=True, operator=True, viewer=True, foreign_robot=False, peer_robot=True),
+)
+async def test_reading_a_robots_latched_map_id(connect_as, who, expected):
+    robot = await connect_as("r1")
+    await robot.send(op="publish", topic="map_id", msg={"data": "boccioni_1/Hall"})
+    await robot.sync()
+
+    async def attempt(client):
+        await client.send(op="subscribe", topic="/r1/map_id", type="std_msgs/String")
+        return not await client.quiet()
+
+    assert await outcome(connect_as, who, attempt) == expected

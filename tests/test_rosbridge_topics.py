@@ -11,7 +11,10 @@ from tests.conftest import make_robot
 pytestmark = pytest.mark.django_db(transaction=True)
 
 POSE = {
-    "header": {"frame_id": "boccioni_1/CorridorA", "stamp": {"sec": 1, "nanosec": 2}},
+    "header": {
+        "frame_id": "boccioni_1/CorridorA",
+        "stamp": {"sec": 1, "nanosec": 2, "secs": 1, "nsecs": 2},
+    },
     "pose": {"position": {"x": 1.0, "y": 2.0, "z": 0.0}, "orientation": {"w": 1.0}},
 }
 
@@ -202,3 +205,12 @@ async def test_messages_carry_the_topic_as_the_subscriber_spelled_it(rosbridge, 
     await robot.send(op="publish", topic="pose", msg=POSE)
     assert (await robot.receive())["topic"] == "pose"
     assert (await watcher.receive())["topic"] == "/r1/pose"
+
+
+@pytest.mark.parametrize("spelling", [{"secs": 5, "nsecs": 6}, {"sec": 5, "nanosec": 6}])
+async def test_header_stamps_reach_subscribers_in_both_spellings(rosbridge, token, spelling):
+    robot = await rosbridge(token=token)
+    await robot.send(op="subscribe", topic="pose")
+    await robot.send(op="publish", topic="pose", msg={**POSE, "header": {"stamp": spelling}})
+    stamp = (await robot.receive())["msg"]["header"]["stamp"]
+    assert stamp == {"sec": 5, "nanosec": 6, "secs": 5, "nsecs": 6}

@@ -47,3 +47,21 @@ def now_stamp(clock: Any = time.time) -> dict[str, int]:
     """Return the current wall-clock time in both spellings."""
     fraction, whole = math.modf(clock())
     return stamp(int(whole), round(fraction * NANOS) % NANOS)
+
+
+def complete_header_stamp(msg: dict[str, Any]) -> None:
+    """Give a message's ``header.stamp`` both spellings, in place, if it has one of them.
+
+    A ROS 1-style publisher (``secs``) and a ROS 2-style subscriber (``sec``) then
+    understand each other. Only the top-level header is touched: that is the stamp every
+    client reads, and looking no deeper keeps this O(1) on the publish path.
+    """
+    header = msg.get("header")
+    stamp_value = header.get("stamp") if isinstance(header, dict) else None
+    if not isinstance(stamp_value, dict) or len(stamp_value) > 2:
+        return
+    try:
+        sec, nanosec = parse_stamp(stamp_value)
+    except ValueError:
+        return
+    stamp_value.update(stamp(sec, nanosec))
