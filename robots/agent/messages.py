@@ -19,12 +19,8 @@ import numpy as np
 
 from robots.agent.sim.messages import Json, header, pose_2d, ros_time
 from telemetry.domain.messages import Pose2D, pose_of
-from telemetry.domain.names import ROBOT_TOPIC_TYPES
 
 Pose = tuple[float, float, float]
-
-TOPIC_TYPES = ROBOT_TOPIC_TYPES
-"""The robot's topics (relative names) and their types, as DESIGN.md lists them."""
 
 CANCEL_SERVICE = "cancel_goal"
 CANCEL_SERVICE_TYPE = "std_srvs/Trigger"
@@ -81,7 +77,8 @@ def path_message(frame_id: str, points: Sequence[tuple[float, float]], seconds: 
     """``nav_msgs/Path`` through ``points``, each pose facing the next point (the last
     keeps its predecessor's heading); an empty path clears the plan."""
     headings = [math.atan2(b[1] - a[1], b[0] - a[0]) for a, b in pairwise(points)]
-    headings.append(headings[-1] if headings else 0.0)
+    if points:
+        headings.append(headings[-1] if headings else 0.0)
     poses = zip(points, headings, strict=True)
     return {
         "header": header(frame_id, seconds),

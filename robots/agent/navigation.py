@@ -1,0 +1,551 @@
+"""Navigation: goals and their actionlib statuses, the global plan, the local controller.
+
+- ``GoalBoard`` keeps goals as an actionlib action server does: a new goal preempts the
+  active one (PREEMPTED), a cancel preempts it too, and each ends SUCCEEDED or ABORTED;
+  ``status_array`` turns it into ``nav_status``.
+- ``Driver`` drives to one target pose: A* on the current sub-map's inflated grid
+  (``maps.domain.planning``, the planner the server uses), then a dynamic window
+  controller (``DynamicWindow``) that follows the path and keeps clear of what the laser
+  sees now (``LocalObstacles``), mapped or not. Blocked for ``BLOCKED_REPLAN`` seconds,
+  or without progress for ``STUCK_AFTER``, it plans again with the laser's obstacles
+  marked on the grid; after ``MAX_REPLANS`` such plans it gives up.
+- ``Navigator`` joins them to the Maps Supervisor: each tick the supervisor says which
+  leg comes next (search, approach a tag, the goal itself), the driver drives it, and
+  the board records how the goal ends.
+
+Frames: targets, paths and the pose estimate share the frame of the current sub-map
+(the building's); obstacles and the controller's trajectories are in the robot's frame.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from enum import Enum
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from maps.domain.planning import OutOfMapError, PlanningError, plan_on
+from robots.agent.messages import GoalStatus, StatusEntry
+from robots.agent.supervisor import (
+    SEARCH_RATE,
+    Destination,
+    Leg,
+    LegKind,
+    MapsSupervisor,
+    SubMap,
+    compose,
+    inverse,
+    wrap,
+)
+
+Pose = tuple[float, float, float]
+Point = tuple[float, float]
+Command = tuple[float, float]
+Floats = NDArray[np.float64]
+
+STOP: Command = (0.0, 0.0)
+BLOCKED_REPLAN = 1.0
+"""Seconds without an admissible trajectory before planning around what the laser sees."""
+STUCK_AFTER = 6.0
+"""Seconds without getting ``PROGRESS`` metres nearer before planning again."""
+PROGRESS = 0.1
+MAX_REPLANS = 4
+RETARGET = 0.15
+"""Metres a target may move (a tag seen more precisely) before the path is planned again."""
+MARK_RANGE = 3.0
+"""Metres: laser returns within this range are marked on the grid when replanning."""
+
+
+@dataclass(frozen=True)
+class ControllerConfig:
+    """The robot's limits (a TurtleBot-class base, as the simulated body) and the
+    controller's tuning."""
+
+    max_linear: float = 0.5
+    max_angular: float = 1.5
+    linear_accel: float = 1.0
+    angular_accel: float = 4.0
+    radius: float = 0.18
+    safety: float = 0.04  # metres of clearance a trajectory keeps beyond the radius
+    period: float = 0.1  # seconds between commands
+    horizon: float = 1.6  # seconds each trajectory is simulated for
+    linear_samples: int = 9
+    angular_samples: int = 25
+    lookahead: float = 0.8  # metres along the path to the carrot
+    xy_tolerance: float = 0.08
+    yaw_tolerance: float = 0.08
+    turn_in_place: float = 0.9  # radians off the carrot beyond which the robot turns first
+
+
+# --- goals -----------------------------------------------------------------------------
+
+
+@dataclass
+class GoalBoard:
+    """Goals and their statuses; ``version`` grows with every change."""
+
+    keep: int = 5
+    entries: list[StatusEntry] = field(default_factory=list)
+    version: int = 0
+    _count: int = 0
+
+    @property
+    def active(self) -> StatusEntry | None:
+        last = self.entries[-1] if self.entries else None
+        return last if last is not None and not last.status.terminal else None
+
+    def start(self, seconds: float, prefix: str = "goal") -> StatusEntry:
+        """A new ACTIVE goal; the one it replaces, if active, is PREEMPTED."""
+        self.finish(GoalStatus.PREEMPTED, "preempted by a new goal")
+        self._count += 1
+        entry = StatusEntry(f"{prefix}_{self._count}", seconds, GoalStatus.ACTIVE, "accepted")
+        self.entries = [*self.entries, entry][-self.keep :]
+        self.version += 1
+        return entry
+
+    def finish(self, status: GoalStatus, text: str) -> bool:
+        """End the active goal with ``status``; False if none was active."""
+        return self._update(status, text) if self.active is not None else False
+
+    def describe(self, text: str) -> None:
+        """Say what the active goal is doing now."""
+        active = self.active
+        if active is not None and active.text != text:
+            self._update(active.status, text)
+
+    def _update(self, status: GoalStatus, text: str) -> bool:
+        last = self.entries[-1]
+        self.entries[-1] = StatusEntry(last.goal_id, last.stamp, status, text)
+        self.version += 1
+        return True
+
+
+# --- what the laser sees ---------------------------------------------------------------
+
+
+class LocalObstacles:
+    """Clearance around the robot: distance from points of the robot's frame to the
+    nearest laser return, on a square grid ``reach`` metres each way.
+
+    Points off that grid are taken as clear (``reach``): the controller never looks that
+    far. Distances are between cell centres, less half a cell, so they err short.
+    """
+
+    def __init__(self, points: Floats, reach: float = 2.5, resolution: float = 0.05) -> None:
+        self.points = points  # laser returns, robot frame, shape (n, 2)
+        self.reach, self.resolution = reach, resolution
+        self.size = round(2 * reach / resolution)
+        cells = self._cells(points[:, 0], points[:, 1]) if len(points) else None
+        self._distance = _clearance_grid(self.size, cells, resolution)
+
+    @classmethod
+    def from_scan(cls, ranges: Floats, angles: Floats) -> LocalObstacles:
+        """From a scan's ranges (``inf`` = no return) at ``angles`` in the robot frame."""
+        hit = np.isfinite(ranges)
+        distance, angle = ranges[hit], angles[hit]
+        return cls(np.stack([distance * np.cos(angle), distance * np.sin(angle)], 1))
+
+    def clearance(self, x: Floats, y: Floats) -> Floats:
+        """Clearance in metres at each robot-frame point ``(x, y)`` (arrays of one shape)."""
+        rows, cols = self._cells(x, y)
+        inside = (rows >= 0) & (rows < self.size) & (cols >= 0) & (cols < self.size)
+        found = self._distance[np.where(inside, rows, 0), np.where(inside, cols, 0)]
+        return np.where(inside, found, self.reach)
+
+    def _cells(self, x: Floats, y: Floats) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+        rows = np.floor((np.asarray(y) + self.reach) / self.resolution).astype(np.intp)
+        cols = np.floor((np.asarray(x) + self.reach) / self.resolution).astype(np.intp)
+        return rows, cols
+
+
+def _clearance_grid(
+    size: int, cells: tuple[NDArray[np.intp], NDArray[np.intp]] | None, resolution: float
+) -> Floats:
+    """Metres from each cell to the nearest marked one (``inf`` with none marked)."""
+    if cells is None:
+        return np.full((size, size), np.inf)
+    rows, cols = cells
+    inside = (rows >= 0) & (rows < size) & (cols >= 0) & (cols < size)
+    free = np.full((size, size), 255, np.uint8)
+    free[rows[inside], cols[inside]] = 0
+    if inside.sum() == 0:
+        return np.full((size, size), np.inf)
+    distance = cv2.distanceTransform(free, cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
+    return np.maximum(np.asarray(distance, np.float64) - 0.5, 0.0) * resolution
+
+
+# --- the local controller --------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Choice:
+    """The controller's command, and whether every way forward was blocked."""
+
+    command: Command
+    blocked: bool = False
+
+
+class DynamicWindow:
+    """The dynamic window approach (Fox, Burgard and Thrun, 1997) for a round robot.
+
+    Velocities reachable within one ``period`` under the acceleration limits are sampled
+    and each held for ``horizon`` seconds; arcs that come closer than ``radius + safety``
+    to a laser return are inadmissible (when the robot already stands closer, those that
+    come no closer than it is stay admissible, so it can leave). The rest are scored by
+    how near their end comes to the carrot, whether they end facing it, their clearance
+    and their speed.
+    """
+
+    def __init__(self, config: ControllerConfig) -> None:
+        self.config = config
+        steps = round(config.horizon / config.period)
+        self._times = np.arange(1, steps + 1) * config.period
+
+    def choose(
+        self, velocity: Command, carrot: Point, obstacles: LocalObstacles, speed_cap: float
+    ) -> Choice:
+        """The best command toward ``carrot`` (robot frame) at most ``speed_cap`` m/s."""
+        linear, angular = self._samples(velocity, speed_cap)
+        xs, ys, headings = self._rollout(linear, angular)
+        clear = obstacles.clearance(xs, ys).min(axis=1)
+        here = float(obstacles.clearance(np.zeros(1), np.zeros(1))[0])
+        admissible = clear >= min(self.config.radius + self.config.safety, here - 0.005)
+        forward = admissible & (linear > 0.02)
+        if not forward.any():
+            return Choice(self._turn_toward(carrot) if admissible.any() else STOP, True)
+        cost = self._cost(xs[:, -1], ys[:, -1], headings[:, -1], carrot, clear, linear)
+        best = int(np.argmin(np.where(forward, cost, np.inf)))
+        return Choice((float(linear[best]), float(angular[best])))
+
+    def _samples(self, velocity: Command, speed_cap: float) -> tuple[Floats, Floats]:
+        """Linear and angular velocities of every sample (flattened grid)."""
+        cfg, (v0, w0) = self.config, velocity
+        top = min(cfg.max_linear, speed_cap, v0 + cfg.linear_accel * cfg.period)
+        bottom = min(max(0.0, v0 - cfg.linear_accel * cfg.period), top)
+        w_low = max(-cfg.max_angular, w0 - cfg.angular_accel * cfg.period)
+        w_high = min(cfg.max_angular, w0 + cfg.angular_accel * cfg.period)
+        linear = np.linspace(bottom, top, cfg.linear_samples)
+        angular = np.linspace(w_low, w_high, cfg.angular_samples)
+        grid_v, grid_w = np.meshgrid(linear, angular, indexing="ij")
+        return grid_v.ravel(), grid_w.ravel()
+
+    def _rollout(self, linear: Floats, angular: Floats) -> tuple[Floats, Floats, Floats]:
+        """Positions and headings along each constant-velocity arc, shape (samples, steps)."""
+        t = self._times[None, :]
+        v, w = linear[:, None], angular[:, None]
+        heading = w * t
+        turning = np.abs(w) > 1e-6
+        radius = np.where(turning, v / np.where(turning, w, 1.0), 0.0)
+        xs = np.where(turning, radius * np.sin(heading), v * t)
+        ys = np.where(turning, radius * (1 - np.cos(heading)), 0.0)
+        return xs, ys, heading
+
+    def _cost(
+        self, x: Floats, y: Floats, heading: Floats, carrot: Point, clear: Floats, v: Floats
+    ) -> Floats:
+        dx, dy = carrot[0] - x, carrot[1] - y
+        distance = np.hypot(dx, dy)
+        off = np.arctan2(dy, dx) - heading
+        facing = np.where(distance < 0.05, 0.0, np.abs(np.arctan2(np.sin(off), np.cos(off))))
+        crowding = np.clip(0.5 - clear, 0.0, None)
+        return distance + 0.2 * facing + 2.0 * crowding - 0.2 * v
+
+    def _turn_toward(self, carrot: Point) -> Command:
+        bearing = math.atan2(carrot[1], carrot[0])
+        return 0.0, _clamp(1.5 * bearing, self.config.max_angular)
+
+
+# --- driving one leg -------------------------------------------------------------------
+
+
+class DriveState(Enum):
+    MOVING = "moving"
+    ARRIVED = "arrived"
+    FAILED = "failed"
+
+
+@dataclass(frozen=True)
+class Drive:
+    command: Command
+    state: DriveState = DriveState.MOVING
+    reason: str = ""
+
+
+@dataclass
+class _Progress:
+    """How the current target is going: best distance so far and since when."""
+
+    best: float = math.inf
+    since: float = 0.0
+    blocked_since: float | None = None
+    replans: int = 0
+
+
+class Driver:
+    """Drives to one target pose at a time (see the module's docstring).
+
+    ``path`` is the current global plan (map frame), ``plan_version`` grows when it
+    changes. A target with no sub-map (a lost robot, driving by sight) gets a straight
+    path: the controller still keeps clear of what the laser sees.
+    """
+
+    def __init__(self, config: ControllerConfig | None = None) -> None:
+        self.config = config or ControllerConfig()
+        self.controller = DynamicWindow(self.config)
+        self.path: list[Point] = []
+        self.plan_version = 0
+        self._target: Pose | None = None
+        self._submap: SubMap | None = None
+        self._index = 0
+        self._aligning = False
+        self._progress = _Progress()
+
+    def clear(self) -> None:
+        """Forget the target and the plan."""
+        if self.path:
+            self.plan_version += 1
+        self.path, self._target, self._submap = [], None, None
+        self._aligning = False
+
+    def drive(
+        self,
+        target: Pose,
+        submap: SubMap | None,
+        pose: Pose,
+        velocity: Command,
+        obstacles: LocalObstacles,
+        seconds: float,
+    ) -> Drive:
+        """One command toward ``target`` from ``pose`` at ``velocity``."""
+        if self._retargeted(target, submap):
+            failure = self._plan(target, submap, pose, seconds, obstacles=None)
+            if failure:
+                return Drive(STOP, DriveState.FAILED, failure)
+        distance = math.dist(pose[:2], target[:2])
+        # Hysteresis: once there, small drifts while turning do not restart the approach.
+        if distance <= self.config.xy_tolerance:
+            self._aligning = True
+        elif distance > 3 * self.config.xy_tolerance:
+            self._aligning = False
+        if self._aligning:
+            return self._align(pose, target)
+        return self._follow(pose, velocity, obstacles, seconds, distance)
+
+    # --- planning ------------------------------------------------------------------------
+
+    def _retargeted(self, target: Pose, submap: SubMap | None) -> bool:
+        """Whether the target or the map changed enough to plan afresh."""
+        previous = self._target
+        moved = previous is None or math.dist(previous[:2], target[:2]) > RETARGET
+        changed = moved or submap is not self._submap
+        if changed:
+            self._progress = _Progress()
+            self._aligning = False
+        if not moved and self.path:
+            self._target = target  # a small move: the path's end follows, no new plan
+            self.path[-1] = target[:2]
+        return changed
+
+    def _plan(
+        self,
+        target: Pose,
+        submap: SubMap | None,
+        pose: Pose,
+        seconds: float,
+        obstacles: Floats | None,
+    ) -> str:
+        """Plan from ``pose`` to ``target`` (around ``obstacles``, map-frame points, when
+        given); returns why it failed, or ''."""
+        self._target, self._submap, self._index = target, submap, 0
+        self._progress.since = seconds
+        path = [pose[:2], target[:2]]
+        if submap is not None:
+            costmap = submap.costmap if obstacles is None else submap.costmap_with(obstacles)
+            try:
+                path = [*plan_on(costmap, pose[:2], target[:2])[:-1], target[:2]]
+            except OutOfMapError as error:
+                if error.which == "goal":
+                    return str(error)
+                # Standing outside the sub-map's window (just entered it): go straight in.
+            except PlanningError as error:
+                return str(error)
+        self.path = path
+        self.plan_version += 1
+        return ""
+
+    # --- following -----------------------------------------------------------------------
+
+    def _follow(
+        self,
+        pose: Pose,
+        velocity: Command,
+        obstacles: LocalObstacles,
+        seconds: float,
+        distance: float,
+    ) -> Drive:
+        carrot = self._carrot(pose)
+        local = compose(inverse(pose), (*carrot, 0.0))
+        bearing = math.atan2(local[1], local[0])
+        if abs(bearing) > self.config.turn_in_place:
+            command = (0.0, _clamp(1.5 * bearing, 1.0))
+        else:
+            # Slow enough to stop at the target within the braking limit, with a margin.
+            cap = math.sqrt(2 * self.config.linear_accel * distance) * 0.7
+            choice = self.controller.choose(velocity, (local[0], local[1]), obstacles, cap)
+            self._note_blocked(choice.blocked, seconds)
+            command = choice.command
+        return self._after(Drive(command), pose, obstacles, seconds, distance)
+
+    def _after(
+        self, drive: Drive, pose: Pose, obstacles: LocalObstacles, seconds: float, distance: float
+    ) -> Drive:
+        """Watch progress: replan around obstacles when blocked or stuck; give up after
+        ``MAX_REPLANS``."""
+        progress = self._progress
+        if distance < progress.best - PROGRESS:
+            progress.best, progress.since = distance, seconds
+        since_blocked = progress.blocked_since
+        blocked = since_blocked is not None and seconds - since_blocked >= BLOCKED_REPLAN
+        if not blocked and seconds - progress.since < STUCK_AFTER:
+            return drive
+        if progress.replans >= MAX_REPLANS:
+            return Drive(STOP, DriveState.FAILED, "blocked: no way through")
+        progress.replans += 1
+        progress.blocked_since = None
+        assert self._target is not None
+        seen = _in_map_frame(obstacles.points, pose)
+        failure = self._plan(self._target, self._submap, pose, seconds, seen)
+        return Drive(STOP, DriveState.FAILED, failure) if failure else drive
+
+    def _note_blocked(self, blocked: bool, seconds: float) -> None:
+        progress = self._progress
+        if not blocked:
+            progress.blocked_since = None
+        elif progress.blocked_since is None:
+            progress.blocked_since = seconds
+
+    def _carrot(self, pose: Pose) -> Point:
+        """The point ``lookahead`` metres along the path past the point nearest the robot
+        (searched from the last one found, so the robot never turns back along it)."""
+        path = self.path
+        best, best_distance = self._index, math.inf
+        for index in range(self._index, len(path) - 1):
+            distance = _segment_distance(pose[:2], path[index], path[index + 1])
+            if distance < best_distance - 1e-9:
+                best, best_distance = index, distance
+        self._index = best
+        return _along(path, best, pose[:2], self.config.lookahead)
+
+    def _align(self, pose: Pose, target: Pose) -> Drive:
+        """At the target: turn on the spot to its heading, then report arrival."""
+        error = wrap(target[2] - pose[2])
+        if abs(error) <= self.config.yaw_tolerance:
+            return Drive(STOP, DriveState.ARRIVED)
+        return Drive((0.0, _clamp(2.0 * error, 1.0)))
+
+
+def _in_map_frame(points: Floats, pose: Pose) -> Floats:
+    """Robot-frame ``points`` within ``MARK_RANGE``, in the map frame."""
+    near = points[np.hypot(points[:, 0], points[:, 1]) <= MARK_RANGE]
+    c, s = math.cos(pose[2]), math.sin(pose[2])
+    x, y = near[:, 0], near[:, 1]
+    return np.stack([pose[0] + c * x - s * y, pose[1] + s * x + c * y], 1)
+
+
+def _segment_distance(p: Point, a: Point, b: Point) -> float:
+    return math.dist(p, _projection(p, a, b))
+
+
+def _projection(p: Point, a: Point, b: Point) -> Point:
+    dx, dy = b[0] - a[0], b[1] - a[1]
+    length2 = dx * dx + dy * dy
+    along = 0.0 if length2 == 0 else ((p[0] - a[0]) * dx + (p[1] - a[1]) * dy) / length2
+    t = max(0.0, min(1.0, along))
+    return a[0] + t * dx, a[1] + t * dy
+
+
+def _along(path: Sequence[Point], index: int, position: Point, lookahead: float) -> Point:
+    """The point ``lookahead`` metres along ``path`` from the projection of ``position``
+    on segment ``index``; the path's end if it is nearer."""
+    if len(path) == 1:
+        return path[0]
+    point, left = _projection(position, path[index], path[index + 1]), lookahead
+    for nxt in path[index + 1 :]:
+        step = math.dist(point, nxt)
+        if step >= left:
+            f = left / step
+            return point[0] + f * (nxt[0] - point[0]), point[1] + f * (nxt[1] - point[1])
+        point, left = nxt, left - step
+    return path[-1]
+
+
+def _clamp(value: float, limit: float) -> float:
+    return max(-limit, min(limit, value))
+
+
+# --- goals, legs and driving together --------------------------------------------------
+
+
+class Navigator:
+    """The robot's navigation: goals from ``/r/goal``, legs from the supervisor, commands
+    from the driver, statuses on the board."""
+
+    def __init__(self, supervisor: MapsSupervisor, config: ControllerConfig | None = None) -> None:
+        self.supervisor = supervisor
+        self.driver = Driver(config)
+        self.board = GoalBoard()
+
+    def set_goal(self, map_id: str, pose: Pose, seconds: float) -> None:
+        """A new goal (pose in sub-map ``map_id`` of this building); preempts the last."""
+        self.board.start(seconds)
+        destination = Destination.parse(map_id, pose)
+        if destination is None:
+            self._end(GoalStatus.ABORTED, f"'{map_id}' is not a Map ID (building/map)")
+            return
+        self.supervisor.set_destination(destination)
+        self.driver.clear()
+
+    def cancel(self) -> bool:
+        """Cancel the active goal (PREEMPTED); False if there was none."""
+        return self._end(GoalStatus.PREEMPTED, "cancelled")
+
+    def step(
+        self, pose: Pose, odom: Pose, velocity: Command, obstacles: LocalObstacles, seconds: float
+    ) -> Command:
+        """This tick's command (a stop without an active goal)."""
+        if self.board.active is None:
+            return STOP
+        leg = self.supervisor.leg(pose, odom, seconds)
+        self.board.describe(leg.text)
+        if leg.kind is LegKind.FAIL:
+            self._end(GoalStatus.ABORTED, leg.text)
+            return STOP
+        if leg.kind is LegKind.SEARCH:
+            self.driver.clear()
+            return 0.0, SEARCH_RATE
+        if leg.kind is LegKind.HOLD or leg.target is None:
+            return STOP
+        return self._drive(leg, pose, velocity, obstacles, seconds)
+
+    def _drive(
+        self, leg: Leg, pose: Pose, velocity: Command, obstacles: LocalObstacles, seconds: float
+    ) -> Command:
+        assert leg.target is not None
+        drive = self.driver.drive(leg.target, leg.submap, pose, velocity, obstacles, seconds)
+        if drive.state is DriveState.FAILED:
+            self._end(GoalStatus.ABORTED, drive.reason)
+        elif drive.state is DriveState.ARRIVED and leg.kind is LegKind.FINAL:
+            self._end(GoalStatus.SUCCEEDED, "arrived")
+        elif drive.state is DriveState.ARRIVED:
+            self.supervisor.arrived(seconds)
+        return drive.command
+
+    def _end(self, status: GoalStatus, text: str) -> bool:
+        ended = self.board.finish(status, text)
+        self.supervisor.set_destination(None)
+        self.driver.clear()
+        return ended

@@ -1,0 +1,404 @@
+"""One simulated robot: body, laser and camera (``SimHardware``), and the software a real
+robot would run on them: tag detector, pose tracking, Maps Supervisor, navigation, and a
+rosbridge connection.
+
+The software sees only what the hardware reports (odometry, scans, images) and what the
+cloud serves; ground truth (``SimHardware.true_pose``) exists for the simulator's
+sensors and for tests, and nothing in ``Robot`` reads it.
+
+Time: the robot lives on a simulated clock advanced in fixed control periods
+(``RobotConfig.period``); ``run`` paces it against the wall clock, ``time_scale`` times
+faster (tests and demos run faster than real time). Every rate here, and the teleop
+watchdog, is in simulated seconds. Messages are stamped ``epoch + simulated seconds``.
+
+Topics (relative names, so the server resolves them to ``/{robot}/...``): publishes
+``pose`` (10 Hz, only once the robot knows its sub-map: ``frame_id`` is the Map ID),
+``odom`` (10 Hz), ``scan`` (5 Hz), ``plan`` (when it changes), ``nav_status`` (on every
+change and at 1 Hz), ``map_id`` (latched, on entering a sub-map) and
+``camera/image/compressed`` (``camera_rate``); subscribes ``cmd_vel``, ``goal`` and
+``initialpose``; serves ``cancel_goal`` (``std_srvs/Trigger``), which preempts the
+active goal. (The server lets operators publish only ``cmd_vel``, ``goal`` and
+``initialpose`` to a robot, so a cancel topic could never be published; the service
+is what an operator may call.)
+
+Teleop has priority: a ``cmd_vel`` drives the body at once (clamped to its limits) and
+navigation stays silent until ``TELEOP_HOLD`` seconds after the last one; the body
+stops by itself ``watchdog`` seconds after its last command, as a TurtleBot does.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any, Protocol
+
+import numpy as np
+from numpy.typing import NDArray
+
+from robots.agent.client import RosbridgeClient
+from robots.agent.messages import (
+    CANCEL_SERVICE,
+    CANCEL_SERVICE_TYPE,
+    goal_of,
+    initial_pose_of,
+    path_message,
+    pose_stamped,
+    status_array,
+    string_message,
+    twist_of,
+)
+from robots.agent.navigation import ControllerConfig, LocalObstacles, Navigator
+from robots.agent.perception import CameraModel, TagDetection, TagDetector
+from robots.agent.relocalise import PoseEstimate
+from robots.agent.sim.body import DiffDriveBody
+from robots.agent.sim.camera import Camera, compressed_image_message, encode_jpeg
+from robots.agent.sim.laser import Laser, LaserSpec
+from robots.agent.sim.messages import Json
+from robots.agent.sim.world import World
+from robots.agent.supervisor import BundleError, MapsSupervisor, SubMap, compose, inverse
+from telemetry.domain.names import ROBOT_TOPIC_TYPES
+
+logger = logging.getLogger(__name__)
+
+Pose = tuple[float, float, float]
+
+TELEOP_HOLD = 0.5
+"""Seconds after a ``cmd_vel`` during which navigation leaves the body alone."""
+
+
+@dataclass(frozen=True)
+class RobotConfig:
+    """Rates (Hz, simulated time) and options of one robot."""
+
+    period: float = 0.1  # control period: body, laser, controller
+    pose_rate: float = 10.0
+    odom_rate: float = 10.0
+    scan_rate: float = 5.0
+    camera_rate: float = 5.0  # JPEG frames published
+    detect_rate: float = 5.0  # frames the tag detector looks at
+    status_rate: float = 1.0
+    jpeg_quality: int = 80
+    controller: ControllerConfig = field(default_factory=ControllerConfig)
+
+
+# --- the simulated hardware ------------------------------------------------------------
+
+
+class SimHardware:
+    """The body, laser and camera of one robot in ``world``, starting at ``pose``."""
+
+    def __init__(self, world: World, pose: Pose, seed: int = 0) -> None:
+        self.body = DiffDriveBody(world, pose, seed=seed)
+        self.laser = Laser(world, LaserSpec(), seed=seed + 1)
+        self.camera = Camera(world, CameraModel(), seed=seed + 2)
+        self.scan_angles = self.laser.spec.angles()
+
+    @property
+    def true_pose(self) -> Pose:
+        """Ground truth: for the simulator and tests only."""
+        return self.body.pose
+
+    @property
+    def odom_pose(self) -> Pose:
+        return self.body.odom_pose
+
+    @property
+    def reported_velocity(self) -> tuple[float, float]:
+        """The velocity the wheel encoders report (with their scale errors)."""
+        linear, angular = self.body.velocity
+        return linear * self.body.noise.linear_scale, angular * self.body.noise.angular_scale
+
+    def advance(self, seconds: float) -> None:
+        self.body.advance(seconds)
+
+    def command(self, linear: float, angular: float) -> None:
+        """Ask for a velocity; the body clamps it to its limits."""
+        self.body.command(linear, angular)
+
+    def scan(self) -> NDArray[np.float32]:
+        return self.laser.scan(self.body.pose)
+
+    def image(self) -> NDArray[np.uint8]:
+        return self.camera.render(self.body.pose)
+
+
+# --- where the robot is ----------------------------------------------------------------
+
+
+class Localiser(Protocol):
+    """A particle filter's interface (``robots.agent.localisation.ParticleFilter``)."""
+
+    def reset(self, pose: Pose, covariance: NDArray[np.float64]) -> None: ...
+    def predict(self, odom_delta: Pose) -> None: ...
+    def update(self, scan: Json) -> bool: ...
+    def pose(self) -> Pose: ...
+    def set_map(self, grid: Any, resolution: float, origin: Pose) -> None: ...
+
+
+LocaliserFactory = Callable[[SubMap], Localiser]
+
+
+class PoseTracker:
+    """The pose estimate in the current sub-map's frame: odometry composed with the last
+    reset (a tag, an operator's initial pose), refined on the laser by a particle filter
+    when ``factory`` makes one.
+
+    Before any reset the estimate is the odometry pose itself (the robot is lost; the
+    supervisor steers by sight then).
+    """
+
+    def __init__(self, factory: LocaliserFactory | None = None) -> None:
+        self.factory = factory
+        self.filter: Localiser | None = None
+        self.odom: Pose = (0.0, 0.0, 0.0)
+        self.localised = False
+        self._offset: Pose = (0.0, 0.0, 0.0)  # map <- odometry
+        self._pending: tuple[Pose, NDArray[np.float64]] | None = None
+
+    def odometry(self, odom: Pose) -> None:
+        """A new odometry reading."""
+        if self.filter is not None:
+            self.filter.predict(_delta(self.odom, odom))
+        self.odom = odom
+
+    def scan(self, scan: Json) -> None:
+        if self.filter is not None and self.localised:
+            self.filter.update(scan)
+
+    def reset(self, pose: Pose, covariance: NDArray[np.float64], at_odom: Pose) -> None:
+        """Take ``pose`` as the estimate when odometry read ``at_odom``."""
+        now = compose(pose, compose(inverse(at_odom), self.odom))
+        self._offset = compose(now, inverse(self.odom))
+        self.localised = True
+        if self.filter is not None:
+            self.filter.reset(now, covariance)
+        else:
+            self._pending = (now, covariance)
+
+    def set_map(self, submap: SubMap) -> None:
+        if self.factory is None:
+            return
+        if self.filter is None:
+            self.filter = self.factory(submap)
+            if self._pending is not None:
+                self.filter.reset(*self._pending)
+        else:
+            self.filter.set_map(submap.grid, submap.resolution, submap.origin)
+        self._pending = None
+
+    def pose(self) -> Pose:
+        if self.filter is not None and self.localised:
+            return self.filter.pose()
+        return compose(self._offset, self.odom)
+
+
+def _delta(before: Pose, after: Pose) -> Pose:
+    """Odometry motion from ``before`` to ``after`` in the robot frame at ``before``."""
+    return compose(inverse(before), after)
+
+
+# --- the robot -------------------------------------------------------------------------
+
+
+class Publisher(Protocol):
+    async def publish(self, topic: str, msg: Json) -> bool: ...
+
+
+class Robot:
+    """One robot's software on its ``hardware``, talking through ``publisher``."""
+
+    def __init__(
+        self,
+        hardware: SimHardware,
+        supervisor: MapsSupervisor,
+        tracker: PoseTracker,
+        publisher: Publisher,
+        config: RobotConfig | None = None,
+        epoch: float | None = None,
+    ) -> None:
+        self.hardware = hardware
+        self.supervisor = supervisor
+        self.tracker = tracker
+        self.publisher = publisher
+        self.config = config or RobotConfig()
+        self.navigator = Navigator(supervisor, self.config.controller)
+        self.detector = TagDetector(hardware.camera.model)
+        self.epoch = time.time() if epoch is None else epoch
+        self.seconds = 0.0
+        self.ticks = 0
+        self.detections: list[TagDetection] = []  # the last frame's, for tests and logs
+        self._teleop_until = -math.inf
+        self._published_plan = 0
+        self._published_status = -1
+        self._map_to_publish: str | None = None
+        self._tasks: set[asyncio.Task[None]] = set()
+        supervisor.on_map.append(self._entered)
+
+    # --- commands from the network -----------------------------------------------------
+
+    def on_cmd_vel(self, msg: Json) -> None:
+        """Teleop: drive now; navigation waits ``TELEOP_HOLD`` seconds."""
+        twist = twist_of(msg)
+        if twist is None:
+            return
+        self.hardware.command(*twist)
+        self._teleop_until = self.seconds + TELEOP_HOLD
+
+    def on_goal(self, msg: Json) -> None:
+        """A goal pose in a sub-map (``frame_id`` = its Map ID; a bare map code means this
+        building)."""
+        goal = goal_of(msg)
+        if goal is None:
+            logger.warning("a goal without a usable pose or frame was ignored")
+            return
+        map_id = goal.map_id
+        if "/" not in map_id and self.supervisor.current is not None:
+            map_id = f"{self.supervisor.current.building}/{map_id}"
+        self.navigator.set_goal(map_id, (goal.x, goal.y, goal.yaw), self.seconds)
+
+    def on_initial_pose(self, msg: Json) -> None:
+        """An operator's pose estimate, in the sub-map its frame names."""
+        found = initial_pose_of(msg)
+        if found is None:
+            return
+        pose, covariance = found
+        estimate = PoseEstimate(pose.x, pose.y, pose.yaw, covariance)
+        self._spawn(self._relocate(estimate, pose.map_id, self.tracker.odom))
+
+    async def _relocate(self, estimate: PoseEstimate, map_id: str, odom: Pose) -> None:
+        try:
+            await self.supervisor.relocate(estimate, map_id, odom)
+        except BundleError as error:
+            logger.warning("initial pose in %s ignored: %s", map_id, error)
+
+    def on_cancel(self, args: Any) -> Json:
+        """The ``cancel_goal`` service: preempt the active goal."""
+        cancelled = self.navigator.cancel()
+        return {"success": cancelled, "message": "cancelled" if cancelled else "no active goal"}
+
+    def _entered(self, submap: SubMap) -> None:
+        self._map_to_publish = submap.map_id
+        self.detector.sizes.update({m: tag.size for m, tag in submap.tags.items()})
+
+    def _spawn(self, coroutine: Any) -> None:
+        task = asyncio.get_running_loop().create_task(coroutine)
+        self._tasks.add(task)
+        task.add_done_callback(self._tasks.discard)
+
+    # --- one control period --------------------------------------------------------------
+
+    async def tick(self) -> None:
+        """Advance the body one period, sense, decide, command, publish."""
+        self.hardware.advance(self.config.period)
+        self.seconds += self.config.period
+        self.ticks += 1
+        self.tracker.odometry(self.hardware.odom_pose)
+        ranges = self.hardware.scan()
+        scan = self.hardware.laser.message(ranges, self.stamp)
+        self.tracker.scan(scan)
+        camera_due = self._due(self.config.detect_rate, self.config.camera_rate)
+        image = self._look() if camera_due else None
+        self._drive(LocalObstacles.from_scan(ranges.astype(np.float64), self.hardware.scan_angles))
+        await self._publish(scan, image)
+
+    @property
+    def stamp(self) -> float:
+        return self.epoch + self.seconds
+
+    def _due(self, *rates: float) -> bool:
+        """Whether this tick falls on any of ``rates`` (Hz), counted in ticks."""
+        period = self.config.period
+        return any(
+            rate > 0 and self.ticks % max(1, round(1 / (rate * period))) == 0 for rate in rates
+        )
+
+    def _look(self) -> NDArray[np.uint8]:
+        """Render a frame; the detector looks at it when due."""
+        image = self.hardware.image()
+        if self._due(self.config.detect_rate):
+            self.detections = self.detector.detect(image)
+            self.supervisor.observe(self.detections, self.tracker.odom, self.seconds)
+        return image
+
+    def _drive(self, obstacles: LocalObstacles) -> None:
+        if self.seconds < self._teleop_until:
+            return
+        command = self.navigator.step(
+            self.tracker.pose(),
+            self.tracker.odom,
+            self.hardware.reported_velocity,
+            obstacles,
+            self.seconds,
+        )
+        self.hardware.command(*command)
+
+    # --- publishing --------------------------------------------------------------------
+
+    async def _publish(self, scan: Json, image: NDArray[np.uint8] | None) -> None:
+        current = self.supervisor.current
+        if self._map_to_publish is not None:
+            await self.publisher.publish("map_id", string_message(self._map_to_publish))
+            self._map_to_publish = None
+        if current is not None and self._due(self.config.pose_rate):
+            pose = pose_stamped(current.map_id, self.tracker.pose(), self.stamp)
+            await self.publisher.publish("pose", pose)
+        if self._due(self.config.odom_rate):
+            odom = self.hardware.body.odometry_message(seconds=self.stamp)
+            await self.publisher.publish("odom", odom)
+        if self._due(self.config.scan_rate):
+            await self.publisher.publish("scan", scan)
+        await self._publish_navigation(current)
+        if image is not None and self._due(self.config.camera_rate):
+            await self._publish_image(image)
+
+    async def _publish_navigation(self, current: SubMap | None) -> None:
+        driver, board = self.navigator.driver, self.navigator.board
+        if driver.plan_version != self._published_plan:
+            self._published_plan = driver.plan_version
+            frame = current.map_id if current is not None else "odom"
+            await self.publisher.publish("plan", path_message(frame, driver.path, self.stamp))
+        if board.version != self._published_status or self._due(self.config.status_rate):
+            self._published_status = board.version
+            await self.publisher.publish("nav_status", status_array(board.entries, self.stamp))
+
+    async def _publish_image(self, image: NDArray[np.uint8]) -> None:
+        jpeg = encode_jpeg(image, self.config.jpeg_quality)
+        message = compressed_image_message(jpeg, self.stamp)
+        await self.publisher.publish("camera/image/compressed", message)
+
+    # --- pacing ------------------------------------------------------------------------
+
+    async def run(self, time_scale: float = 1.0) -> None:
+        """Tick forever, ``time_scale`` times faster than the wall clock (``inf``: as fast
+        as the CPU allows). A robot that falls behind does not rush to catch up."""
+        loop = asyncio.get_running_loop()
+        period = self.config.period / time_scale
+        next_at = loop.time()
+        while True:
+            await self.tick()
+            next_at += period
+            delay = next_at - loop.time()
+            if delay < -1.0:
+                next_at, delay = loop.time(), 0.0
+            await asyncio.sleep(max(delay, 0.0))
+
+
+# --- declarations on the network -------------------------------------------------------
+
+PUBLISHED = ("pose", "odom", "scan", "plan", "nav_status", "camera/image/compressed")
+
+
+def declare(robot: Robot, client: RosbridgeClient) -> None:
+    """Advertise ``robot``'s topics, subscribe its commands and serve ``cancel_goal`` on
+    ``client``."""
+    for topic in PUBLISHED:
+        client.advertise(topic, ROBOT_TOPIC_TYPES[topic])
+    client.advertise("map_id", ROBOT_TOPIC_TYPES["map_id"], latch=True)
+    client.subscribe("cmd_vel", ROBOT_TOPIC_TYPES["cmd_vel"], robot.on_cmd_vel)
+    client.subscribe("goal", ROBOT_TOPIC_TYPES["goal"], robot.on_goal)
+    client.subscribe("initialpose", ROBOT_TOPIC_TYPES["initialpose"], robot.on_initial_pose)
+    client.advertise_service(CANCEL_SERVICE, CANCEL_SERVICE_TYPE, robot.on_cancel)

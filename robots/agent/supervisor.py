@@ -1,0 +1,585 @@
+"""The Maps Supervisor: which sub-map the robot is in, the bundles it holds, and what to
+drive to next on the way to a goal in another sub-map.
+
+Bundles
+=======
+
+``BundleCache`` holds every bundle the robot has fetched, keyed by Map ID, with its
+version and ETag. Entering a sub-map asks the server again *conditionally*
+(``If-None-Match``): the answer is ``304 Not Modified`` with no body when nothing
+changed, so a held map costs one small round trip and is never downloaded again; the
+round trip is worth it because an admin may have edited the map, its tags or the
+topology since. When the server cannot be reached, a held bundle is used as it is.
+
+Frames
+======
+
+Sub-maps of one building share one frame (each map_server origin places its image in
+the building's frame, as the demo's do). A tag's stored pose, found in whichever held
+bundle holds that tag, therefore places the robot in the sub-map it enters too.
+
+The procedure (the paper's)
+===========================
+
+1. No map: turn on the spot until a marker is in view, drive to a point in front of it
+   by sight, read its QR code; it names the sub-map the robot is entering.
+2. On a decoded tag that leads on (or any tag, when lost): fetch that sub-map's bundle,
+   reset the pose from the tag's stored pose and the measured relative pose
+   (``relocalise``), make it the current map.
+3. Route from the current sub-map to the goal's with ``route_between`` on the bundle's
+   topology (the server's route endpoint runs the same function on the same data), and
+   drive to ``APPROACH`` metres in front of the tag leading on, facing it. Standing
+   there a while without reading it (odometry drifted), turn on the spot looking for
+   it. Its QR code read, go to 2.
+4. In the goal's sub-map, drive to the goal.
+
+Markers of tags in held bundles also reset the pose whenever seen within
+``RESET_RANGE`` (at most every ``RESET_INTERVAL`` seconds): marker ids are unique in a
+building, so the marker alone says which stored pose it is, and near the tag the
+measured pose is good to a few centimetres. This is what brings a drifted robot onto
+the tag it heads for; the QR code still decides which sub-map the robot enters. A tag
+whose stored pose no held bundle has cannot place a lost robot (its QR names the
+sub-map it leads to, whose bundle holds only its own tags): it is passed over and the
+search goes on.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import base64
+import binascii
+import logging
+import math
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass, field
+from enum import Enum
+from functools import cached_property
+from typing import Any, Protocol
+
+import httpx
+import numpy as np
+from numpy.typing import NDArray
+
+from maps.domain.mapfile import load_map_upload
+from maps.domain.planning import Costmap, inflate
+from maps.domain.topology import Edge, RouteStep, TagLink, route_between
+from maps.exceptions import MapStoreError
+from robots.agent.perception import TagDetection
+from robots.agent.relocalise import PoseEstimate, relocalise
+
+logger = logging.getLogger(__name__)
+
+Pose = tuple[float, float, float]
+Grid = NDArray[np.int8]
+
+APPROACH = 0.5
+"""Metres in front of a tag where the robot stops to read its QR code."""
+PLANNING_RADIUS = 0.25
+"""Metres: the robot's radius (0.18 m) and a margin, for the global planner."""
+PLANNING_GRADIENT = 0.35
+"""Metres beyond the radius over which paths pay to pass near walls."""
+SIGHTING_MEMORY = 1.5
+"""Seconds a marker sighting steers a lost robot's approach after it was made."""
+SIGHTING_RANGE = 2.0
+"""Metres: farther marker poses are too noisy to steer by."""
+RESET_RANGE = 1.5
+"""Metres: markers nearer than this reset the pose (yaw good to a degree or two)."""
+RESET_INTERVAL = 0.5
+"""Seconds between pose resets from markers seen in passing."""
+MAX_AMBIGUITY = 0.05
+"""Radians: a marker pose with a mirror solution differing more is not reset from."""
+SEARCH_RATE = 0.5
+"""Radians per second a searching robot turns."""
+SEARCH_TURNS = 1.5
+"""Full turns a lost robot makes looking for a tag before it gives up."""
+LOOK_AROUND_AFTER = 2.0
+"""Seconds at a tag's approach pose without reading it before looking around."""
+MAX_MAP_PIXELS = 16 * 2**20
+
+
+class BundleError(Exception):
+    """A bundle could not be fetched or made sense of."""
+
+
+# --- bundles ---------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class StoredTag:
+    """A tag as its bundle stores it: pose in the building frame, the sub-map it is in
+    and the one it leads to."""
+
+    marker_id: int
+    x: float
+    y: float
+    yaw: float
+    size: float
+    submap: str
+    links_to: str
+
+
+@dataclass(frozen=True, eq=False)
+class SubMap:
+    """One decoded bundle: grid (int8, row 0 = bottom), its frame, tags and topology."""
+
+    building: str
+    code: str
+    version: str
+    etag: str
+    grid: Grid = field(repr=False)
+    resolution: float
+    origin: tuple[float, float, float]
+    tags: Mapping[int, StoredTag]
+    nodes: tuple[str, ...]
+    edges: tuple[Edge, ...]
+
+    @property
+    def map_id(self) -> str:
+        return f"{self.building}/{self.code}"
+
+    @cached_property
+    def costmap(self) -> Costmap:
+        """The grid inflated for planning, computed once per bundle version."""
+        return self._inflated(self.grid)
+
+    def costmap_with(self, points: NDArray[np.float64]) -> Costmap:
+        """The costmap with obstacles at ``points`` (map frame, shape (n, 2)) added."""
+        grid = self.grid.copy()
+        cols = np.floor((points[:, 0] - self.origin[0]) / self.resolution).astype(np.intp)
+        rows = np.floor((points[:, 1] - self.origin[1]) / self.resolution).astype(np.intp)
+        inside = (rows >= 0) & (rows < grid.shape[0]) & (cols >= 0) & (cols < grid.shape[1])
+        grid[rows[inside], cols[inside]] = 100
+        return self._inflated(grid)
+
+    def _inflated(self, grid: Grid) -> Costmap:
+        return inflate(
+            grid,
+            PLANNING_RADIUS,
+            self.resolution,
+            origin=self.origin,
+            gradient_m=PLANNING_GRADIENT,
+            gradient_weight=2.0,
+        )
+
+
+def submap_from_bundle(document: Mapping[str, Any], etag: str) -> SubMap:
+    """Decode a bundle (``GET .../bundle``'s JSON). Raises BundleError for anything
+    missing or unreadable, map files included."""
+    try:
+        image = document["image"]
+        data = base64.b64decode(image["data"], validate=True)
+        loaded = load_map_upload(document["yaml"].encode(), {image["name"]: data}, MAX_MAP_PIXELS)
+        code, topology = str(document["map"]), document["topology"]
+        return SubMap(
+            building=str(document["building"]),
+            code=code,
+            version=str(document["version"]),
+            etag=etag,
+            grid=loaded.grid,
+            resolution=loaded.meta.resolution,
+            origin=loaded.meta.origin,
+            tags={int(t["marker_id"]): _stored_tag(t, code) for t in document["tags"]},
+            nodes=tuple(str(node["code"]) for node in topology["nodes"]),
+            edges=tuple(
+                Edge(str(e["a"]), str(e["b"]), float(e["cost"])) for e in topology["edges"]
+            ),
+        )
+    except (KeyError, TypeError, ValueError, AttributeError, binascii.Error) as error:
+        raise BundleError(f"a bundle that cannot be read: {error!r}") from None
+    except MapStoreError as error:  # map file errors
+        raise BundleError(f"the bundle's map cannot be loaded: {error}") from None
+
+
+def _edge(document: Mapping[str, Any]) -> Edge:
+    return Edge(str(document["a"]), str(document["b"]), float(document["cost"]))
+
+
+def _stored_tag(document: Mapping[str, Any], submap: str) -> StoredTag:
+    return StoredTag(
+        marker_id=int(document["marker_id"]),
+        x=float(document["x"]),
+        y=float(document["y"]),
+        yaw=float(document["yaw"]),
+        size=float(document.get("size", 0.06)),
+        submap=submap,
+        links_to=str(document["links_to"]),
+    )
+
+
+class BundleCache:
+    """Bundles fetched over HTTP with the robot's token, kept by Map ID.
+
+    ``http`` is an ``httpx.AsyncClient`` whose base URL is the server and whose headers
+    carry ``Authorization: Token ...``. ``downloads`` counts 200 answers, ``revalidated``
+    304 answers.
+    """
+
+    def __init__(self, http: httpx.AsyncClient) -> None:
+        self.http = http
+        self.held: dict[str, SubMap] = {}
+        self.downloads = 0
+        self.revalidated = 0
+
+    async def load(self, map_id: str) -> SubMap:
+        """The sub-map ``map_id`` (``building/code``), current as the server has it.
+
+        Asks conditionally when held; falls back to the held copy when the server cannot
+        be reached. Raises BundleError when it is neither held nor fetchable.
+        """
+        held = self.held.get(map_id)
+        try:
+            response = await self._get(map_id, held)
+        except httpx.HTTPError as error:
+            if held is None:
+                raise BundleError(f"{map_id}: {error!r}") from None
+            logger.warning("bundle %s: %r; using the held copy", map_id, error)
+            return held
+        return self._stored(map_id, held, response)
+
+    async def _get(self, map_id: str, held: SubMap | None) -> httpx.Response:
+        building, _, code = map_id.partition("/")
+        headers = {"If-None-Match": held.etag} if held is not None else {}
+        url = f"/api/buildings/{building}/maps/{code}/bundle"
+        return await self.http.get(url, headers=headers)
+
+    def _stored(self, map_id: str, held: SubMap | None, response: httpx.Response) -> SubMap:
+        if response.status_code == 304 and held is not None:
+            self.revalidated += 1
+            return held
+        if response.status_code != 200:
+            raise BundleError(f"{map_id}: HTTP {response.status_code}")
+        submap = submap_from_bundle(response.json(), response.headers.get("ETag", ""))
+        self.downloads += 1
+        self.held[map_id] = submap
+        return submap
+
+    def find_tag(self, building: str, marker_id: int, first: SubMap | None) -> StoredTag | None:
+        """The stored tag ``marker_id`` of ``building`` from any held bundle, ``first``'s
+        preferred (marker ids are unique in a building)."""
+        maps = [first] if first is not None else []
+        maps += [m for m in self.held.values() if m.building == building]
+        return next((m.tags[marker_id] for m in maps if marker_id in m.tags), None)
+
+    def tag_links(self, building: str) -> list[TagLink]:
+        """Every tag of ``building`` that a held bundle stores, as the router wants them."""
+        return [
+            TagLink(tag.marker_id, tag.submap, tag.links_to)
+            for submap in self.held.values()
+            if submap.building == building
+            for tag in submap.tags.values()
+        ]
+
+
+# --- the procedure ---------------------------------------------------------------------
+
+
+class Relocalisable(Protocol):
+    """The robot's pose estimate, as the supervisor resets and re-maps it."""
+
+    def reset(self, pose: Pose, covariance: NDArray[np.float64], at_odom: Pose) -> None:
+        """Take ``pose`` (with its 3x3 covariance) as the estimate when odometry read
+        ``at_odom``; motion since then is added."""
+
+    def set_map(self, submap: SubMap) -> None:
+        """Localise in ``submap`` from now on."""
+
+
+class LegKind(Enum):
+    HOLD = "hold"  # stand still: a bundle is on its way
+    SEARCH = "search"  # turn on the spot, looking for a marker
+    APPROACH = "approach"  # drive to a point in front of a tag, to read it
+    FINAL = "final"  # drive to the goal itself
+    FAIL = "fail"  # the goal cannot be reached
+
+
+@dataclass(frozen=True)
+class Leg:
+    """What to drive to now: ``target`` is a pose in the estimate's frame (the current
+    sub-map's, or odometry's when lost); ``marker`` the tag approached; ``text`` says
+    what is going on, for ``nav_status``."""
+
+    kind: LegKind
+    text: str
+    target: Pose | None = None
+    marker: int | None = None
+    submap: SubMap | None = None  # where to plan; None: drive straight by sight
+
+
+@dataclass(frozen=True)
+class Sighting:
+    """A marker seen: its pose in the odometry frame (invariant under pose resets), when,
+    and the detection itself."""
+
+    marker: Pose
+    seconds: float
+    detection: TagDetection
+
+
+@dataclass(frozen=True)
+class Destination:
+    """A goal's sub-map and pose in it."""
+
+    building: str
+    code: str
+    pose: Pose
+
+    @classmethod
+    def parse(cls, map_id: str, pose: Pose) -> Destination | None:
+        """From a goal's frame ``building/code``; None if it is not one."""
+        building, slash, code = map_id.strip().partition("/")
+        return cls(building, code, pose) if slash and building and code else None
+
+
+class MapsSupervisor:
+    """Decides, tick by tick, which sub-map the robot is in and what its next leg is.
+
+    ``observe`` takes each camera frame's detections; decoded tags that call for it start
+    entering a sub-map (in the background: ``leg`` answers HOLD meanwhile). ``leg`` says
+    what to drive to now for a ``Destination``. ``on_map`` is called with each sub-map
+    entered.
+    """
+
+    def __init__(self, cache: BundleCache, tracker: Relocalisable) -> None:
+        self.cache = cache
+        self.tracker = tracker
+        self.current: SubMap | None = None
+        self.destination: Destination | None = None
+        self.on_map: list[Callable[[SubMap], None]] = []
+        self._sightings: dict[int, Sighting] = {}
+        self._last_reset = -math.inf
+        self._useless: set[int] = set()  # markers no held bundle can place a lost robot by
+        self._entering: asyncio.Task[None] | None = None
+        self._arrived_at: float | None = None
+        self._searched_from: float | None = None  # when the current search began
+
+    # --- perception ----------------------------------------------------------------------
+
+    def observe(self, detections: Iterable[TagDetection], odom: Pose, seconds: float) -> None:
+        """Record what the camera saw at odometry pose ``odom``; act on decoded tags,
+        reset the pose from near markers."""
+        for detection in sorted(detections, key=lambda d: d.distance):
+            marker = compose(odom, detection.base_pose())
+            self._sightings[detection.marker_id] = Sighting(marker, seconds, detection)
+            if self.entering:
+                continue
+            if detection.payload is not None and self._enters(detection):
+                self._start_entering(detection, odom)
+            elif self._may_reset(detection, seconds):
+                assert self.current is not None
+                if self._reset_from(detection, odom, self.current):
+                    self._last_reset = seconds
+
+    def _enters(self, detection: TagDetection) -> bool:
+        """Whether this decoded tag takes the robot into the sub-map it names: any tag
+        when lost, else the one it is heading for (naming another sub-map)."""
+        if self.current is None:
+            return detection.marker_id not in self._useless
+        named = _named(detection)
+        return detection.marker_id == self._leading_tag() and named != self.current.map_id
+
+    def _may_reset(self, detection: TagDetection, seconds: float) -> bool:
+        return (
+            self.current is not None
+            and detection.distance <= RESET_RANGE
+            and detection.ambiguity <= MAX_AMBIGUITY
+            and seconds - self._last_reset >= RESET_INTERVAL
+        )
+
+    # --- entering a sub-map ----------------------------------------------------------------
+
+    @property
+    def entering(self) -> bool:
+        return self._entering is not None and not self._entering.done()
+
+    def _start_entering(self, detection: TagDetection, odom: Pose) -> None:
+        self._entering = asyncio.create_task(self._enter(_named(detection), detection, odom))
+
+    async def _enter(self, map_id: str, detection: TagDetection, odom: Pose) -> None:
+        """Fetch ``map_id``, reset the pose from ``detection``, make it current. On
+        failure nothing changes: the next reading of the tag tries again."""
+        try:
+            submap = await self.cache.load(map_id)
+        except BundleError as error:
+            logger.warning("cannot enter %s: %s", map_id, error)
+            return
+        if not self._reset_from(detection, odom, submap) and self.current is None:
+            logger.warning(
+                "tag %d is in no held bundle: it cannot place the robot", detection.marker_id
+            )
+            self._useless.add(detection.marker_id)
+            return
+        self.make_current(submap)
+
+    def _reset_from(self, detection: TagDetection, odom: Pose, submap: SubMap) -> bool:
+        """Reset the pose from a tag held in some bundle; False if none holds it."""
+        stored = self.cache.find_tag(submap.building, detection.marker_id, submap)
+        if stored is None:
+            return False
+        estimate = relocalise(stored, detection)
+        self.tracker.reset((estimate.x, estimate.y, estimate.yaw), estimate.covariance, odom)
+        return True
+
+    def make_current(self, submap: SubMap) -> None:
+        """Localise and plan in ``submap`` from now on."""
+        self.current = submap
+        self.tracker.set_map(submap)
+        self._arrived_at = None
+        for callback in self.on_map:
+            callback(submap)
+
+    async def relocate(self, estimate: PoseEstimate, map_id: str, odom: Pose) -> None:
+        """An operator's initial pose in ``map_id``: fetch that map, reset there.
+        Raises BundleError when the map cannot be had."""
+        submap = await self.cache.load(map_id)
+        pose = (estimate.x, estimate.y, estimate.yaw)
+        self.tracker.reset(pose, estimate.covariance, odom)
+        self.make_current(submap)
+
+    # --- legs ------------------------------------------------------------------------------
+
+    def set_destination(self, destination: Destination | None) -> None:
+        self.destination = destination
+        self._arrived_at = None
+        self._searched_from = None
+
+    def leg(self, pose: Pose, odom: Pose, seconds: float) -> Leg:
+        """The leg toward the destination, given the pose estimate and odometry now."""
+        leg = self._next_leg(pose, odom, seconds)
+        if leg.kind is not LegKind.SEARCH:
+            self._searched_from = None
+        return leg
+
+    def _next_leg(self, pose: Pose, odom: Pose, seconds: float) -> Leg:
+        if self.entering:
+            return Leg(LegKind.HOLD, "reading the map of the sub-map entered")
+        if self.destination is None:
+            return Leg(LegKind.HOLD, "no goal")
+        if self.current is None:
+            return self._lost_leg(pose, odom, seconds)
+        if self.destination.building != self.current.building:
+            return Leg(LegKind.FAIL, f"{self.destination.building} is not this building")
+        if self.destination.code == self.current.code:
+            text = f"driving to the goal in {self.current.map_id}"
+            return Leg(LegKind.FINAL, text, self.destination.pose, submap=self.current)
+        return self._tag_leg(seconds)
+
+    def route(self, goal_code: str) -> list[RouteStep]:
+        """The sub-maps from the current one to ``goal_code``, with the tags leading on.
+        Raises TopologyError, NoRouteError (``route_between``) or BundleError (no map)."""
+        if self.current is None:
+            raise BundleError("no sub-map held yet")
+        links = self.cache.tag_links(self.current.building)
+        current = self.current
+        return route_between(current.nodes, current.edges, links, current.code, goal_code)
+
+    def _leading_tag(self) -> int | None:
+        """Marker id of the tag leading on toward the destination, if any."""
+        if self.destination is None or self.current is None:
+            return None
+        try:
+            first = self.route(self.destination.code)[0]
+        except (MapStoreError, BundleError):
+            return None
+        return first.tag.marker_id if first.tag is not None else None
+
+    def _tag_leg(self, seconds: float) -> Leg:
+        assert self.current is not None
+        assert self.destination is not None
+        try:
+            steps = self.route(self.destination.code)
+        except MapStoreError as error:
+            return Leg(LegKind.FAIL, str(error))
+        tag = steps[0].tag
+        stored = None if tag is None else self.current.tags.get(tag.marker_id)
+        if tag is None or stored is None:
+            return Leg(LegKind.FAIL, f"no tag leads from {steps[0].submap} to {steps[1].submap}")
+        return self._approach_leg(stored, seconds)
+
+    def _approach_leg(self, tag: StoredTag, seconds: float) -> Leg:
+        """Drive in front of ``tag``; look around when standing there a while without
+        reading it."""
+        assert self.current is not None
+        text = f"to tag {tag.marker_id}, leading to {tag.links_to}"
+        if self._recent(tag.marker_id, seconds) is not None:
+            self._arrived_at = None  # in sight again: the resets have put it right
+        if self._arrived_at is not None and seconds - self._arrived_at > LOOK_AROUND_AFTER:
+            if self._searched_too_long(seconds):
+                return Leg(LegKind.FAIL, f"tag {tag.marker_id} is not where the map has it")
+            return Leg(LegKind.SEARCH, f"looking around for tag {tag.marker_id}")
+        target = approach_pose((tag.x, tag.y, tag.yaw))
+        return Leg(LegKind.APPROACH, text, target, tag.marker_id, submap=self.current)
+
+    def arrived(self, seconds: float) -> None:
+        """The robot stands at an approach pose (the tag not read yet)."""
+        if self._arrived_at is None:
+            self._arrived_at = seconds
+
+    def _lost_leg(self, pose: Pose, odom: Pose, seconds: float) -> Leg:
+        """No map yet: approach the nearest marker in sight, else turn looking for one."""
+        usable = [
+            s
+            for m, s in self._sightings.items()
+            if m not in self._useless and self._fresh(s, seconds)
+        ]
+        if usable:
+            nearest = min(usable, key=lambda s: s.detection.distance)
+            target = approach_pose(to_frame(nearest.marker, pose, odom))
+            marker = nearest.detection.marker_id
+            return Leg(LegKind.APPROACH, f"to tag {marker}, to read it", target, marker)
+        if self._searched_too_long(seconds):
+            return Leg(LegKind.FAIL, "no tag in sight")
+        return Leg(LegKind.SEARCH, "looking for a tag")
+
+    def _searched_too_long(self, seconds: float) -> bool:
+        """Whether the robot has been searching for ``SEARCH_TURNS`` turns' time."""
+        if self._searched_from is None:
+            self._searched_from = seconds
+        return seconds - self._searched_from > SEARCH_TURNS * 2 * math.pi / SEARCH_RATE
+
+    def _recent(self, marker_id: int, seconds: float) -> Sighting | None:
+        sighting = self._sightings.get(marker_id)
+        return sighting if sighting is not None and self._fresh(sighting, seconds) else None
+
+    @staticmethod
+    def _fresh(sighting: Sighting, seconds: float) -> bool:
+        close = sighting.detection.distance <= SIGHTING_RANGE
+        return close and seconds - sighting.seconds <= SIGHTING_MEMORY
+
+
+# --- geometry --------------------------------------------------------------------------
+
+
+def _named(detection: TagDetection) -> str:
+    """The Map ID a decoded tag's QR names."""
+    assert detection.payload is not None
+    return f"{detection.payload.building_code}/{detection.payload.map_code}"
+
+
+def approach_pose(tag: Pose) -> Pose:
+    """``APPROACH`` metres in front of a tag at ``tag`` (yaw = its outward normal),
+    facing it."""
+    x, y, yaw = tag
+    return x + APPROACH * math.cos(yaw), y + APPROACH * math.sin(yaw), wrap(yaw + math.pi)
+
+
+def compose(a: Pose, b: Pose) -> Pose:
+    """Pose ``b`` (given in frame ``a``) in ``a``'s parent frame."""
+    c, s = math.cos(a[2]), math.sin(a[2])
+    return a[0] + c * b[0] - s * b[1], a[1] + s * b[0] + c * b[1], wrap(a[2] + b[2])
+
+
+def inverse(a: Pose) -> Pose:
+    """The pose of the parent frame seen from ``a``."""
+    c, s = math.cos(a[2]), math.sin(a[2])
+    return -c * a[0] - s * a[1], s * a[0] - c * a[1], wrap(-a[2])
+
+
+def to_frame(in_odom: Pose, pose: Pose, odom: Pose) -> Pose:
+    """A pose known in the odometry frame, in the estimate's frame, given the estimate
+    ``pose`` and odometry ``odom`` of the same instant."""
+    return compose(pose, compose(inverse(odom), in_odom))
+
+
+def wrap(angle: float) -> float:
+    """``angle`` in [-pi, pi)."""
+    return (angle + math.pi) % (2 * math.pi) - math.pi
