@@ -55,4 +55,5 @@ node_packages() {
 apt_packages
 python_packages
 node_packages
+bash scripts/build_static.sh
 "$VENV/bin/python" manage.py migrate --noinput -v 0

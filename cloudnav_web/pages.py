@@ -1,0 +1,117 @@
+"""Page views of the web UI: thin adapters that render a template with the user's role.
+
+Pages carry no data of their own beyond names and roles: the browser reads the REST API
+and speaks rosbridge. What a page shows depends on the role the user holds where the
+page's subject lives (``maps.access``); a building or robot the user may not see is a
+404, as in the API.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from django.contrib.auth.decorators import login_required
+from django.core.exceptions import PermissionDenied
+from django.http import Http404, HttpRequest, HttpResponse
+from django.shortcuts import render
+
+from maps.access import Role, buildings_for, global_role, role_in
+from maps.models import Building, SubMap
+from robots.models import Robot
+
+
+def _role_name(role: Role) -> str:
+    return role.name.lower()
+
+
+def _context(request: HttpRequest, role: Role, **kwargs: Any) -> dict[str, Any]:
+    """Template context every page shares; ``config`` is handed to the page's script."""
+    buildings = list(buildings_for(request.user).order_by("code"))
+    config = {
+        "role": _role_name(role),
+        "user": request.user.get_username(),
+        "connect": global_role(request.user) > Role.NONE,
+        **kwargs.pop("config", {}),
+    }
+    return {
+        "role": _role_name(role),
+        "may_drive": role >= Role.OPERATOR,
+        "may_edit": role >= Role.ADMIN,
+        "nav_buildings": buildings,
+        "config": config,
+        **kwargs,
+    }
+
+
+def _building(request: HttpRequest, code: str) -> tuple[Building, Role]:
+    """Return building ``code`` and the user's role there; 404 if they may not see it."""
+    building = Building.objects.filter(code=code).first()
+    role = role_in(request.user, building) if building is not None else Role.NONE
+    if building is None or role is Role.NONE:
+        raise Http404("No such building.")
+    return building, role
+
+
+@login_required
+def fleet(request: HttpRequest) -> HttpResponse:
+    role = global_role(request.user)
+    return render(request, "pages/fleet.html", _context(request, role, page="fleet"))
+
+
+@login_required
+def robot(request: HttpRequest, name: str) -> HttpResponse:
+    """A robot's page; the role is the strongest the user holds in the robot's buildings."""
+    found = Robot.objects.filter(name=name).first()
+    buildings = list(found.buildings.order_by("code")) if found is not None else []
+    role = max((role_in(request.user, b) for b in buildings), default=Role.NONE)
+    if found is None or role is Role.NONE:
+        raise Http404("No such robot.")
+    visible = [b for b in buildings if role_in(request.user, b) > Role.NONE]
+    config = {"robot": found.name, "buildings": [b.code for b in visible]}
+    context = _context(request, role, page="fleet", robot=found, config=config)
+    return render(request, "pages/robot.html", context)
+
+
+@login_required
+def buildings(request: HttpRequest) -> HttpResponse:
+    role = global_role(request.user)
+    rows = [
+        (b, _role_name(role_in(request.user, b)), b.submaps.count(), b.tags.count())
+        for b in buildings_for(request.user).order_by("code")
+    ]
+    context = _context(request, role, page="buildings", rows=rows)
+    return render(request, "pages/buildings.html", context)
+
+
+@login_required
+def building(request: HttpRequest, code: str) -> HttpResponse:
+    found, role = _building(request, code)
+    submaps = found.submaps.defer("image").order_by("code")
+    tags = found.tags.select_related("submap", "links_to").order_by("marker_id")
+    config = {"building": found.code}
+    context = _context(
+        request, role, page="buildings", building=found, submaps=submaps, tags=tags, config=config
+    )
+    return render(request, "pages/building.html", context)
+
+
+@login_required
+def submap(request: HttpRequest, code: str, map: str) -> HttpResponse:
+    found, role = _building(request, code)
+    sub: SubMap | None = found.submaps.defer("image").filter(code=map).first()
+    if sub is None:
+        raise Http404("No such sub-map.")
+    others = list(found.submaps.defer("image").order_by("code").values_list("code", flat=True))
+    config = {"building": found.code, "map": sub.code, "submaps": others}
+    context = _context(request, role, page="buildings", building=found, submap=sub, config=config)
+    return render(request, "pages/submap.html", context)
+
+
+@login_required
+def upload(request: HttpRequest, code: str) -> HttpResponse:
+    found, role = _building(request, code)
+    if role < Role.ADMIN:
+        raise PermissionDenied("Only admins upload sub-maps.")
+    config = {"building": found.code}
+    context = _context(request, role, page="buildings", building=found, config=config)
+    return render(request, "pages/upload.html", context)
