@@ -16,7 +16,6 @@ from dataclasses import dataclass, field
 from datetime import UTC, datetime, timedelta
 
 from channels.db import database_sync_to_async
-from django.db.models import QuerySet
 
 from telemetry.domain.messages import Pose2D
 
@@ -125,15 +124,6 @@ class FleetTracker:
                 logger.exception("fleet state flush failed; retrying with the next one")
                 self._dirty.update(batch)
 
-    async def close(self) -> None:
-        """Write the final state of every robot; used at shutdown."""
-        for entry in self._entries.values():
-            entry.online = False
-        self._dirty.update(self._entries)
-        if self._task is not None:
-            self._task.cancel()
-        await self.flush()
-
 
 def write_states(batch: dict[int, _Entry]) -> None:
     """Upsert the rows of ``batch``: one query per combination of known fields."""
@@ -159,10 +149,6 @@ HEARTBEAT = timedelta(seconds=10)
 # ...so a robot whose row is older than this is shown offline whatever the row says: the
 # process that served it stopped without saying goodbye.
 STALE_AFTER = timedelta(seconds=30)
-
-
-def fleet_states(robots: QuerySet[RobotState]) -> QuerySet[RobotState]:
-    return robots.select_related("robot").order_by("robot__name")
 
 
 def is_online(state: RobotState, now: datetime | None = None) -> bool:

@@ -48,11 +48,6 @@ class Connection:
     def __repr__(self) -> str:
         return f"<Connection {self.key} {self.principal.label}>"
 
-    @property
-    def direct(self) -> bool:
-        """True when frames go straight to daphne's transport."""
-        return self._sink is not None
-
     def start(self) -> None:
         """Begin sending; call after the handshake was accepted."""
         if self._sink is None:

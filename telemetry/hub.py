@@ -10,7 +10,7 @@ from __future__ import annotations
 import asyncio
 import logging
 import weakref
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 from robots.fleet import FleetTracker
@@ -51,7 +51,6 @@ class Client:
     conn: Connection
     access: Access
     robot_pk: int | None = None
-    fleet_topics: dict[str, str] = field(default_factory=dict)
 
 
 class Hub:
@@ -126,13 +125,19 @@ class Hub:
         await self.teleop.drop(conn.key)
         self._remote_goals = {k: v for k, v in self._remote_goals.items() if k[0] != conn.key}
         robot = conn.principal.robot
-        if client is not None and client.robot_pk is not None:
-            self.fleet.disconnected(client.robot_pk)
-        if self.relay is not None and robot is not None and robot not in self.robots():
-            self.relay.remove("robots", robot)
+        if client is not None and client.robot_pk is not None and robot is not None:
+            self._robot_left(robot, client.robot_pk)
+        self._publish_directory("services", self.services)
+        self._publish_directory("actions", self.actions)
+
+    def _robot_left(self, robot: str, robot_pk: int) -> None:
+        self.fleet.disconnected(robot_pk)
+        if robot in self.robots():
+            return  # another connection of the same robot is still here
+        for kind in (names.POSE, names.MAP_ID):
+            self._fleet_topics.pop(names.robot_topic(robot, kind), None)
         if self.relay is not None:
-            for kind, table in (("services", self.services), ("actions", self.actions)):
-                self._publish_directory(kind, table)
+            self.relay.remove("robots", robot)
 
     # ------------------------------------------------------------ topics
 

@@ -16,7 +16,7 @@ import time
 from collections import deque
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import Protocol
 
 from telemetry.exceptions import TypeConflict, UnknownTopic
 
@@ -375,17 +375,3 @@ class TopicBus:
         for topic in self._topics.values():
             if topic.publishers and topic.type:
                 yield topic.name, topic.type
-
-    def subscribers(self, name: str) -> int:
-        topic = self._topics.get(name)
-        return len(topic.subscriptions) if topic else 0
-
-    def peers_publishing(self, name: str) -> list[str]:
-        topic = self._topics.get(name)
-        return list(topic.publishers) if topic else []
-
-    def stats(self) -> dict[str, Any]:
-        return {
-            "topics": len(self._topics),
-            "subscriptions": sum(len(t.subscriptions) for t in self._topics.values()),
-        }

@@ -18,8 +18,8 @@ MAX_NAME_LENGTH = 256
 
 ROSAPI = "/rosapi"
 CLOUDNAV = "/cloudnav"
+# Called by relative name from any connection, and advertised by none: the server's own.
 GLOBAL_NAMESPACES = frozenset({ROSAPI.strip("/"), CLOUDNAV.strip("/")})
-RESERVED_NAMESPACES = GLOBAL_NAMESPACES
 
 # Topics of each robot, relative to its namespace, with their message types (DESIGN.md).
 ROBOT_TOPIC_TYPES = {
@@ -80,7 +80,7 @@ def suffix_in(name: str, namespace_segment: str) -> str | None:
 
 def is_reserved(name: str) -> bool:
     """True for names in the server's own service namespaces, which no client may advertise."""
-    return first_segment(name) in RESERVED_NAMESPACES
+    return first_segment(name) in GLOBAL_NAMESPACES
 
 
 def canonical_type(type_name: str) -> str:

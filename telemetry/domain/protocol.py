@@ -380,7 +380,6 @@ _PARSERS: dict[str, Callable[[_Fields], Op]] = {
     "fragment": _fragment,
     "set_level": lambda f: SetLevel(level=f.level(), id=f.id),
 }
-OPS = frozenset(_PARSERS)
 
 
 # ---------------------------------------------------------------- outgoing frames
@@ -467,9 +466,6 @@ OutFrame = (
 
 # action_msgs/GoalStatus
 STATUS_UNKNOWN = 0
-STATUS_SUCCEEDED = 4
-STATUS_CANCELED = 5
-STATUS_ABORTED = 6
 
 
 def service_response(service: str, id: Json, values: Json, result: bool) -> ServiceResponseFrame:
