@@ -104,23 +104,11 @@ def start_server(robots: int, extra_env: list[str]) -> Server:
         "LOG_LEVEL": "WARNING",
         **dict(item.split("=", 1) for item in extra_env),
     }
-    python = sys.executable
-    subprocess.run([python, "manage.py", "migrate", "-v0"], cwd=ROOT, env=env, check=True)
-    seeded = subprocess.run(
-        [python, "-c", f"from benchmarks.rosbridge import seed; seed({robots})"],
-        cwd=ROOT,
-        env=env,
-        check=True,
-        capture_output=True,
-        text=True,
-    )
-    credentials = json.loads(seeded.stdout.strip().splitlines()[-1])
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        port = probe.getsockname()[1]
+    credentials = seeded_database(robots, env)
+    port = free_port()
     process = subprocess.Popen(
         [
-            python,
+            sys.executable,
             "-m",
             "daphne",
             "-b",
@@ -146,6 +134,26 @@ def start_server(robots: int, extra_env: list[str]) -> Server:
         process,
         scratch,
     )
+
+
+def seeded_database(robots: int, env: dict[str, str]) -> dict[str, Any]:
+    """Migrate the database ``env`` names and run ``seed`` on it; return the credentials."""
+    subprocess.run([sys.executable, "manage.py", "migrate", "-v0"], cwd=ROOT, env=env, check=True)
+    seeded = subprocess.run(
+        [sys.executable, "-c", f"from benchmarks.rosbridge import seed; seed({robots})"],
+        cwd=ROOT,
+        env=env,
+        check=True,
+        capture_output=True,
+        text=True,
+    )
+    return dict(json.loads(seeded.stdout.strip().splitlines()[-1]))
+
+
+def free_port() -> int:
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return int(probe.getsockname()[1])
 
 
 def wait_for_http(url: str, process: subprocess.Popen[bytes], deadline: float = 30.0) -> None:
@@ -325,25 +333,11 @@ async def measure(server: Server, options: dict[str, Any], rate: float) -> Resul
     await asyncio.wait_for(asyncio.gather(*(r.wait() for r in readies)), 60)
     window.start = time.time() + options["warmup"] + 1.0
     window.end = window.start + options["duration"]
-    server_process = psutil.Process(server.pid) if server.pid else None
-    me = psutil.Process()
     publishers = [
         asyncio.create_task(publisher(server, name, rate, window, result)) for name in robots
     ]
     await asyncio.sleep(max(0.0, window.start - time.time()))
-    cpu_before = server_process.cpu_times() if server_process else None
-    mine_before = me.cpu_times()
-    await asyncio.sleep(max(0.0, window.end - time.time()))
-    if server_process and cpu_before:
-        after = server_process.cpu_times()
-        used = (after.user - cpu_before.user) + (after.system - cpu_before.system)
-        result.server_cpu = 100.0 * used / options["duration"]
-    mine = me.cpu_times()
-    result.load_cpu = (
-        100.0
-        * ((mine.user - mine_before.user) + (mine.system - mine_before.system))
-        / options["duration"]
-    )
+    result.server_cpu, result.load_cpu = await cpu_during(window, server.pid)
     await asyncio.gather(*publishers)
     try:
         await asyncio.wait_for(asyncio.gather(*subscribers), 15)
@@ -351,6 +345,22 @@ async def measure(server: Server, options: dict[str, Any], rate: float) -> Resul
         for task in subscribers:
             task.cancel()
     return result
+
+
+async def cpu_during(window: Window, server_pid: int | None) -> tuple[float | None, float]:
+    """Return the CPU (percent of one core) the server and this process use in ``window``."""
+    processes = [psutil.Process(server_pid) if server_pid else None, psutil.Process()]
+    before = [p.cpu_times() if p else None for p in processes]
+    await asyncio.sleep(max(0.0, window.end - time.time()))
+    seconds = window.end - window.start
+    used: list[float | None] = []
+    for process, start in zip(processes, before, strict=True):
+        if process is None or start is None:
+            used.append(None)
+            continue
+        end = process.cpu_times()
+        used.append(100.0 * (end.user - start.user + end.system - start.system) / seconds)
+    return used[0], used[1] or 0.0
 
 
 # ---------------------------------------------------------------- reporting

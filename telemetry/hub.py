@@ -374,21 +374,31 @@ class Hub:
 
     async def remote_request(self, message: dict[str, Any]) -> None:
         """Carry out a call, goal or cancel that a connection on another process sent."""
-        assert self.relay is not None  # only the relay calls this
-        caller = self.relay.remote(message["caller_channel"], message["caller"])
-        name, kind = message["name"], message["type"]
-        table = self.services if kind == "rb.call" else self.actions
-        if kind == "rb.cancel":
-            found = self.actions.of_caller(caller, message["caller_id"])
-            if found is not None:
-                cancel = protocol.cancel_action_goal(found[0].spelling, found[1].request_id)
-                found[0].peer.deliver(Outgoing(cancel).wire())
+        if self.relay is None:
             return
-        provider = table.provider(name)
+        caller = self.relay.remote(message["caller_channel"], message["caller"])
+        if message["type"] == "rb.cancel":
+            self._remote_cancel(caller, message)
+        else:
+            self._remote_start(caller, message)
+
+    def _remote_cancel(self, caller: Any, message: dict[str, Any]) -> None:
+        found = self.actions.of_caller(caller, message["caller_id"])
+        if found is not None:
+            provider, pending = found
+            cancel = protocol.cancel_action_goal(provider.spelling, pending.request_id)
+            provider.peer.deliver(Outgoing(cancel).wire())
+
+    def _remote_start(self, caller: Any, message: dict[str, Any]) -> None:
+        is_call = message["type"] == "rb.call"
+        table = self.services if is_call else self.actions
+        provider = table.provider(message["name"])
         if provider is None:
-            reason = f"{name} is no longer served"
-            pending = PendingCall(name, caller, message["caller_id"], "", message["spelling"])
-            (self._fail_call if kind == "rb.call" else self._fail_goal)(pending, reason)
+            orphan = PendingCall(
+                message["name"], caller, message["caller_id"], "", message["spelling"]
+            )
+            fail = self._fail_call if is_call else self._fail_goal
+            fail(orphan, f"{message['name']} is no longer served")
             return
         pending = table.start(
             provider,
@@ -399,7 +409,7 @@ class Hub:
             "none",
             bool(message["feedback"]),
         )
-        if kind == "rb.call":
+        if is_call:
             frame: Any = protocol.call_service(
                 provider.spelling, pending.request_id, message["args"]
             )
