@@ -40,6 +40,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from robots.agent.client import RosbridgeClient
+from robots.agent.localisation import ParticleFilter, odometry_delta
 from robots.agent.messages import (
     CANCEL_SERVICE,
     CANCEL_SERVICE_TYPE,
@@ -142,6 +143,25 @@ class Localiser(Protocol):
 LocaliserFactory = Callable[[SubMap], Localiser]
 
 
+def particle_filter(particles: int, seed: int | None = None) -> LocaliserFactory | None:
+    """A factory of AMCL-like filters of ``particles`` particles (None for 0: odometry
+    and tags only)."""
+    if particles <= 0:
+        return None
+
+    def make(submap: SubMap) -> Localiser:
+        return ParticleFilter(
+            submap.grid,
+            submap.resolution,
+            submap.origin,
+            particles=particles,
+            min_particles=min(100, particles),
+            seed=seed,
+        )
+
+    return make
+
+
 class PoseTracker:
     """The pose estimate in the current sub-map's frame: odometry composed with the last
     reset (a tag, an operator's initial pose), refined on the laser by a particle filter
@@ -162,7 +182,7 @@ class PoseTracker:
     def odometry(self, odom: Pose) -> None:
         """A new odometry reading."""
         if self.filter is not None:
-            self.filter.predict(_delta(self.odom, odom))
+            self.filter.predict(odometry_delta(self.odom, odom))
         self.odom = odom
 
     def scan(self, scan: Json) -> None:
@@ -194,11 +214,6 @@ class PoseTracker:
         if self.filter is not None and self.localised:
             return self.filter.pose()
         return compose(self._offset, self.odom)
-
-
-def _delta(before: Pose, after: Pose) -> Pose:
-    """Odometry motion from ``before`` to ``after`` in the robot frame at ``before``."""
-    return compose(inverse(before), after)
 
 
 # --- the robot -------------------------------------------------------------------------

@@ -1,0 +1,86 @@
+"""``python -m robots.agent``: run simulated robots against a CloudNav server.
+
+One robot::
+
+    python -m robots.agent --server http://127.0.0.1:8000 --token cnr_...
+
+Many in one process, with the tokens ``manage.py seed_demo`` wrote::
+
+    python -m robots.agent --server http://127.0.0.1:8000 \
+        --tokens-file var/demo_tokens.json --count 3
+
+``--time-scale 4`` runs the simulation four times faster than the wall clock (every rate
+and timeout of the robot is in simulated time). Ctrl-C (or SIGTERM) stops the robots.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import contextlib
+import json
+import logging
+import signal
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+from robots.agent.fleet import FleetOptions, build_fleet, parse_pose, run_fleet
+from robots.agent.robot import RobotConfig
+
+
+def arguments(argv: Sequence[str] | None = None) -> argparse.Namespace:
+    summary = (__doc__ or "").split("\n")[0]
+    parser = argparse.ArgumentParser(prog="python -m robots.agent", description=summary)
+    parser.add_argument("--server", required=True, help="the server, http://host:port or ws://...")
+    credentials = parser.add_mutually_exclusive_group(required=True)
+    credentials.add_argument("--token", help="one robot's token")
+    credentials.add_argument("--tokens-file", type=Path, help="JSON {robot name: token}")
+    parser.add_argument("--count", type=int, default=1, help="robots from --tokens-file")
+    parser.add_argument("--time-scale", type=float, default=1.0, help="simulated s per wall s")
+    parser.add_argument("--camera-rate", type=float, default=5.0, help="JPEG frames/s published")
+    parser.add_argument("--particles", type=int, default=500, help="0: odometry and tags only")
+    parser.add_argument("--start", type=parse_pose, help="x,y,yaw (default: the demo's start)")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--log-level", default="INFO")
+    options = parser.parse_args(argv)
+    if options.time_scale <= 0 or options.count < 1:
+        parser.error("--time-scale must be positive and --count at least 1")
+    return options
+
+
+def tokens_of(options: argparse.Namespace) -> list[tuple[str, str]]:
+    """``(name, token)`` of each robot to run. Raises SystemExit on a short tokens file."""
+    if options.token:
+        return [("robot", options.token)]
+    known = json.loads(options.tokens_file.read_text())
+    if len(known) < options.count:
+        raise SystemExit(f"{options.tokens_file} holds {len(known)} robot(s), not {options.count}")
+    return list(known.items())[: options.count]
+
+
+async def main(options: argparse.Namespace) -> None:
+    fleet_options = FleetOptions(
+        server=options.server,
+        start=options.start,
+        particles=options.particles,
+        seed=options.seed,
+        robot=RobotConfig(camera_rate=options.camera_rate),
+    )
+    fleet = build_fleet(tokens_of(options), fleet_options)
+    running = asyncio.create_task(run_fleet(fleet, options.time_scale))
+    loop = asyncio.get_running_loop()
+    for stop in (signal.SIGINT, signal.SIGTERM):
+        loop.add_signal_handler(stop, running.cancel)
+    with contextlib.suppress(asyncio.CancelledError):
+        await running
+
+
+if __name__ == "__main__":
+    parsed = arguments()
+    logging.basicConfig(
+        level=parsed.log_level.upper(),
+        format="%(asctime)s %(levelname)s %(name)s: %(message)s",
+        stream=sys.stderr,
+    )
+    asyncio.run(main(parsed))

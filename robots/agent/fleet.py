@@ -1,0 +1,124 @@
+"""Many simulated robots in one process: one asyncio loop, one rosbridge connection and one
+HTTP client per robot, one shared simulated world.
+
+Robots are ghosts to each other: each one's sensors see the building, its tags and its
+extra obstacles, not the other robots.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import math
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+from urllib.parse import urlsplit, urlunsplit
+
+import httpx
+
+from maps.domain.demo_building import demo_building
+from maps.domain.planning import warm_up
+from robots.agent.client import RosbridgeClient
+from robots.agent.robot import (
+    PoseTracker,
+    Robot,
+    RobotConfig,
+    SimHardware,
+    declare,
+    particle_filter,
+)
+from robots.agent.sim.world import World, demo_world
+from robots.agent.supervisor import BundleCache, MapsSupervisor
+
+logger = logging.getLogger(__name__)
+
+Pose = tuple[float, float, float]
+
+
+@dataclass(frozen=True)
+class FleetOptions:
+    """How to build the robots: the server (``http(s)://`` or ``ws(s)://`` base URL),
+    where they start, particles of their filters (0: odometry and tags only), and each
+    robot's config."""
+
+    server: str
+    start: Pose | None = None  # default: the demo building's start pose
+    particles: int = 500
+    seed: int = 0
+    robot: RobotConfig = field(default_factory=RobotConfig)
+
+
+def endpoints(server: str) -> tuple[str, str]:
+    """``(http base, rosbridge URL)`` of a server given either way, e.g.
+    ``http://h:8000`` -> ``("http://h:8000", "ws://h:8000/rosbridge")``."""
+    parts = urlsplit(server if "//" in server else f"http://{server}")
+    secure = parts.scheme in ("https", "wss")
+    http = urlunsplit(("https" if secure else "http", parts.netloc, "", "", ""))
+    path = parts.path.rstrip("/") if parts.scheme.startswith("ws") and parts.path else "/rosbridge"
+    return http, urlunsplit(("wss" if secure else "ws", parts.netloc, path, "", ""))
+
+
+@dataclass
+class FleetRobot:
+    """One robot of the fleet, with its connections."""
+
+    name: str
+    robot: Robot
+    client: RosbridgeClient
+    http: httpx.AsyncClient
+
+
+def build_robot(
+    name: str, token: str, world: World, options: FleetOptions, index: int = 0
+) -> FleetRobot:
+    """A robot named ``name`` with its rosbridge and HTTP clients (not started)."""
+    http_base, ws_url = endpoints(options.server)
+    http = httpx.AsyncClient(
+        base_url=http_base, headers={"Authorization": f"Token {token}"}, timeout=10.0
+    )
+    seed = options.seed + 10 * index
+    hardware = SimHardware(world, options.start or demo_building().start_pose, seed=seed)
+    tracker = PoseTracker(particle_filter(options.particles, seed))
+    supervisor = MapsSupervisor(BundleCache(http), tracker)
+    client = RosbridgeClient(ws_url, token, seed=seed)
+    robot = Robot(hardware, supervisor, tracker, client, options.robot)
+    declare(robot, client)
+    return FleetRobot(name, robot, client, http)
+
+
+def build_fleet(tokens: Iterable[tuple[str, str]], options: FleetOptions) -> list[FleetRobot]:
+    """Robots for ``(name, token)`` pairs in the demo building, its tags naming the
+    server as their cloud."""
+    world = demo_world(endpoints(options.server)[0])
+    return [
+        build_robot(name, token, world, options, index)
+        for index, (name, token) in enumerate(tokens)
+    ]
+
+
+async def run_fleet(fleet: list[FleetRobot], time_scale: float = 1.0) -> None:
+    """Connect and run every robot until cancelled; then close their connections."""
+    warm_up()  # compile (or load) the planner before the first tick needs it
+    tasks = [asyncio.create_task(member.client.run()) for member in fleet]
+    tasks += [asyncio.create_task(member.robot.run(time_scale)) for member in fleet]
+    logger.info("%d robot(s) running at %g x real time", len(fleet), time_scale)
+    try:
+        await asyncio.gather(*tasks)
+    finally:
+        for task in tasks:
+            task.cancel()
+        await asyncio.gather(*tasks, return_exceptions=True)
+        await asyncio.gather(*(_close(member) for member in fleet))
+
+
+async def _close(member: FleetRobot) -> None:
+    await member.client.close()
+    await member.http.aclose()
+
+
+def parse_pose(text: str) -> Pose:
+    """``"x,y,yaw"`` (metres, radians). Raises ValueError."""
+    values = [float(part) for part in text.split(",")]
+    if len(values) != 3 or not all(math.isfinite(v) for v in values):
+        raise ValueError(f"'{text}' is not x,y,yaw")
+    return values[0], values[1], values[2]
