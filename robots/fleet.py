@@ -1,10 +1,10 @@
 """Fleet state: each connected robot's last pose, Map ID and last-seen time, kept in memory
 and written to ``RobotState`` by a background flush, never once per message.
 
-The rosbridge server calls ``connected``, ``seen``, ``pose``, ``map_id`` and
-``disconnected``; these only touch a dict. ``run`` writes what changed every ``interval``
-seconds (and at once for a change of online state), and refreshes ``last_seen`` of the
-robots still connected, so a server that died leaves them looking stale, not online.
+The rosbridge server calls ``connected``, ``pose``, ``map_id`` and ``disconnected``; these
+only touch a dict. ``run`` writes what changed every ``interval`` seconds (and at once for
+a change of online state), and refreshes ``last_seen`` of the robots still connected, so a
+server that died leaves them looking stale, not online.
 """
 
 from __future__ import annotations
@@ -65,11 +65,6 @@ class FleetTracker:
         if entry.connections == 0:
             entry.online = False
             self._touch(robot_pk, entry, urgent=True)
-
-    def seen(self, robot_pk: int) -> None:
-        entry = self._entries.get(robot_pk)
-        if entry is not None:
-            self._touch(robot_pk, entry)
 
     def pose(self, robot_pk: int, pose: Pose2D) -> None:
         entry = self._entry(robot_pk)

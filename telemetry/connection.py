@@ -17,7 +17,7 @@ from telemetry.domain.encoding import Outgoing, Wire
 from telemetry.domain.outbox import Outbox
 from telemetry.domain.protocol import Json, level_shows, status
 from telemetry.domain.rules import Principal
-from telemetry.transport import AsgiSend, DaphneSink, daphne_protocol, send_via_asgi
+from telemetry.transport import AsgiSend, DaphneSink, cap_incoming, daphne_protocol, send_via_asgi
 
 logger = logging.getLogger(__name__)
 _keys = itertools.count(1)
@@ -33,6 +33,7 @@ class Connection:
         transport_send: Any,
         max_frames: int,
         max_bytes: int,
+        max_frame_bytes: int,
     ) -> None:
         self.key = f"c{next(_keys)}"
         self.principal = principal
@@ -43,7 +44,10 @@ class Connection:
         self._wakeup = asyncio.Event()
         self._writer: asyncio.Task[None] | None = None
         protocol = daphne_protocol(transport_send)
-        self._sink = DaphneSink(protocol, self._drain) if protocol is not None else None
+        self._sink = None
+        if protocol is not None:
+            cap_incoming(protocol, max_frame_bytes)
+            self._sink = DaphneSink(protocol, self._drain)
 
     def __repr__(self) -> str:
         return f"<Connection {self.key} {self.principal.label}>"

@@ -80,6 +80,7 @@ class RosbridgeConsumer(AsyncWebsocketConsumer):
             self.scope.get(SCOPE_KEY),
             config.send_queue_frames,
             config.send_queue_bytes,
+            config.max_frame_bytes,
         )
         await self.accept()
         self.conn.start()

@@ -65,6 +65,18 @@ def daphne_protocol(send: Any) -> Any | None:
     return protocol
 
 
+# Frames up to this many times the rosbridge size limit are read, then dropped politely by
+# the consumer; larger ones make Autobahn drop the connection as soon as it reads the frame
+# header, before the payload, so no client can make the server buffer an arbitrarily large frame.
+HARD_LIMIT_FACTOR = 4
+
+
+def cap_incoming(protocol: Any, max_frame_bytes: int) -> None:
+    """Set Autobahn's own frame and message size limits on daphne's protocol."""
+    limit = HARD_LIMIT_FACTOR * max_frame_bytes
+    protocol.maxFramePayloadSize = protocol.maxMessagePayloadSize = limit
+
+
 @implementer(IPushProducer)
 class DaphneSink:
     """Synchronous writes to a daphne WebSocket, paused while Twisted's buffer is full.

@@ -65,3 +65,20 @@ async def test_cbor_and_fragments_cross_the_wire(daphne_server, tokens):
         first = await receive_json(r1)
         pieces = [first] + [await receive_json(r1) for _ in range(first["total"] - 1)]
         assert json.loads("".join(p["data"] for p in pieces))["msg"] == {"a": "b" * 30}
+
+
+async def test_an_oversized_frame_is_dropped_and_a_huge_one_closes_the_connection(
+    daphne_servers, tokens
+):
+    from websockets.exceptions import ConnectionClosed
+
+    server = daphne_servers.start(env={"CLOUDNAV_ROSBRIDGE_MAX_FRAME_BYTES": "10000"})
+    async with websockets.connect(server.rosbridge_url(tokens["r1"]), max_size=None) as r1:
+        await r1.send(json.dumps({"op": "set_level", "level": "error"}))
+        await r1.send(json.dumps({"op": "publish", "topic": "odom", "msg": {"x": "y" * 20_000}}))
+        assert "limit" in (await receive_json(r1))["msg"]
+        await r1.send(json.dumps({"op": "call_service", "id": "s", "service": "/rosapi/get_time"}))
+        assert (await receive_json(r1))["id"] == "s"
+        await r1.send(json.dumps({"op": "publish", "topic": "odom", "msg": {"x": "y" * 50_000}}))
+        with pytest.raises(ConnectionClosed):
+            await receive_json(r1)
