@@ -10,9 +10,11 @@ textbook model, and the default here), or ``likelihood_field``, ``1 + sum(pz^3)`
 treats beams as far from independent and so discriminates much more weakly (in the demo
 corridor, with AMCL's default odometry noise, its cloud spreads to half a metre along the
 corridor where the product keeps it near ten centimetres). ``d`` is capped at
-``max_distance``, which is also what an endpoint off the map scores. Beams without a
-return (``inf``, ``NaN``, JSON ``null``) or outside ``[range_min, range_max)`` are
-skipped, as AMCL skips max-range readings.
+``max_distance``, which is also what an endpoint off the map scores, except that a beam
+ending off the map for most of the particles' weight is left out altogether (see
+``LikelihoodField.log_likelihood``). Beams without a return (``inf``, ``NaN``, JSON
+``null``) or outside ``[range_min, range_max)`` are skipped, as AMCL skips max-range
+readings.
 
 The distance transform is computed once per map; scoring is a table lookup per endpoint.
 """
@@ -60,12 +62,14 @@ class BeamModel:
 
 @dataclass(frozen=True)
 class Beams:
-    """The beams of one scan that count: endpoints ``(x, y)`` in the robot frame, and the
-    ``z_rand`` term of the scan (it depends on the scan's ``range_max``)."""
+    """The beams of one scan that count: endpoints ``(x, y)`` in the robot frame, the
+    laser's position ``origin`` there, and the ``z_rand`` term of the scan (it depends on
+    the scan's ``range_max``)."""
 
     x: Floats
     y: Floats
     floor: float
+    origin: tuple[float, float] = (0.0, 0.0)
 
     @property
     def count(self) -> int:
@@ -103,7 +107,7 @@ def _in_robot_frame(ranges: Floats, angles: Floats, model: BeamModel, floor: flo
     mx, my, myaw = model.laser_pose
     x = mx + ranges * np.cos(angles + myaw)
     y = my + ranges * np.sin(angles + myaw)
-    return Beams(x, y, floor)
+    return Beams(x, y, floor, (mx, my))
 
 
 class LikelihoodField:
@@ -128,32 +132,67 @@ class LikelihoodField:
         self.origin = (float(origin[0]), float(origin[1]))
         self.shape = grid.shape
         self.free = (grid >= 0) & (grid < FREE_BELOW)
-        hit = _hit_term(_obstacle_distance(grid, self.resolution), model)
-        # One extra entry, what an endpoint off the map scores, so lookups need no branch.
-        far = model.z_hit * math.exp(-(model.max_distance**2) / (2 * model.sigma_hit**2))
-        self._table = np.append(hit.ravel(), far)
+        distance = _obstacle_distance(grid, self.resolution)
+        self._hit = _hit_term(distance, model).ravel()
+        self._far = model.z_hit * math.exp(-(model.max_distance**2) / (2 * model.sigma_hit**2))
+        self._unseen = _unseen(grid, distance, self.resolution).ravel()
         self._free_cells = np.flatnonzero(self.free)
 
-    def log_likelihood(self, poses: Floats, beams: Beams) -> Floats:
-        """Log-likelihood of ``beams`` from each of ``poses`` (N x 3, map frame); zeros
-        when there is no beam."""
-        if beams.count == 0:
-            return np.zeros(len(poses))
+    def log_likelihood(self, poses: Floats, beams: Beams, weights: Floats | None = None) -> Floats:
+        """Log-likelihood of ``beams`` from each of ``poses`` (N x 3, map frame), the
+        particles' ``weights`` (uniform if None) deciding which beams count; zeros when no
+        beam counts.
+
+        A beam whose endpoint, for most of the weight, lies where the map cannot tell (see
+        ``_unseen``), or off the map through an open stretch of its edge, is left out for
+        every pose. A sub-map is a window cut from the
+        building: scoring such beams against what the window shows (as AMCL does with
+        its whole-building maps) pulls the cloud toward poses that bring them onto walls
+        drawn inside it, a bias of tens of centimetres near the window's edge, which is
+        where the tags and doors are. Other endpoints off the map (through a wall drawn on
+        the edge) score as ``max_distance``.
+        """
         cos, sin = np.cos(poses[:, 2:3]), np.sin(poses[:, 2:3])
         x = poses[:, 0:1] + cos * beams.x - sin * beams.y
         y = poses[:, 1:2] + sin * beams.x + cos * beams.y
-        pz = self._table[self._cell_index(x, y)] + beams.floor
+        cells, inside = self._cells_under(x, y)
+        if not inside.all():
+            mx, my = beams.origin
+            lx = np.broadcast_to(poses[:, 0:1] + cos * mx - sin * my, x.shape)
+            ly = np.broadcast_to(poses[:, 1:2] + sin * mx + cos * my, y.shape)
+            off = ~inside
+            cells[off] = self._exit_cells(lx[off], ly[off], x[off], y[off])
+        share = np.full(len(poses), 1 / len(poses)) if weights is None else weights
+        counted = share @ self._unseen[cells] <= 0.5
+        cells, inside = cells[:, counted], inside[:, counted]
+        pz = np.where(inside, self._hit[cells], self._far) + beams.floor
         if self.model.laser_model == "likelihood_field":
             return np.asarray(np.log1p((pz * pz * pz).sum(axis=1)), np.float64)
         return np.asarray(np.log(pz).sum(axis=1), np.float64)
 
-    def _cell_index(self, x: Floats, y: Floats) -> NDArray[np.intp]:
-        """Flat index of the cell under each point; the extra last entry off the map."""
+    def _cells_under(self, x: Floats, y: Floats) -> tuple[NDArray[np.intp], NDArray[np.bool_]]:
+        """Flat index of the cell under each point, clipped to the grid, and whether the
+        point is on the map."""
         height, width = self.shape
         col = np.floor((x - self.origin[0]) / self.resolution).astype(np.intp)
         row = np.floor((y - self.origin[1]) / self.resolution).astype(np.intp)
         inside = (col >= 0) & (col < width) & (row >= 0) & (row < height)
-        return np.where(inside, row * width + col, height * width)
+        np.clip(col, 0, width - 1, out=col)
+        np.clip(row, 0, height - 1, out=row)
+        return row * width + col, inside
+
+    def _exit_cells(self, ox: Floats, oy: Floats, x: Floats, y: Floats) -> NDArray[np.intp]:
+        """The border cell where each segment from ``(ox, oy)`` to ``(x, y)`` (off the map)
+        leaves the map."""
+        height, width = self.shape
+        x0, y0 = self.origin
+        x1, y1 = x0 + width * self.resolution, y0 + height * self.resolution
+        dx, dy = x - ox, y - oy
+        with np.errstate(divide="ignore", invalid="ignore"):
+            tx = np.where(dx > 0, (x1 - ox) / dx, np.where(dx < 0, (x0 - ox) / dx, np.inf))
+            ty = np.where(dy > 0, (y1 - oy) / dy, np.where(dy < 0, (y0 - oy) / dy, np.inf))
+        t = np.clip(np.minimum(tx, ty), 0.0, 1.0)
+        return self._cells_under(ox + t * dx, oy + t * dy)[0]
 
     def free_poses(self, count: int, rng: np.random.Generator) -> Floats:
         """``count`` poses spread uniformly over the free cells, with uniform yaw.
@@ -172,13 +211,28 @@ class LikelihoodField:
 
 
 def _obstacle_distance(grid: Grid, resolution: float) -> NDArray[np.float32]:
-    """Metres from each cell's centre to the nearest obstacle cell's centre (exact
-    Euclidean); a map without obstacles is everywhere far."""
+    """Metres from each cell's centre to the nearest obstacle cell's face (the distance
+    between centres less half a cell: a beam ends on the face, and without this the
+    cloud leans half a cell into the walls); 0 on obstacles, ``inf`` with none."""
     open_cells = (grid < OCCUPIED_AT).astype(np.uint8)
     if open_cells.all():
         return np.full(grid.shape, np.inf, np.float32)
     cells = cv2.distanceTransform(open_cells, cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
-    return np.asarray(cells, np.float32) * np.float32(resolution)
+    return np.asarray(np.maximum(cells - 0.5, 0) * resolution, np.float32)
+
+
+def _unseen(grid: Grid, distance: NDArray[np.float32], resolution: float) -> NDArray[np.bool_]:
+    """Cells nearer to an open stretch of the map's edge (a border cell that is not an
+    obstacle) than to any obstacle: the nearest obstacle may lie beyond the edge, unseen,
+    so what the field says there is not known. Behind a walled edge nothing is unseen:
+    an endpoint past a wall is a miss."""
+    border = np.zeros(grid.shape, bool)
+    border[[0, -1], :] = border[:, [0, -1]] = True
+    open_edge = border & (grid < OCCUPIED_AT)
+    if not open_edge.any():
+        return np.zeros(grid.shape, bool)
+    cells = cv2.distanceTransform((~open_edge).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
+    return np.asarray(distance > cells * resolution, np.bool_)
 
 
 def _hit_term(distance: NDArray[np.float32], model: BeamModel) -> Floats:

@@ -18,8 +18,12 @@ What it takes from AMCL (ROS 1 ``amcl``, Nav2's ``nav2_amcl``):
 
 Where it departs from AMCL: the estimate is the weighted mean of all particles (AMCL
 reports the heaviest cluster's mean), so a cloud split between two hypotheses reports a
-pose in between, with a covariance that says so; and KLD-sampling with every particle
-in one bin keeps ``min_particles`` (AMCL jumps to ``max_particles`` there).
+pose in between, with a covariance that says so; KLD-sampling with every particle in
+one bin keeps ``min_particles`` (AMCL jumps to ``max_particles`` there); beams that end
+beyond the open edge of a sub-map's window are left out rather than scored as misses
+(see ``robots.agent.likelihood``); and there is no recovery by random particles
+(augmented MCL): a global start that gathers on a look-alike pose stays there, which a
+tag reading corrects with ``reset``.
 
 Frames: poses are ``(x, y, yaw)`` in the map frame of the grid. Sub-maps of a building
 share one frame (the demo's do), so ``set_map`` keeps the particles by default.
@@ -44,6 +48,8 @@ KLD_BIN = (0.5, 0.5, math.radians(10))
 """AMCL's histogram bin for KLD-sampling: metres, metres, radians."""
 _STILL = 0.01
 """Metres: below this the motion's heading (rot1) is meaningless and taken as 0 (AMCL)."""
+_NO_POSES: Floats = np.empty((0, 3))
+_NO_POSES.flags.writeable = False
 
 
 class NotLocalisedError(RuntimeError):
@@ -68,7 +74,8 @@ class FilterParams:
 
 def params_from(model_params: Mapping[str, Any]) -> FilterParams:
     """``FilterParams`` from keyword arguments, where laser keys (``z_hit``, ``z_rand``,
-    ``sigma_hit``, ``max_distance``, ``max_beams``, ``laser_pose``) fill its ``BeamModel``.
+    ``sigma_hit``, ``max_distance``, ``max_beams``, ``laser_model``, ``laser_pose``) fill
+    its ``BeamModel``.
 
     Raises TypeError for an unknown name.
     """
@@ -115,8 +122,8 @@ class ParticleFilter:
         self.min_particles, self.max_particles = min_particles, max_particles
         self.rng = np.random.default_rng(seed)
         self.field = LikelihoodField(grid, resolution, origin, self.params.beams)
-        self._anchor: Floats = np.empty((0, 3))  # particles at the last update
-        self._poses: Floats = np.empty((0, 3))  # _anchor moved by _travel, without noise
+        self._anchor: Floats = _NO_POSES  # particles at the last update
+        self._poses: Floats = _NO_POSES  # _anchor moved by _travel, without noise
         self._weights: Floats = np.empty(0)
         self._travel: Pose = (0.0, 0.0, 0.0)  # odometry since the last update, frame there
 
@@ -186,15 +193,15 @@ class ParticleFilter:
         robot moved ``update_min_d`` or turned ``update_min_a`` since the last one: motion
         noise, weighting, and resampling when the weights have degenerated.
 
-        Returns whether it ran (False too without particles). Raises KeyError for a scan
-        missing a field.
+        Returns whether it ran (False too without particles); a scan without a usable
+        beam still applies the motion. Raises KeyError for a scan missing a field.
         """
         if not len(self._anchor) or not self._moved_enough():
             return False
         beams = beams_of(scan, self.params.beams)
         self._poses = self._sample_motion()
         if beams.count:
-            self._weigh(self.field.log_likelihood(self._poses, beams))
+            self._weigh(self.field.log_likelihood(self._poses, beams, self._weights))
             if self._effective_size() < self.params.resample_threshold * len(self._poses):
                 self._resample()
         self._anchor, self._travel = self._poses.copy(), (0.0, 0.0, 0.0)
@@ -213,8 +220,8 @@ class ParticleFilter:
     # --- resampling --------------------------------------------------------------------
 
     def _resample(self) -> None:
-        """KLD-sampling: draw up to ``max_particles`` from the weights (some replaced by
-        random poses when recovering) and keep the shortest prefix that KLD bounds allow."""
+        """KLD-sampling: draw up to ``max_particles`` from the weights and keep the
+        shortest prefix that the KLD bound allows."""
         drawn = self._poses[self._draw(self.max_particles)]
         p = self.params
         keep = kld_count(drawn, self.min_particles, self.max_particles, p.kld_err, p.kld_z)
@@ -276,11 +283,7 @@ class ParticleFilter:
         """
         self.field = LikelihoodField(grid, resolution, origin, self.params.beams)
         if not shared_frame:
-            self._anchor, self._poses, self._weights = (
-                np.empty((0, 3)),
-                np.empty((0, 3)),
-                np.empty(0),
-            )
+            self._anchor, self._poses, self._weights = _NO_POSES, _NO_POSES, np.empty(0)
 
 
 def kld_count(

@@ -27,8 +27,9 @@ Two range sensors, each its own table: the simulated robot's 360-degree laser (8
 a narrow one, the beams of that laser within 29 degrees of straight ahead and 4 m, as a
 depth camera turned into a laser scan sees. With the full laser, one scan of the porch
 is distinctive enough that even global initialisation settles at its first update (0.2 m
-of motion); the narrow sensor sees too little of the corridor to tell its stretches
-apart, and there the start from a tag makes the difference.
+of motion), so all three end alike; the narrow sensor sees too little of the corridor to
+tell its stretches apart, and global initialisation then often settles on the wrong one,
+while a start from a tag (or a guess within a metre) tracks from the first step.
 
 Run: ``python -m robots.agent.experiments localisation`` (15 trials, both sensors, about
 20 s on two cores) or ``--quick`` (3 trials); ``--trials N`` sets the count and
