@@ -1,0 +1,82 @@
+// The REST API from the browser: JSON in and out, Django's CSRF token, readable errors.
+
+function csrfToken() {
+  const match = document.cookie.match(/(?:^|;\s*)csrftoken=([^;]+)/);
+  return match ? decodeURIComponent(match[1]) : "";
+}
+
+/** An API answer that was not 2xx; `messages` lists "field: reason" lines. */
+export class ApiError extends Error {
+  constructor(status, body) {
+    const messages = errorMessages(body);
+    super(messages.join("; ") || `HTTP ${status}`);
+    this.status = status;
+    this.body = body;
+    this.messages = messages;
+  }
+}
+
+/** Flatten DRF's error body ({field: [reasons]} or {detail}) into lines. */
+export function errorMessages(body, prefix = "") {
+  if (body === null || body === undefined) return [];
+  if (typeof body === "string") return [prefix ? `${prefix}: ${body}` : body];
+  if (Array.isArray(body)) return body.flatMap((item) => errorMessages(item, prefix));
+  return Object.entries(body).flatMap(([key, value]) => {
+    const label = key === "detail" || key === "non_field_errors" ? prefix : prefix ? `${prefix}.${key}` : key;
+    return errorMessages(value, label);
+  });
+}
+
+async function request(method, url, body, headers = {}) {
+  const init = { method, headers: { Accept: "application/json", ...headers }, credentials: "same-origin" };
+  if (method !== "GET") init.headers["X-CSRFToken"] = csrfToken();
+  if (body instanceof FormData) init.body = body;
+  else if (body !== undefined) {
+    init.headers["Content-Type"] = "application/json";
+    init.body = JSON.stringify(body);
+  }
+  const response = await fetch(url, init);
+  const text = await response.text();
+  const data = text ? parseJson(text) : null;
+  if (!response.ok) throw new ApiError(response.status, data);
+  return data;
+}
+
+function parseJson(text) {
+  try {
+    return JSON.parse(text);
+  } catch {
+    return text;
+  }
+}
+
+export const api = {
+  get: (url) => request("GET", url),
+  post: (url, body) => request("POST", url, body),
+  put: (url, body) => request("PUT", url, body),
+  patch: (url, body) => request("PATCH", url, body),
+  delete: (url) => request("DELETE", url),
+};
+
+export const urls = {
+  fleet: () => "/api/fleet/",
+  buildings: () => "/api/buildings/",
+  submaps: (b) => `/api/buildings/${b}/maps/`,
+  submap: (b, m) => `/api/buildings/${b}/maps/${m}/`,
+  grid: (b, m) => `/api/buildings/${b}/maps/${m}/grid`,
+  topology: (b) => `/api/buildings/${b}/topology`,
+  validation: (b) => `/api/buildings/${b}/topology/validation`,
+  route: (b, from, to) =>
+    `/api/buildings/${b}/route?from=${encodeURIComponent(from)}&to=${encodeURIComponent(to)}`,
+  tags: (b, m) => `/api/tags/?building=${b}${m ? `&map=${m}` : ""}`,
+  tag: (id) => `/api/tags/${id}/`,
+  newTag: () => "/api/tags/",
+  tagPrint: (id, ext) => `/api/tags/${id}/print.${ext}`,
+  tagSheet: (b) => `/api/buildings/${b}/tags/print.pdf`,
+};
+
+/** Split a Map ID "building/map" into its parts. */
+export function splitMapId(mapId) {
+  const at = (mapId || "").indexOf("/");
+  return at < 0 ? [null, mapId || null] : [mapId.slice(0, at), mapId.slice(at + 1)];
+}

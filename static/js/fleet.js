@@ -1,0 +1,98 @@
+// The fleet dashboard: every visible robot from /api/fleet/, kept live over rosbridge
+// (pose for the sub-map, odometry for the speed, nav_status for navigation).
+
+import { api, splitMapId, urls } from "./api.js";
+import { ago, badge, connectFleet, el, fixed, navigationState } from "./page.js";
+
+const POLL_MS = 3000;
+const LIVE_FOR_MS = 3000;
+
+class FleetDashboard {
+  constructor(connection) {
+    this.connection = connection;
+    this.robots = new Map();
+    this.body = document.querySelector("#fleet-table tbody");
+  }
+
+  async refresh() {
+    try {
+      const entries = await api.get(urls.fleet());
+      entries.forEach((entry) => this.#merge(entry));
+      document.getElementById("fleet-updated").textContent = `updated ${new Date().toLocaleTimeString()}`;
+    } catch (error) {
+      document.getElementById("fleet-updated").textContent = `fleet state unavailable (${error.message})`;
+    }
+    this.render();
+  }
+
+  #merge(entry) {
+    let robot = this.robots.get(entry.robot);
+    if (!robot) {
+      robot = { name: entry.robot, speed: null, turn: null, nav: null, heard: 0 };
+      this.robots.set(entry.robot, robot);
+      this.#listen(robot);
+    }
+    Object.assign(robot, { entry, mapId: robot.heard ? robot.mapId : entry.map_id });
+  }
+
+  #listen(robot) {
+    const ns = `/${robot.name}`;
+    const heard = () => { robot.heard = Date.now(); };
+    this.connection.subscribe(`${ns}/pose`, "geometry_msgs/PoseStamped", (msg) => {
+      heard();
+      robot.mapId = msg.header.frame_id;
+    }, { throttle_rate: 500, queue_length: 1 });
+    this.connection.subscribe(`${ns}/odom`, "nav_msgs/Odometry", (msg) => {
+      heard();
+      robot.speed = msg.twist.twist.linear.x;
+      robot.turn = msg.twist.twist.angular.z;
+    }, { throttle_rate: 250, queue_length: 1 });
+    this.connection.subscribe(`${ns}/nav_status`, "actionlib_msgs/GoalStatusArray", (msg) => {
+      heard();
+      robot.nav = msg;
+    }, { queue_length: 1 });
+  }
+
+  online(robot) {
+    return Date.now() - robot.heard < LIVE_FOR_MS || Boolean(robot.entry?.online);
+  }
+
+  render() {
+    const robots = [...this.robots.values()].sort((a, b) => a.name.localeCompare(b.name));
+    this.body.replaceChildren(...robots.map((robot) => this.#row(robot)));
+    document.getElementById("fleet-empty").hidden = robots.length > 0;
+    this.#stats(robots);
+  }
+
+  #row(robot) {
+    const online = this.online(robot);
+    const [building, map] = splitMapId(robot.mapId);
+    const [word, kind] = robot.nav ? navigationState(robot.nav) : ["—", "plain"];
+    const lastSeen = robot.heard ? new Date(robot.heard) : robot.entry?.last_seen;
+    const href = `/robots/${encodeURIComponent(robot.name)}/`;
+    return el("tr", { class: "clickable", dataset: { robot: robot.name }, onclick: () => { window.location.href = href; } },
+      el("td", {}, el("a", { href }, el("strong", {}, robot.name))),
+      el("td", {}, badge(online ? "online" : "offline", online ? "ok" : "idle")),
+      el("td", {}, building || robot.entry?.buildings.join(", ") || "—"),
+      el("td", { class: "submap" }, map || "—"),
+      el("td", { class: "num speed" }, online && robot.speed !== null ? `${fixed(robot.speed)} m/s` : "—"),
+      el("td", {}, badge(word, kind)),
+      el("td", { class: "muted" }, ago(lastSeen)),
+    );
+  }
+
+  #stats(robots) {
+    const online = robots.filter((robot) => this.online(robot));
+    const moving = online.filter((r) => Math.abs(r.speed || 0) > 0.01 || Math.abs(r.turn || 0) > 0.01);
+    const navigating = online.filter((r) => r.nav && navigationState(r.nav)[0] === "active");
+    document.getElementById("stat-robots").textContent = robots.length;
+    document.getElementById("stat-online").textContent = online.length;
+    document.getElementById("stat-moving").textContent = moving.length;
+    document.getElementById("stat-navigating").textContent = navigating.length;
+  }
+}
+
+const dashboard = new FleetDashboard(connectFleet());
+dashboard.refresh();
+setInterval(() => dashboard.refresh(), POLL_MS);
+setInterval(() => dashboard.render(), 1000);

@@ -1,0 +1,92 @@
+// What every page shares: its configuration, the connection banner, DOM and number helpers.
+
+import { Connection } from "./ros.js";
+
+/** The configuration the server rendered into the page (role, user, subject). */
+export function pageConfig() {
+  const node = document.getElementById("page-config");
+  return node ? JSON.parse(node.textContent) : {};
+}
+
+/** Open the page's rosbridge connection and show its state in the top bar and banner. */
+export function connectFleet() {
+  const connection = new Connection();
+  const banner = document.getElementById("ws-banner");
+  const state = document.getElementById("conn-state");
+  const show = (text, kind) => {
+    state.hidden = false;
+    state.innerHTML = "";
+    state.append(badge(text, kind));
+  };
+  connection.addEventListener("connected", () => {
+    banner.hidden = true;
+    show("Live", "ok");
+  });
+  connection.addEventListener("disconnected", (event) => {
+    banner.hidden = false;
+    const seconds = Math.max(1, Math.round(event.detail.retryInMs / 1000));
+    banner.textContent = `Connection to the fleet lost — reconnecting in ${seconds} s…`;
+    show("Offline", "danger");
+  });
+  window.cloudnav = { ...(window.cloudnav || {}), connection };
+  return connection.start();
+}
+
+/** Create an element: `el("td", {class: "num"}, "3.2")`. */
+export function el(tag, attributes = {}, ...children) {
+  const node = document.createElement(tag);
+  for (const [key, value] of Object.entries(attributes)) {
+    if (value === null || value === undefined || value === false) continue;
+    if (key.startsWith("on")) node.addEventListener(key.slice(2), value);
+    else if (key === "dataset") Object.assign(node.dataset, value);
+    else node.setAttribute(key, value === true ? "" : value);
+  }
+  node.append(...children.filter((child) => child !== null && child !== undefined));
+  return node;
+}
+
+export function badge(text, kind = "") {
+  return el("span", { class: `badge ${kind}` }, text);
+}
+
+export function fixed(value, digits = 2) {
+  return Number.isFinite(value) ? value.toFixed(digits) : "—";
+}
+
+export function formatBytes(bytesPerUnit) {
+  if (!Number.isFinite(bytesPerUnit)) return "—";
+  if (bytesPerUnit >= 1e6) return `${(bytesPerUnit / 1e6).toFixed(2)} MB`;
+  if (bytesPerUnit >= 1e3) return `${(bytesPerUnit / 1e3).toFixed(1)} kB`;
+  return `${Math.round(bytesPerUnit)} B`;
+}
+
+/** "3 s ago", "5 min ago" from a Date or ISO string; "never" for none. */
+export function ago(when, now = Date.now()) {
+  if (!when) return "never";
+  const seconds = Math.max(0, (now - new Date(when).getTime()) / 1000);
+  if (seconds < 2) return "just now";
+  if (seconds < 90) return `${Math.round(seconds)} s ago`;
+  if (seconds < 5400) return `${Math.round(seconds / 60)} min ago`;
+  if (seconds < 129600) return `${Math.round(seconds / 3600)} h ago`;
+  return new Date(when).toLocaleString();
+}
+
+/** Goal status (actionlib_msgs/GoalStatus) as a word and a badge kind. */
+const GOAL_STATUS = [
+  ["pending", "info"], ["active", "info"], ["preempted", "warn"], ["succeeded", "ok"],
+  ["aborted", "danger"], ["rejected", "danger"], ["preempting", "warn"], ["recalling", "warn"],
+  ["recalled", "warn"], ["lost", "danger"],
+];
+
+export function goalStatus(code) {
+  return GOAL_STATUS[code] || ["unknown", ""];
+}
+
+/** The latest entry of a GoalStatusArray as [word, kind, text], or idle when empty. */
+export function navigationState(statusArray) {
+  const list = statusArray?.status_list || [];
+  if (!list.length) return ["idle", "idle", ""];
+  const latest = list[list.length - 1];
+  const [word, kind] = goalStatus(latest.status);
+  return [word, kind, latest.text || ""];
+}

@@ -1,0 +1,319 @@
+// A robot's page: its sub-map with pose, trail, plan, laser and goal; velocity plots; topic
+// rates and latency; the camera; and for operators teleoperation, goals and initial pose.
+
+import { api, splitMapId, urls } from "./api.js";
+import { CameraPanel } from "./camera.js";
+import { degrees, planarPose, poseStamped, poseWithCovariance, scanPoints } from "./geometry.js";
+import { MapView } from "./mapview.js";
+import { badge, connectFleet, fixed, navigationState, pageConfig } from "./page.js";
+import { TimePlot } from "./plot.js";
+import { RatesPanel } from "./rates.js";
+import { Teleop } from "./teleop.js";
+import { TopologyView } from "./topology.js";
+
+const TRAIL_POINTS = 600;
+const STALE_MS = 2500;
+const VIDEO_STATS_URL = "/api/video/stats";
+const $ = (id) => document.getElementById(id);
+
+const config = pageConfig();
+const robot = config.robot;
+const ns = `/${robot}`;
+const connection = connectFleet();
+
+const state = {
+  robotMap: null,
+  shownMap: null,
+  followRobotMap: true,
+  pose: null,
+  heard: 0,
+  trail: [],
+  scan: null,
+  plan: { frame: null, points: [] },
+  goal: null,
+  nav: null,
+};
+
+const grids = new Map();
+const view = new MapView($("map-canvas"), {
+  onPose: (tool, pose) => sendPose(tool, pose),
+  onHover: ({ x, y }) => { $("map-cursor").textContent = `${x.toFixed(2)}, ${y.toFixed(2)} m`; },
+});
+view.follow = false;
+window.cloudnav.robotPage = { view, state };
+
+// ------------------------------------------------------------ the map
+
+async function showMap(mapId) {
+  if (!mapId || mapId === state.shownMap) return;
+  state.shownMap = mapId;
+  $("shown-map").textContent = mapId;
+  $("map-wrap").dataset.map = mapId;
+  const [building, map] = splitMapId(mapId);
+  try {
+    if (!grids.has(mapId)) grids.set(mapId, await loadSubmap(building, map));
+    if (state.shownMap !== mapId) return;
+    const { grid, tags } = grids.get(mapId);
+    view.setGrid(grid);
+    view.set("tags", tags);
+    $("map-wrap").dataset.loaded = mapId;
+  } catch (error) {
+    $("map-hint").hidden = false;
+    $("map-hint").textContent = `Cannot load ${mapId}: ${error.message}`;
+  }
+  drawRobotLayers();
+  renderGoalControls();
+}
+
+async function loadSubmap(building, map) {
+  const [grid, tags] = await Promise.all([api.get(urls.grid(building, map)), api.get(urls.tags(building, map))]);
+  return { grid, tags: tags.map((tag) => ({ ...tag, label: `#${tag.marker_id} → ${tag.links_to}` })) };
+}
+
+function drawRobotLayers() {
+  const here = state.shownMap && state.shownMap === state.robotMap;
+  view.set("robot", here ? state.pose : null);
+  view.set("trail", here ? state.trail : []);
+  view.set("scan", here && state.scan && state.pose ? scanPoints(state.scan, state.pose, 2) : []);
+  view.set("plan", state.plan.frame === state.shownMap ? state.plan.points : []);
+  view.set("goal", state.goal && state.goal.mapId === state.shownMap ? state.goal.pose : null);
+  const wrap = $("map-wrap");
+  if (here && state.pose) wrap.dataset.robot = `${state.pose.x.toFixed(3)},${state.pose.y.toFixed(3)}`;
+  else delete wrap.dataset.robot;
+}
+
+function enterMap(mapId) {
+  if (!mapId || mapId === state.robotMap) return;
+  state.robotMap = mapId;
+  state.trail = [];
+  $("robot-map").textContent = mapId;
+  if (state.followRobotMap) showMap(mapId);
+  topology.show(mapId);
+  renderGoalControls();
+}
+
+$("map-fit").addEventListener("click", () => view.fit());
+$("zoom-in").addEventListener("click", () => view.zoom(1.25));
+$("zoom-out").addEventListener("click", () => view.zoom(0.8));
+$("map-follow").addEventListener("click", () => {
+  view.follow = !view.follow;
+  $("map-follow").classList.toggle("active", view.follow);
+  if (view.follow && state.pose) view.centerOn(state.pose);
+});
+
+// ------------------------------------------------------------ live topics
+
+function heard() {
+  state.heard = Date.now();
+}
+
+connection.subscribe(`${ns}/pose`, "geometry_msgs/PoseStamped", (msg) => {
+  heard();
+  enterMap(msg.header.frame_id);
+  state.pose = planarPose(msg.pose);
+  state.trail.push({ x: state.pose.x, y: state.pose.y });
+  if (state.trail.length > TRAIL_POINTS) state.trail.shift();
+  $("pose-x").textContent = `${fixed(state.pose.x)} m`;
+  $("pose-y").textContent = `${fixed(state.pose.y)} m`;
+  $("pose-yaw").textContent = `${fixed(degrees(state.pose.yaw), 0)}°`;
+  drawRobotLayers();
+});
+
+connection.subscribe(`${ns}/map_id`, "std_msgs/String", (msg) => {
+  heard();
+  enterMap(msg.data);
+});
+
+const linearPlot = new TimePlot($("plot-linear"), [{ label: "linear.x", color: "#2f6fed" }]);
+const angularPlot = new TimePlot($("plot-angular"), [{ label: "angular.z", color: "#8a4ff0" }]);
+
+connection.subscribe(`${ns}/odom`, "nav_msgs/Odometry", (msg) => {
+  heard();
+  const { linear, angular } = msg.twist.twist;
+  const now = performance.now() / 1000;
+  linearPlot.push(now, [linear.x]);
+  angularPlot.push(now, [angular.z]);
+  $("linear-now").textContent = `${fixed(linear.x)} m/s`;
+  $("angular-now").textContent = `${fixed(angular.z)} rad/s`;
+  $("odom-speed").textContent = `${fixed(linear.x)} m/s`;
+  $("odom-turn").textContent = `${fixed(angular.z)} rad/s`;
+});
+
+connection.subscribe(`${ns}/scan`, "sensor_msgs/LaserScan", (msg) => {
+  heard();
+  state.scan = msg;
+  drawRobotLayers();
+}, { throttle_rate: 200, queue_length: 1 });
+
+connection.subscribe(`${ns}/plan`, "nav_msgs/Path", (msg) => {
+  state.plan = {
+    frame: msg.header.frame_id,
+    points: msg.poses.map((pose) => ({ x: pose.pose.position.x, y: pose.pose.position.y })),
+  };
+  drawRobotLayers();
+});
+
+connection.subscribe(`${ns}/nav_status`, "actionlib_msgs/GoalStatusArray", (msg) => {
+  heard();
+  state.nav = msg;
+  const [word, kind, text] = navigationState(msg);
+  $("robot-nav").replaceWith(Object.assign(badge(`navigation: ${word}`, kind), { id: "robot-nav", title: text }));
+  renderGoalState(word, kind, text);
+});
+
+setInterval(() => {
+  const age = Date.now() - state.heard;
+  const online = state.heard && age < STALE_MS;
+  const node = $("robot-online");
+  node.className = `badge ${online ? "ok" : "idle"}`;
+  node.textContent = online ? "online" : state.heard ? `silent for ${Math.round(age / 1000)} s` : "waiting for data";
+}, 500);
+
+// ------------------------------------------------------------ rates, camera, topology
+
+new RatesPanel(connection, `${ns}/`, {
+  table: $("rates-body"),
+  empty: $("rates-empty"),
+  latency: $("latency"),
+  latencyDetail: $("latency-detail"),
+});
+
+const camera = new CameraPanel(connection, `${ns}/camera/image/compressed`, {
+  modes: $("camera-modes"),
+  frame: $("camera-frame"),
+  note: $("camera-note"),
+  fps: $("camera-fps"),
+  stats: $("camera-stats"),
+});
+camera.show("mjpeg");
+camera.watchStats(VIDEO_STATS_URL);
+
+/** The topology of the building the robot is in, with the robot and its route. */
+const topology = {
+  view: new TopologyView($("robot-topology")),
+  building: null,
+  async show(mapId) {
+    const [building, map] = splitMapId(mapId);
+    if (building && building !== this.building) {
+      this.building = building;
+      this.view.load(await api.get(urls.topology(building)));
+    }
+    this.view.setRobots(new Map([[map, [robot]]]));
+  },
+  async route(fromMapId, toMapId) {
+    const [building, from] = splitMapId(fromMapId);
+    const [goalBuilding, to] = splitMapId(toMapId);
+    if (!building || building !== goalBuilding) return;
+    try {
+      const answer = await api.get(urls.route(building, from, to));
+      const codes = answer.steps.map((step) => step.map);
+      this.view.setRoute(codes);
+      $("route-label").textContent = `route: ${codes.join(" → ")}`;
+    } catch (error) {
+      this.view.setRoute([]);
+      $("route-label").textContent = `no route: ${error.message}`;
+    }
+  },
+};
+
+// ------------------------------------------------------------ operators: goals and teleop
+
+async function sendPose(tool, pose) {
+  const mapId = state.shownMap;
+  if (tool === "goal") {
+    connection.publish(`${ns}/goal`, "geometry_msgs/PoseStamped", poseStamped(mapId, pose));
+    state.goal = { mapId, pose };
+    $("goal-text").textContent = `${mapId} · x ${fixed(pose.x)} y ${fixed(pose.y)} · ${fixed(degrees(pose.yaw), 0)}°`;
+    renderGoalState("sent", "info", "");
+    if (state.robotMap) topology.route(state.robotMap, mapId);
+  } else if (tool === "initialpose") {
+    connection.publish(`${ns}/initialpose`, "geometry_msgs/PoseWithCovarianceStamped", poseWithCovariance(mapId, pose));
+    state.trail = [];
+  }
+  selectTool(null);
+  drawRobotLayers();
+}
+
+function selectTool(tool) {
+  const tools = $("map-tools");
+  if (!tools) return;
+  const next = view.tool === tool ? null : tool;
+  view.setTool(next);
+  for (const button of tools.querySelectorAll("button")) button.classList.toggle("active", button.dataset.tool === next);
+  const hints = { goal: "Press where the robot should go; drag for its heading.", initialpose: "Press where the robot is; drag for its heading." };
+  $("map-hint").hidden = !next;
+  $("map-hint").textContent = hints[next] || "";
+}
+
+function renderGoalState(word, kind, text) {
+  const node = $("goal-state");
+  if (!node) return;
+  node.className = `badge ${kind}`;
+  node.textContent = word;
+  node.title = text;
+}
+
+function renderGoalControls() {
+  const select = $("goal-map");
+  if (!select) return;
+  if (state.shownMap && select.value !== state.shownMap) select.value = state.shownMap;
+  $("back-to-robot").hidden = !state.robotMap || state.shownMap === state.robotMap;
+}
+
+async function fillGoalMaps() {
+  const select = $("goal-map");
+  const lists = await Promise.all(config.buildings.map((b) => api.get(urls.submaps(b))));
+  const options = lists.flat().map((submap) => new Option(`${submap.name || submap.code} (${submap.map_id})`, submap.map_id));
+  select.replaceChildren(...options);
+  renderGoalControls();
+}
+
+async function cancelGoal() {
+  try {
+    const answer = await connection.call(`${ns}/cancel_goal`, "std_srvs/Trigger", {});
+    $("goal-text").textContent = answer.message || (answer.success ? "cancelled" : "nothing to cancel");
+  } catch (error) {
+    $("goal-text").textContent = `cancel failed: ${error.message}`;
+  }
+  state.goal = null;
+  topology.view.setRoute([]);
+  $("route-label").textContent = "";
+  drawRobotLayers();
+}
+
+function bindOperatorControls() {
+  for (const button of $("map-tools").querySelectorAll("button")) {
+    button.addEventListener("click", () => selectTool(button.dataset.tool));
+  }
+  $("goal-map").addEventListener("change", (event) => {
+    state.followRobotMap = event.target.value === state.robotMap;
+    showMap(event.target.value);
+  });
+  $("back-to-robot").addEventListener("click", () => {
+    state.followRobotMap = true;
+    showMap(state.robotMap);
+  });
+  $("goal-cancel").addEventListener("click", cancelGoal);
+  const teleop = new Teleop(connection, robot, {
+    acquire: $("lock-acquire"),
+    release: $("lock-release"),
+    lockState: $("lock-state"),
+    message: $("lock-message"),
+    joystick: $("joystick"),
+    keys: $("keys"),
+    maxLinear: $("max-linear"),
+    maxAngular: $("max-angular"),
+    maxLinearOut: $("max-linear-out"),
+    maxAngularOut: $("max-angular-out"),
+  });
+  const stop = () => {
+    teleop.halt();
+    if (state.goal) cancelGoal();
+  };
+  $("stop-button").addEventListener("click", stop);
+  teleop.addEventListener("stop", stop);
+  window.cloudnav.robotPage.teleop = teleop;
+  fillGoalMaps();
+}
+
+if ($("teleop-card")) bindOperatorControls();

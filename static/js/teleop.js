@@ -1,0 +1,233 @@
+// Teleoperation of one robot: the teleop lock (/cloudnav/teleop_lock), keyboard (arrows and
+// WASD), an on-screen joystick, speed limits and a stop. Commands go out at 10 Hz while
+// any input is held, then one zero Twist; the lock is renewed while held.
+
+const LOCK_SERVICE = "/cloudnav/teleop_lock";
+const LOCK_TYPE = "cloudnav/TeleopLock";
+const COMMAND_MS = 100;
+const RENEW_MS = 2000;
+const KEYS = {
+  ArrowUp: "forward", KeyW: "forward",
+  ArrowDown: "back", KeyS: "back",
+  ArrowLeft: "left", KeyA: "left",
+  ArrowRight: "right", KeyD: "right",
+};
+
+export function twist(linear, angular) {
+  return { linear: { x: linear, y: 0, z: 0 }, angular: { x: 0, y: 0, z: angular } };
+}
+
+export class Teleop extends EventTarget {
+  constructor(connection, robot, elements) {
+    super();
+    this.connection = connection;
+    this.robot = robot;
+    this.ui = elements;
+    this.holding = false;
+    this.holder = "";
+    this.pressed = new Set();
+    this.stick = { x: 0, y: 0 };
+    this.sentMoving = false;
+    this.timers = [];
+    this.#bind();
+    connection.addEventListener("disconnected", () => this.#lost("connection lost"));
+    this.#render();
+  }
+
+  get limits() {
+    return { linear: Number(this.ui.maxLinear.value), angular: Number(this.ui.maxAngular.value) };
+  }
+
+  /** The command the inputs ask for now: [linear m/s, angular rad/s]. */
+  command() {
+    const keys = this.pressed;
+    const forward = (keys.has("forward") ? 1 : 0) - (keys.has("back") ? 1 : 0);
+    const left = (keys.has("left") ? 1 : 0) - (keys.has("right") ? 1 : 0);
+    const linear = clamp(forward || -this.stick.y, 1);
+    const angular = clamp(left || -this.stick.x, 1);
+    return [linear * this.limits.linear, angular * this.limits.angular];
+  }
+
+  async acquire() {
+    try {
+      const answer = await this.#lock("acquire");
+      this.holder = answer.holder || "";
+      if (answer.success) this.#start();
+      else this.#notify(answer.message || `held by ${this.holder}`);
+    } catch (error) {
+      this.#notify(error.message);
+    }
+    this.#render();
+  }
+
+  async release() {
+    this.#publish(0, 0);
+    this.#stop();
+    try {
+      await this.#lock("release");
+    } catch (error) {
+      this.#notify(error.message);
+    }
+    this.holder = "";
+    this.#render();
+  }
+
+  /** Stop now: zero velocity, no input held. */
+  halt() {
+    this.pressed.clear();
+    this.#setStick(0, 0);
+    if (this.holding) this.#publish(0, 0);
+    this.#render();
+  }
+
+  #lock(action) {
+    return this.connection.call(LOCK_SERVICE, LOCK_TYPE, { robot: this.robot, action });
+  }
+
+  #start() {
+    this.holding = true;
+    this.#notify("");
+    this.timers.push(setInterval(() => this.#tick(), COMMAND_MS));
+    this.timers.push(setInterval(() => this.#renew(), RENEW_MS));
+  }
+
+  #stop() {
+    this.holding = false;
+    this.timers.forEach(clearInterval);
+    this.timers = [];
+    this.pressed.clear();
+    this.#setStick(0, 0);
+  }
+
+  #lost(reason) {
+    if (!this.holding) return;
+    this.#stop();
+    this.holder = "";
+    this.#notify(`Control released: ${reason}.`);
+    this.#render();
+  }
+
+  async #renew() {
+    try {
+      const answer = await this.#lock("acquire");
+      if (!answer.success) {
+        this.holder = answer.holder || "";
+        this.#lost(answer.message || "the lock was taken");
+      }
+    } catch (error) {
+      this.#lost(error.message);
+    }
+  }
+
+  #tick() {
+    const [linear, angular] = this.command();
+    const moving = linear !== 0 || angular !== 0;
+    if (moving || this.sentMoving) this.#publish(linear, angular);
+    this.sentMoving = moving;
+    this.#renderKeys();
+  }
+
+  #publish(linear, angular) {
+    this.connection.publish(`/${this.robot}/cmd_vel`, "geometry_msgs/Twist", twist(linear, angular));
+    this.dispatchEvent(new CustomEvent("command", { detail: { linear, angular } }));
+  }
+
+  // ------------------------------------------------------------ inputs
+
+  #bind() {
+    const ui = this.ui;
+    ui.acquire.addEventListener("click", () => this.acquire());
+    ui.release.addEventListener("click", () => this.release());
+    for (const slider of [ui.maxLinear, ui.maxAngular]) {
+      slider.addEventListener("input", () => this.#renderLimits());
+    }
+    window.addEventListener("keydown", (event) => this.#key(event, true));
+    window.addEventListener("keyup", (event) => this.#key(event, false));
+    window.addEventListener("blur", () => this.pressed.clear());
+    this.#bindJoystick(ui.joystick);
+    this.#renderLimits();
+  }
+
+  #key(event, down) {
+    if (isTyping(event.target)) return;
+    const direction = KEYS[event.code];
+    if (event.code === "Space" && down) {
+      event.preventDefault();
+      this.dispatchEvent(new CustomEvent("stop"));
+      return;
+    }
+    if (!direction || !this.holding) return;
+    event.preventDefault();
+    if (down) this.pressed.add(direction);
+    else this.pressed.delete(direction);
+    this.#renderKeys();
+  }
+
+  #bindJoystick(pad) {
+    const move = (event) => {
+      const rect = pad.getBoundingClientRect();
+      const radius = rect.width / 2;
+      let x = (event.clientX - rect.left - radius) / radius;
+      let y = (event.clientY - rect.top - radius) / radius;
+      const length = Math.hypot(x, y);
+      if (length > 1) [x, y] = [x / length, y / length];
+      this.#setStick(x, y);
+    };
+    pad.addEventListener("pointerdown", (event) => {
+      if (!this.holding) return;
+      pad.setPointerCapture(event.pointerId);
+      move(event);
+    });
+    pad.addEventListener("pointermove", (event) => {
+      if (pad.hasPointerCapture(event.pointerId)) move(event);
+    });
+    const recentre = () => this.#setStick(0, 0);
+    pad.addEventListener("pointerup", recentre);
+    pad.addEventListener("pointercancel", recentre);
+  }
+
+  #setStick(x, y) {
+    this.stick = { x, y };
+    const knob = this.ui.joystick.querySelector(".knob");
+    const travel = this.ui.joystick.clientWidth / 2 - knob.clientWidth / 2;
+    knob.style.transform = `translate(${x * travel}px, ${y * travel}px)`;
+  }
+
+  // ------------------------------------------------------------ display
+
+  #notify(text) {
+    this.ui.message.textContent = text;
+    this.ui.message.hidden = !text;
+  }
+
+  #render() {
+    const ui = this.ui;
+    ui.acquire.hidden = this.holding;
+    ui.release.hidden = !this.holding;
+    ui.joystick.classList.toggle("disabled", !this.holding);
+    ui.lockState.className = `badge ${this.holding ? "ok" : this.holder ? "warn" : "idle"}`;
+    ui.lockState.textContent = this.holding
+      ? "You are driving"
+      : this.holder ? `Driven by ${this.holder.replace(/^user:/, "")}` : "Not driving";
+    this.#renderKeys();
+  }
+
+  #renderKeys() {
+    for (const key of this.ui.keys.querySelectorAll("kbd[data-direction]")) {
+      key.classList.toggle("on", this.pressed.has(key.dataset.direction));
+    }
+  }
+
+  #renderLimits() {
+    this.ui.maxLinearOut.textContent = `${Number(this.ui.maxLinear.value).toFixed(2)} m/s`;
+    this.ui.maxAngularOut.textContent = `${Number(this.ui.maxAngular.value).toFixed(2)} rad/s`;
+  }
+}
+
+function clamp(value, limit) {
+  return Math.max(-limit, Math.min(limit, value));
+}
+
+function isTyping(target) {
+  return target instanceof HTMLElement && (target.isContentEditable || ["INPUT", "SELECT", "TEXTAREA"].includes(target.tagName));
+}
