@@ -6,9 +6,11 @@
 - ``Driver`` drives to one target pose: A* on the current sub-map's inflated grid
   (``maps.domain.planning``, the planner the server uses), then a dynamic window
   controller (``DynamicWindow``) that follows the path and keeps clear of what the laser
-  sees now (``LocalObstacles``), mapped or not. Blocked for ``BLOCKED_REPLAN`` seconds,
-  or without progress for ``STUCK_AFTER``, it plans again with the laser's obstacles
-  marked on the grid; after ``MAX_REPLANS`` such plans it gives up.
+  sees now (``LocalObstacles``), mapped or not. When the path ahead runs into something
+  the laser sees (at most every ``REPLAN_INTERVAL`` seconds), the driver plans again
+  with the laser's returns marked on the grid, as Nav2's obstacle layer does in its
+  global costmap. Blocked for ``BLOCKED_REPLAN`` seconds, or without progress for
+  ``STUCK_AFTER``, it does the same; after ``MAX_REPLANS`` of those it gives up.
 - ``Navigator`` joins them to the Maps Supervisor: each tick the supervisor says which
   leg comes next (search, approach a tag, the goal itself), the driver drives it, and
   the board records how the goal ends.
@@ -58,6 +60,10 @@ RETARGET = 0.15
 """Metres a target may move (a tag seen more precisely) before the path is planned again."""
 MARK_RANGE = 3.0
 """Metres: laser returns within this range are marked on the grid when replanning."""
+LOOK_AHEAD = 2.0
+"""Metres of path checked against the laser's returns each tick."""
+REPLAN_INTERVAL = 1.0
+"""Seconds between plans made because the path ahead runs into something seen."""
 
 
 @dataclass(frozen=True)
@@ -197,7 +203,8 @@ class DynamicWindow:
     to a laser return are inadmissible (when the robot already stands closer, those that
     come no closer than it is stay admissible, so it can leave). The rest are scored by
     how near their end comes to the carrot, whether they end facing it, their clearance
-    and their speed.
+    and their speed. Arcs ending nearer a return than the robot stands now are never
+    admissible once it is that near, so it cannot creep closer tick by tick.
     """
 
     def __init__(self, config: ControllerConfig) -> None:
@@ -211,9 +218,15 @@ class DynamicWindow:
         """The best command toward ``carrot`` (robot frame) at most ``speed_cap`` m/s."""
         linear, angular = self._samples(velocity, speed_cap)
         xs, ys, headings = self._rollout(linear, angular)
-        clear = obstacles.clearance(xs, ys).min(axis=1)
+        along = obstacles.clearance(xs, ys)
+        clear = along.min(axis=1)
         here = float(obstacles.clearance(np.zeros(1), np.zeros(1))[0])
-        admissible = clear >= min(self.config.radius + self.config.safety, here - 0.005)
+        needed = self.config.radius + self.config.safety
+        # Already too near: leave, along arcs that come no nearer (one cell of slack for
+        # the grid's steps) and end farther away.
+        admissible = (clear >= needed) | (
+            (here < needed) & (clear >= here - obstacles.resolution) & (along[:, -1] > here)
+        )
         forward = admissible & (linear > 0.02)
         if not forward.any():
             return Choice(self._turn_toward(carrot) if admissible.any() else STOP, True)
@@ -283,6 +296,7 @@ class _Progress:
     since: float = 0.0
     blocked_since: float | None = None
     replans: int = 0
+    planned_at: float = -math.inf
 
 
 class Driver:
@@ -361,7 +375,7 @@ class Driver:
         """Plan from ``pose`` to ``target`` (around ``obstacles``, map-frame points, when
         given); returns why it failed, or ''."""
         self._target, self._submap, self._index = target, submap, 0
-        self._progress.since = seconds
+        self._progress.since = self._progress.planned_at = seconds
         path = [pose[:2], target[:2]]
         if submap is not None:
             costmap = submap.costmap if obstacles is None else submap.costmap_with(obstacles)
@@ -388,6 +402,11 @@ class Driver:
         distance: float,
     ) -> Drive:
         carrot = self._carrot(pose)
+        if self._path_obstructed(pose, obstacles, seconds):
+            failure = self._replan_around(obstacles, pose, seconds)
+            if failure:
+                return Drive(STOP, DriveState.FAILED, failure)
+            carrot = self._carrot(pose)
         local = compose(inverse(pose), (*carrot, 0.0))
         bearing = math.atan2(local[1], local[0])
         if abs(bearing) > self.config.turn_in_place:
@@ -416,10 +435,26 @@ class Driver:
             return Drive(STOP, DriveState.FAILED, "blocked: no way through")
         progress.replans += 1
         progress.blocked_since = None
+        failure = self._replan_around(obstacles, pose, seconds)
+        return Drive(STOP, DriveState.FAILED, failure) if failure else drive
+
+    def _replan_around(self, obstacles: LocalObstacles, pose: Pose, seconds: float) -> str:
+        """Plan again with the laser's near returns on the grid; why it failed, or ''."""
         assert self._target is not None
         seen = _in_map_frame(obstacles.points, pose)
-        failure = self._plan(self._target, self._submap, pose, seconds, seen)
-        return Drive(STOP, DriveState.FAILED, failure) if failure else drive
+        return self._plan(self._target, self._submap, pose, seconds, seen)
+
+    def _path_obstructed(self, pose: Pose, obstacles: LocalObstacles, seconds: float) -> bool:
+        """Whether the next ``LOOK_AHEAD`` metres of a planned path pass nearer a laser
+        return than the robot may (checked at most every ``REPLAN_INTERVAL``)."""
+        if self._submap is None or seconds - self._progress.planned_at < REPLAN_INTERVAL:
+            return False
+        ahead = [
+            _along(self.path, self._index, pose[:2], d) for d in np.arange(0.1, LOOK_AHEAD, 0.1)
+        ]
+        local = np.array([compose(inverse(pose), (x, y, 0.0))[:2] for x, y in ahead])
+        clear = obstacles.clearance(local[:, 0], local[:, 1])
+        return bool((clear < self.config.radius + self.config.safety).any())
 
     def _note_blocked(self, blocked: bool, seconds: float) -> None:
         progress = self._progress

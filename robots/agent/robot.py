@@ -295,6 +295,12 @@ class Robot:
         cancelled = self.navigator.cancel()
         return {"success": cancelled, "message": "cancelled" if cancelled else "no active goal"}
 
+    async def settle(self) -> None:
+        """Return once the work ticks and commands started in the background (bundles
+        being fetched) is done; a robot stepped by hand calls it between ticks."""
+        await asyncio.gather(*self._tasks)
+        await self.supervisor.entered()
+
     def _entered(self, submap: SubMap) -> None:
         self._map_to_publish = submap.map_id
         self.detector.sizes.update({m: tag.size for m, tag in submap.tags.items()})

@@ -391,6 +391,11 @@ class MapsSupervisor:
     def entering(self) -> bool:
         return self._entering is not None and not self._entering.done()
 
+    async def entered(self) -> None:
+        """Return once no sub-map is being entered."""
+        if self._entering is not None:
+            await self._entering
+
     def _start_entering(self, detection: TagDetection, odom: Pose) -> None:
         self._entering = asyncio.create_task(self._enter(_named(detection), detection, odom))
 
