@@ -50,8 +50,8 @@ def tag_start(tag_id: int, distance: float) -> tuple[Pose, np.ndarray]:
     """A robot ``distance`` m in front of a demo tag, facing it, and the pose estimate
     (with its covariance) that an exact reading of the tag gives."""
     tag = next(t for t in demo_building().tags if t.marker_id == tag_id)
-    robot = (tag.x + distance * math.cos(tag.yaw), tag.y + distance * math.sin(tag.yaw),
-             tag.yaw + math.pi)  # fmt: skip
+    x, y = tag.x + distance * math.cos(tag.yaw), tag.y + distance * math.sin(tag.yaw)
+    robot = (x, y, tag.yaw + math.pi)
     estimate = robot_pose_from_tag(tag, seen_from(tag, robot), view_angle=0.0)
     return robot, estimate.covariance
 
@@ -147,8 +147,9 @@ def test_resampling_keeps_the_particle_count_within_its_bounds() -> None:
     particle_filter = corridor_filter(particles=200, min_particles=50, max_particles=3000)
     particle_filter.reset_uniform()
     counts = [len(particle_filter.particles())]
-    for tick in simulate(demo_world(), (5.0, 23.2, 0.0), seed=5, duration=15.0,
-                         route=[(12.0, 23.2)]):  # fmt: skip
+    for tick in simulate(
+        demo_world(), (5.0, 23.2, 0.0), seed=5, duration=15.0, route=[(12.0, 23.2)]
+    ):
         particle_filter.predict(tick.odom_delta)
         if tick.scan is not None and particle_filter.update(tick.scan):
             counts.append(len(particle_filter.particles()))
@@ -175,8 +176,13 @@ def test_a_uniform_start_converges_in_a_small_distinctive_room() -> None:
     for seed in range(3):
         particle_filter = ParticleFilter(grid, RES, ROOM_ORIGIN, seed=seed)  # 5000, as AMCL
         particle_filter.reset_uniform()
-        ticks = simulate(world, (0.8, 1.0, 0.0), seed=seed, duration=15.0,
-                         route=[(3.0, 1.0), (1.2, 2.2), (0.8, 1.0)])  # fmt: skip
+        ticks = simulate(
+            world,
+            (0.8, 1.0, 0.0),
+            seed=seed,
+            duration=15.0,
+            route=[(3.0, 1.0), (1.2, 2.2), (0.8, 1.0)],
+        )
         assert max(follow(particle_filter, ticks)[-10:]) < 0.1
 
 
@@ -190,8 +196,11 @@ def test_in_a_symmetric_corridor_a_uniform_start_ends_at_the_truth_or_its_mirror
     for seed in range(4):
         particle_filter = ParticleFilter(grid, RES, ROOM_ORIGIN, seed=seed, max_particles=2000)
         particle_filter.reset_uniform()
-        ticks = list(simulate(world, (3.0, 1.0, 0.0), seed=seed, duration=20.0,
-                              route=[(6.0, 1.0), (3.0, 1.0)]))  # fmt: skip
+        ticks = list(
+            simulate(
+                world, (3.0, 1.0, 0.0), seed=seed, duration=20.0, route=[(6.0, 1.0), (3.0, 1.0)]
+            )
+        )
         follow(particle_filter, ticks)
         x, y, _ = last_truth(ticks)
         mirror = (10.0 - x, 2.0 - y)  # turned half a circle about the corridor's centre
@@ -211,8 +220,9 @@ def test_swapping_to_the_next_sub_map_keeps_the_pose_and_goes_on_tracking() -> N
     particle_filter = corridor_filter()
     particle_filter.reset(start, covariance)
     atrium = submap_grid(demo_building(), "Atrium1")
-    ticks = simulate(demo_world(), start, seed=6, duration=20.0,
-                     route=[(17.2, 23.8), (19.0, 23.8), (21.0, 22.4)])  # fmt: skip
+    ticks = simulate(
+        demo_world(), start, seed=6, duration=20.0, route=[(17.2, 23.8), (19.0, 23.8), (21.0, 22.4)]
+    )
     swapped, errors = False, []
     for tick in ticks:
         if not swapped and tick.truth[0] > 18.4:  # through the door

@@ -1,6 +1,6 @@
 """The laser's likelihood field on one occupancy grid, as AMCL's likelihood field models.
 
-Each beam endpoint is scored by its distance ``d`` to the nearest occupied cell::
+Each beam endpoint is scored by its distance ``d`` to the nearest occupied cell's face::
 
     pz = z_hit * exp(-d^2 / (2 sigma_hit^2)) + z_rand / range_max
 
@@ -11,10 +11,10 @@ treats beams as far from independent and so discriminates much more weakly (in t
 corridor, with AMCL's default odometry noise, its cloud spreads to half a metre along the
 corridor where the product keeps it near ten centimetres). ``d`` is capped at
 ``max_distance``, which is also what an endpoint off the map scores, except that a beam
-ending off the map for most of the particles' weight is left out altogether (see
-``LikelihoodField.log_likelihood``). Beams without a return (``inf``, ``NaN``, JSON
-``null``) or outside ``[range_min, range_max)`` are skipped, as AMCL skips max-range
-readings.
+ending beyond the open edge of the map, for most of the particles' weight, is left out
+altogether (see ``LikelihoodField.log_likelihood``). Beams without a return (``inf``,
+``NaN``, JSON ``null``) or outside ``[range_min, range_max)`` are skipped, as AMCL skips
+max-range readings.
 
 The distance transform is computed once per map; scoring is a table lookup per endpoint.
 """
@@ -24,7 +24,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Literal, get_args
+from typing import Any, Literal, get_args
 
 import cv2
 import numpy as np
@@ -76,23 +76,21 @@ class Beams:
         return int(self.x.size)
 
 
-def beams_of(scan: Mapping[str, object], model: BeamModel) -> Beams:
+def beams_of(scan: Mapping[str, Any], model: BeamModel) -> Beams:
     """The usable beams of a ``sensor_msgs/LaserScan`` dict, thinned to ``model.max_beams``
     evenly spaced ones before dropping those without a valid return.
 
     Raises KeyError for a missing field and ValueError for a non-positive ``range_max``.
     """
-    ranges = _ranges(scan["ranges"])  # type: ignore[arg-type]
-    range_min, range_max = float(scan["range_min"]), float(scan["range_max"])  # type: ignore[arg-type]
+    ranges = _ranges(scan["ranges"])
+    range_min, range_max = float(scan["range_min"]), float(scan["range_max"])
     if range_max <= 0:
         raise ValueError("a laser scan needs a positive range_max")
-    picked = np.unique(np.linspace(0, ranges.size - 1, min(model.max_beams, ranges.size)).round())
-    picked = picked.astype(np.intp)
-    angle_min = float(scan["angle_min"])  # type: ignore[arg-type]
-    angle_increment = float(scan["angle_increment"])  # type: ignore[arg-type]
+    count = min(model.max_beams, ranges.size)
+    picked = np.unique(np.linspace(0, ranges.size - 1, count).round()).astype(np.intp)
     chosen = ranges[picked]
     valid = np.isfinite(chosen) & (chosen >= range_min) & (chosen < range_max)
-    angles = angle_min + picked[valid] * angle_increment
+    angles = float(scan["angle_min"]) + picked[valid] * np.float64(scan["angle_increment"])
     return _in_robot_frame(chosen[valid], angles, model, model.z_rand / range_max)
 
 
@@ -144,24 +142,14 @@ class LikelihoodField:
         beam counts.
 
         A beam whose endpoint, for most of the weight, lies where the map cannot tell (see
-        ``_unseen``), or off the map through an open stretch of its edge, is left out for
-        every pose. A sub-map is a window cut from the
-        building: scoring such beams against what the window shows (as AMCL does with
-        its whole-building maps) pulls the cloud toward poses that bring them onto walls
-        drawn inside it, a bias of tens of centimetres near the window's edge, which is
-        where the tags and doors are. Other endpoints off the map (through a wall drawn on
-        the edge) score as ``max_distance``.
+        ``_unseen``), or off the map past an open stretch of its edge, is left out for
+        every pose. A sub-map is a window cut from the building: scoring such beams
+        against what the window shows (as AMCL does with its whole-building maps) pulls
+        the cloud toward poses that bring them onto walls drawn inside it, a bias of tens
+        of centimetres near the window's edge, which is where the tags and doors are.
+        Other endpoints off the map (past a wall drawn on the edge) score as misses.
         """
-        cos, sin = np.cos(poses[:, 2:3]), np.sin(poses[:, 2:3])
-        x = poses[:, 0:1] + cos * beams.x - sin * beams.y
-        y = poses[:, 1:2] + sin * beams.x + cos * beams.y
-        cells, inside = self._cells_under(x, y)
-        if not inside.all():
-            mx, my = beams.origin
-            lx = np.broadcast_to(poses[:, 0:1] + cos * mx - sin * my, x.shape)
-            ly = np.broadcast_to(poses[:, 1:2] + sin * mx + cos * my, y.shape)
-            off = ~inside
-            cells[off] = self._exit_cells(lx[off], ly[off], x[off], y[off])
+        cells, inside = self._endpoint_cells(poses, beams)
         share = np.full(len(poses), 1 / len(poses)) if weights is None else weights
         counted = share @ self._unseen[cells] <= 0.5
         cells, inside = cells[:, counted], inside[:, counted]
@@ -169,6 +157,23 @@ class LikelihoodField:
         if self.model.laser_model == "likelihood_field":
             return np.asarray(np.log1p((pz * pz * pz).sum(axis=1)), np.float64)
         return np.asarray(np.log(pz).sum(axis=1), np.float64)
+
+    def _endpoint_cells(
+        self, poses: Floats, beams: Beams
+    ) -> tuple[NDArray[np.intp], NDArray[np.bool_]]:
+        """For each pose and beam (N x B): the cell under the endpoint, or for an endpoint
+        off the map the border cell where the beam leaves it; and whether it is on the map."""
+        cos, sin = np.cos(poses[:, 2:3]), np.sin(poses[:, 2:3])
+        x = poses[:, 0:1] + cos * beams.x - sin * beams.y
+        y = poses[:, 1:2] + sin * beams.x + cos * beams.y
+        cells, inside = self._cells_under(x, y)
+        if not inside.all():
+            off = ~inside
+            mx, my = beams.origin
+            lx = np.broadcast_to(poses[:, 0:1] + cos * mx - sin * my, x.shape)[off]
+            ly = np.broadcast_to(poses[:, 1:2] + sin * mx + cos * my, y.shape)[off]
+            cells[off] = self._exit_cells(lx, ly, x[off], y[off])
+        return cells, inside
 
     def _cells_under(self, x: Floats, y: Floats) -> tuple[NDArray[np.intp], NDArray[np.bool_]]:
         """Flat index of the cell under each point, clipped to the grid, and whether the

@@ -131,6 +131,7 @@ class TrialResult:
 
     @classmethod
     def empty(cls, names: Sequence[str]) -> TrialResult:
+        """A result with nothing measured yet for the initialisations ``names``."""
         return cls(
             settled=dict.fromkeys(names, 0.0),
             update_seconds={n: [] for n in names},
@@ -248,10 +249,9 @@ def simulate(
 
 def start_pose(building: DemoBuilding, rng: np.random.Generator) -> Pose:
     """The demo start pose moved by up to ``START_JITTER``."""
-    x, y, yaw = building.start_pose
     shift, turn = START_JITTER
-    return (x + rng.uniform(-shift, shift), y + rng.uniform(-shift, shift),
-            yaw + rng.uniform(-turn, turn))  # fmt: skip
+    x, y, yaw = np.asarray(building.start_pose) + rng.uniform(-1, 1, 3) * (shift, shift, turn)
+    return float(x), float(y), float(yaw)
 
 
 def make_filters(
@@ -259,13 +259,14 @@ def make_filters(
 ) -> dict[str, ParticleFilter]:
     """One filter per initialisation, each with its own seed."""
     grid, resolution, origin = submap_grid(building, SUBMAP)
-    rng = np.random.default_rng(seed)
-    filters = {name: ParticleFilter(grid, resolution, origin, seed=seed * 10 + i)
-               for i, name in enumerate(INITIALISATIONS)}  # fmt: skip
+    filters = {
+        name: ParticleFilter(grid, resolution, origin, seed=seed * 10 + i)
+        for i, name in enumerate(INITIALISATIONS)
+    }
     tag = next(t for t in building.tags if t.marker_id == ENTRANCE_TAG)
     estimate = tag_estimate(world, tag, start, seed)
     filters["tag"].reset((estimate.x, estimate.y, estimate.yaw), estimate.covariance)
-    filters["random"].reset(*random_guess(start, rng))
+    filters["random"].reset(*random_guess(start, np.random.default_rng([seed, 1])))
     filters["global"].reset_uniform()
     return filters
 
@@ -368,8 +369,10 @@ def _paper(name: str, moment: float) -> str:
 def _markdown(rows: list[list[str]]) -> str:
     """``rows`` (the first one the header) as a Markdown table, columns padded to align."""
     widths = [max(len(row[i]) for row in rows) for i in range(len(rows[0]))]
-    lines = ["| " + " | ".join(c.ljust(w) for c, w in zip(row, widths, strict=True)) + " |"
-             for row in rows]  # fmt: skip
+    lines = [
+        "| " + " | ".join(c.ljust(w) for c, w in zip(row, widths, strict=True)) + " |"
+        for row in rows
+    ]
     rule = "|" + "|".join("-" * (w + 2) for w in widths) + "|"
     return "\n".join([lines[0], rule, *lines[1:]])
 
