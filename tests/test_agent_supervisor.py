@@ -1,0 +1,160 @@
+"""The Maps Supervisor's bundles and routes against the real server: conditional requests
+(seen in daphne's access log), held maps when the server is away, edits downloaded
+again, and routes that agree with the server's route endpoint."""
+
+from __future__ import annotations
+
+import io
+import itertools
+import json
+import math
+import re
+from collections.abc import AsyncIterator
+from pathlib import Path
+
+import httpx
+import numpy as np
+import pytest
+from django.core.management import call_command
+
+from maps.domain.demo_building import demo_building
+from maps.models import EnvironmentalTag
+from robots.agent.robot import PoseTracker, Robot, RobotConfig, SimHardware
+from robots.agent.sim.world import demo_world
+from robots.agent.supervisor import (
+    BundleCache,
+    BundleError,
+    Destination,
+    MapsSupervisor,
+    approach_pose,
+    submap_from_bundle,
+)
+from tests.conftest import make_robot
+from tests.fixtures_live import LiveServer
+
+pytestmark = pytest.mark.django_db(transaction=True)
+
+CORRIDOR_A = "boccioni_1/CorridorA"
+BUNDLE_LINE = re.compile(r'"GET /api/buildings/boccioni_1/maps/(\w+)/bundle" (\d{3})')
+
+
+@pytest.fixture
+def token(transactional_db: None, tmp_path: Path) -> str:
+    tokens = tmp_path / "tokens.json"
+    call_command("seed_demo", "--robots", "1", "--tokens-file", str(tokens), stdout=io.StringIO())
+    return str(json.loads(tokens.read_text())["robot_0"])
+
+
+@pytest.fixture
+async def cloud(token: str) -> AsyncIterator[httpx.AsyncClient]:
+    """HTTP to the real application, in-process, with the robot's token."""
+    from cloudnav_web.asgi import application
+
+    async with httpx.AsyncClient(
+        transport=httpx.ASGITransport(app=application),
+        base_url="http://testserver",
+        headers={"Authorization": f"Token {token}"},
+    ) as http:
+        yield http
+
+
+def over_the_network(server: LiveServer, token: str) -> httpx.AsyncClient:
+    return httpx.AsyncClient(base_url=server.url, headers={"Authorization": f"Token {token}"})
+
+
+async def test_a_held_map_is_asked_for_conditionally_and_never_downloaded_again(
+    daphne_server: LiveServer, token: str
+):
+    async with over_the_network(daphne_server, token) as http:
+        cache = BundleCache(http)
+        first = await cache.load(CORRIDOR_A)
+        again = await cache.load(CORRIDOR_A)
+    assert again is first
+    assert (cache.downloads, cache.revalidated) == (1, 1)
+    # The server saw one download and one conditional request answered 304, no body.
+    assert BUNDLE_LINE.findall(daphne_server.log()) == [("CorridorA", "200"), ("CorridorA", "304")]
+
+
+async def test_a_held_map_is_used_while_the_server_is_away(daphne_server: LiveServer, token):
+    async with over_the_network(daphne_server, token) as http:
+        cache = BundleCache(http)
+        held = await cache.load(CORRIDOR_A)
+        daphne_server.stop()
+        assert await cache.load(CORRIDOR_A) is held
+        with pytest.raises(BundleError):
+            await cache.load("boccioni_1/Atrium1")  # never held: nothing to fall back on
+
+
+async def test_an_edited_map_is_downloaded_again(cloud):
+    cache = BundleCache(cloud)
+    before = await cache.load(CORRIDOR_A)
+    await EnvironmentalTag.objects.filter(marker_id=1).aupdate(x=17.7)
+    after = await cache.load(CORRIDOR_A)
+    assert cache.downloads == 2
+    assert after.etag != before.etag
+    assert after.tags[1].x == 17.7
+
+
+async def test_a_map_of_a_building_it_may_not_use_is_refused(cloud):
+    from asgiref.sync import sync_to_async
+
+    robot_token = (await sync_to_async(make_robot)(name="stranger"))[1]  # in no building
+    cloud.headers["Authorization"] = f"Token {robot_token}"
+    with pytest.raises(BundleError, match="HTTP 40"):
+        await BundleCache(cloud).load(CORRIDOR_A)
+
+
+def test_a_bundle_it_cannot_read_is_an_error():
+    with pytest.raises(BundleError):
+        submap_from_bundle({"map": "CorridorA", "image": {"name": "a.pgm", "data": "!"}}, "")
+    with pytest.raises(BundleError):
+        submap_from_bundle({"yaml": "image: a.pgm\n", "image": {"name": "a.pgm", "data": ""}}, "")
+
+
+async def test_its_routes_agree_with_the_servers_route_endpoint(cloud):
+    cache = BundleCache(cloud)
+    codes = [submap.code for submap in demo_building().submaps]
+    for code in codes:  # holding every bundle, it knows every tag leading on
+        await cache.load(f"boccioni_1/{code}")
+    supervisor = MapsSupervisor(cache, PoseTracker())
+    for start, goal in itertools.permutations(codes, 2):
+        supervisor.current = cache.held[f"boccioni_1/{start}"]
+        ours = [(step.submap, step.tag and step.tag.marker_id) for step in supervisor.route(goal)]
+        answer = await cloud.get(
+            "/api/buildings/boccioni_1/route", params={"from": start, "to": goal}
+        )
+        theirs = [(s["map"], s["tag"] and s["tag"]["marker_id"]) for s in answer.json()["steps"]]
+        assert ours == theirs, (start, goal)
+
+
+async def test_a_tag_that_does_not_lead_on_is_read_but_not_entered(cloud):
+    # Before Room A's door in Corridor C, heading for Atrium 2: the robot reads the tag
+    # (it resets its pose from it) but stays in Corridor C and fetches nothing more.
+    room_a_tag = next(t for t in demo_building().tags if t.links_to == "RoomA")
+    pose = approach_pose((room_a_tag.x, room_a_tag.y, room_a_tag.yaw))
+    hardware = SimHardware(demo_world(), pose, seed=5)
+    tracker = PoseTracker()
+    cache = BundleCache(cloud)
+    supervisor = MapsSupervisor(cache, tracker)
+    robot = Robot(hardware, supervisor, tracker, _Silent(), RobotConfig(camera_rate=0))
+    supervisor.make_current(await cache.load("boccioni_1/CorridorC"))
+    supervisor.set_destination(Destination("boccioni_1", "Atrium2", (40.0, 7.0, 0.0)))
+    tracker.reset((pose[0] + 0.3, pose[1] - 0.2, pose[2] + 0.1), _tiny(), tracker.odom)
+    for _ in range(4):
+        await robot.tick()
+        await robot.settle()
+    assert any(d.payload and d.payload.map_code == "RoomA" for d in robot.detections)
+    assert supervisor.current is not None
+    assert supervisor.current.code == "CorridorC"
+    assert list(cache.held) == ["boccioni_1/CorridorC"]
+    # Reset from the tag it read: the drift given above is gone.
+    assert math.dist(tracker.pose()[:2], pose[:2]) < 0.05
+
+
+class _Silent:
+    async def publish(self, topic: str, msg: dict) -> bool:
+        return True
+
+
+def _tiny() -> np.ndarray:
+    return np.diag([1e-4, 1e-4, 1e-4])
