@@ -1,23 +1,31 @@
-"""The cloud's own services under ``/cloudnav``: teleop lock, route planning, tag resolution."""
+"""The cloud's own services under ``/cloudnav``: teleop lock, route planning, tag resolution,
+path planning."""
 
 from __future__ import annotations
 
+import math
+from functools import lru_cache
 from typing import Any
 
 from channels.db import database_sync_to_async
 
 from maps import services as map_services
+from maps.domain.planning import Costmap, PlanningError, inflate, path_length, plan_on
 from maps.domain.tagpayload import parse_payload
 from maps.exceptions import MapStoreError
 from maps.models import Building, SubMap
 from telemetry.domain import names
 from telemetry.domain.protocol import Json
+from telemetry.domain.times import now_stamp
 from telemetry.exceptions import NotAllowed, ServiceFailed
 from telemetry.server_services import ServerService, ServiceCall
 
 TELEOP_LOCK = f"{names.CLOUDNAV}/teleop_lock"
 ROUTE = f"{names.CLOUDNAV}/route"
 RESOLVE_TAG = f"{names.CLOUDNAV}/resolve_tag"
+PLAN_PATH = f"{names.CLOUDNAV}/plan_path"
+DEFAULT_ROBOT_RADIUS = 0.2
+"""Metres, as ``maps.domain.planning.plan_path``'s default."""
 
 
 def _text(call: ServiceCall, key: str) -> str:
@@ -90,15 +98,89 @@ async def resolve_tag(call: ServiceCall) -> Json:
     return found
 
 
-def _submap(visible: frozenset[int], building: str, code: str) -> dict[str, Any] | None:
-    submap = (
+def _visible_submap(visible: frozenset[int], building: str, code: str) -> SubMap | None:
+    return (
         SubMap.objects.filter(building__code=building, building__pk__in=visible, code=code)
         .select_related("building")
         .first()
     )
+
+
+def _submap(visible: frozenset[int], building: str, code: str) -> dict[str, Any] | None:
+    submap = _visible_submap(visible, building, code)
     if submap is None:
         return None
     return {"map_id": submap.map_id, "building": building, "map": code, "version": submap.version}
+
+
+async def plan_path(call: ServiceCall) -> Json:
+    """``{map_id, start: {x, y}, goal: {x, y}, robot_radius?}`` -> ``{path, length}``.
+
+    The robot agent's global planner, run in the cloud (``maps.domain.planning``: the
+    sub-map's grid inflated by ``robot_radius``, A*, line-of-sight shortcut): ``path`` is
+    a ``nav_msgs/Path`` in the sub-map's frame (``frame_id`` = its Map ID), ``length`` in
+    metres. Planning errors (outside the map, in an obstacle, no path) fail the call.
+    """
+    building, _, code = _text(call, "map_id").partition("/")
+    start, goal = _point(call, "start"), _point(call, "goal")
+    radius = call.arg("robot_radius", DEFAULT_ROBOT_RADIUS)
+    if not isinstance(radius, int | float) or not 0 <= radius < 5:
+        raise ServiceFailed("'robot_radius' must be a number of metres in [0, 5)")
+    return await database_sync_to_async(_plan)(
+        call.conn.principal.buildings, building, code, start, goal, float(radius)
+    )
+
+
+def _point(call: ServiceCall, key: str) -> tuple[float, float]:
+    value = call.arg(key)
+    try:
+        point = float(value["x"]), float(value["y"])
+    except (KeyError, TypeError, ValueError):
+        raise ServiceFailed(f"'{key}' must be {{x, y}}") from None
+    if not all(math.isfinite(v) for v in point):
+        raise ServiceFailed(f"'{key}' must be finite")
+    return point
+
+
+def _plan(
+    visible: frozenset[int],
+    building: str,
+    code: str,
+    start: tuple[float, float],
+    goal: tuple[float, float],
+    radius: float,
+) -> dict[str, Any]:
+    submap = _visible_submap(visible, building, code)
+    if submap is None:
+        raise ServiceFailed(f"{building}/{code} is not a visible sub-map")
+    try:
+        points = plan_on(_costmap(submap.pk, submap.version, radius), start, goal)
+    except PlanningError as exc:
+        raise ServiceFailed(str(exc)) from None
+    return {"path": _path(submap.map_id, points), "length": path_length(points)}
+
+
+@lru_cache(maxsize=16)
+def _costmap(pk: int, version: str, radius: float) -> Costmap:
+    """One version of a sub-map, inflated for a robot of ``radius`` (the version keys
+    the cache, so an edited map is inflated afresh)."""
+    submap = SubMap.objects.get(pk=pk)
+    origin = (submap.origin_x, submap.origin_y)
+    return inflate(map_services.grid_of(submap), radius, submap.resolution, origin=origin)
+
+
+def _path(frame_id: str, points: list[tuple[float, float]]) -> dict[str, Any]:
+    """A ``nav_msgs/Path`` through ``points`` (headings left at identity)."""
+    header = {"stamp": now_stamp(), "frame_id": frame_id}
+    identity = {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}
+    poses = [
+        {
+            "header": header,
+            "pose": {"position": {"x": x, "y": y, "z": 0.0}, "orientation": identity},
+        }
+        for x, y in points
+    ]
+    return {"header": header, "poses": poses}
 
 
 def services() -> dict[str, ServerService]:
@@ -106,4 +188,5 @@ def services() -> dict[str, ServerService]:
         TELEOP_LOCK: ServerService("cloudnav/TeleopLock", teleop_lock),
         ROUTE: ServerService("cloudnav/Route", route),
         RESOLVE_TAG: ServerService("cloudnav/ResolveTag", resolve_tag),
+        PLAN_PATH: ServerService("cloudnav/PlanPath", plan_path),
     }
