@@ -54,7 +54,11 @@ export class CameraPanel {
   #mjpeg() {
     const img = this.#mount("img", { alt: "camera (MJPEG)" });
     img.addEventListener("load", () => this.#frame());
-    img.addEventListener("error", () => this.#message("The MJPEG relay is not available. Try VP8 or the rosbridge topic."));
+    img.addEventListener("error", () => {
+      // Without the relay, the rosbridge topic still carries the same JPEG frames.
+      this.show("topic");
+      this.#message("The MJPEG relay is not available: showing the rosbridge topic.");
+    });
     img.src = streamUrl(this.topic, "mjpeg");
     // An MJPEG <img> fires `load` once; count the later frames by sampling its pixels.
     const watcher = new FrameWatcher(img, () => this.#frame());

@@ -57,6 +57,7 @@ async function showMap(mapId) {
     view.setGrid(grid);
     view.set("tags", tags);
     $("map-wrap").dataset.loaded = mapId;
+    if (!view.tool) $("map-hint").hidden = true;
   } catch (error) {
     $("map-hint").hidden = false;
     $("map-hint").textContent = `Cannot load ${mapId}: ${error.message}`;
@@ -188,6 +189,19 @@ const camera = new CameraPanel(connection, `${ns}/camera/image/compressed`, {
 camera.show("mjpeg");
 camera.watchStats(VIDEO_STATS_URL);
 
+/** Before the robot speaks: its last known sub-map from the fleet state, and its building. */
+async function showLastKnown() {
+  const [building] = config.buildings;
+  if (building) topology.show(`${building}/`);
+  const entries = await api.get(`${urls.fleet()}?building=${encodeURIComponent(building || "")}`).catch(() => []);
+  const entry = entries.find((e) => e.robot === robot);
+  if (entry?.map_id && !state.shownMap) showMap(entry.map_id);
+  else if (!state.shownMap) {
+    $("map-hint").hidden = false;
+    $("map-hint").textContent = "Waiting for the robot to report its sub-map…";
+  }
+}
+
 /** The topology of the building the robot is in, with the robot and its route. */
 const topology = {
   view: new TopologyView($("robot-topology")),
@@ -198,7 +212,7 @@ const topology = {
       this.building = building;
       this.view.load(await api.get(urls.topology(building)));
     }
-    this.view.setRobots(new Map([[map, [robot]]]));
+    if (map) this.view.setRobots(new Map([[map, [robot]]]));
   },
   async route(fromMapId, toMapId) {
     const [building, from] = splitMapId(fromMapId);
@@ -264,7 +278,10 @@ async function fillGoalMaps() {
   const select = $("goal-map");
   const lists = await Promise.all(config.buildings.map((b) => api.get(urls.submaps(b))));
   const options = lists.flat().map((submap) => new Option(`${submap.name || submap.code} (${submap.map_id})`, submap.map_id));
-  select.replaceChildren(...options);
+  const placeholder = new Option("Choose a sub-map…", "");
+  placeholder.disabled = true;
+  select.replaceChildren(placeholder, ...options);
+  select.value = state.shownMap || "";
   renderGoalControls();
 }
 
@@ -317,3 +334,4 @@ function bindOperatorControls() {
 }
 
 if ($("teleop-card")) bindOperatorControls();
+showLastKnown();

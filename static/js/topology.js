@@ -3,8 +3,8 @@
 // nodes to join them, click an edge to select it (then set its cost or remove it).
 
 const SVG = "http://www.w3.org/2000/svg";
-const NODE_RADIUS = 24;
-const PADDING = 50;
+const NODE_RADIUS = 19;
+const PADDING = 44;
 
 function svg(tag, attributes = {}, text = null) {
   const node = document.createElementNS(SVG, tag);
