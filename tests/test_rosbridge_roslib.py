@@ -21,14 +21,18 @@ ROOT = Path(__file__).resolve().parent.parent
 SCRIPT = ROOT / "tests" / "js" / "roslib_scenarios.mjs"
 POSE = {"header": {"frame_id": "boccioni_1/Hall"}, "pose": {"position": {"x": 1, "y": 2}}}
 
-pytestmark = pytest.mark.skipif(
-    shutil.which("node") is None or not (ROOT / "node_modules" / "roslib").exists(),
-    reason="needs Node 20 and `npm ci`",
-)
+
+@pytest.fixture
+def node() -> str:
+    """The ``node`` executable; the test fails (never skips) without Node or ``npm ci``."""
+    executable = shutil.which("node")
+    assert executable is not None, "Node 20 is needed: install nodejs"
+    assert (ROOT / "node_modules" / "roslib").exists(), "roslib is missing: run `npm ci`"
+    return executable
 
 
 @pytest.fixture
-def run(daphne_server, building, operator):
+def run(node, daphne_server, building, operator):
     args = {
         "url": daphne_server.rosbridge_url(),
         "token": make_robot(name="r1", buildings=[building])[1],
@@ -38,7 +42,7 @@ def run(daphne_server, building, operator):
 
     def run_scenario(name: str) -> dict[str, Any]:
         done = subprocess.run(
-            ["node", str(SCRIPT), name, json.dumps(args)],
+            [node, str(SCRIPT), name, json.dumps(args)],
             cwd=ROOT,
             capture_output=True,
             text=True,
