@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import asyncio
 import itertools
-import logging
 from typing import Any
 
 from telemetry.domain.encoding import Outgoing, Wire
@@ -19,7 +18,6 @@ from telemetry.domain.protocol import Json, level_shows, status
 from telemetry.domain.rules import Principal
 from telemetry.transport import AsgiSend, DaphneSink, cap_incoming, daphne_protocol, send_via_asgi
 
-logger = logging.getLogger(__name__)
 _keys = itertools.count(1)
 
 

@@ -84,7 +84,7 @@ class RosbridgeConsumer(AsyncWebsocketConsumer):
         )
         await self.accept()
         self.conn.start()
-        self.hub.join(Client(self.conn, self.access, identity.robot_pk))
+        self.hub.join(Client(self.conn, identity.robot_pk))
         logger.info("%s connected as %s", identity.principal.label, self.conn.key)
 
     async def websocket_receive(self, message: dict[str, Any]) -> None:

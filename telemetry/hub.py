@@ -8,7 +8,6 @@ processes need, one hop per process.
 from __future__ import annotations
 
 import asyncio
-import logging
 import weakref
 from dataclasses import dataclass
 from typing import Any
@@ -30,8 +29,6 @@ from telemetry.relay import Relay
 from telemetry.server_services import ServerService, ServiceCall, server_services
 from telemetry.services import Access
 
-logger = logging.getLogger(__name__)
-
 
 def fleet_type(name: str) -> str | None:
     """Return the type of a fleet topic (``/r1/pose`` and the like), None for others."""
@@ -49,7 +46,6 @@ class Client:
     """What the hub keeps of a connection besides the connection itself."""
 
     conn: Connection
-    access: Access
     robot_pk: int | None = None
 
 

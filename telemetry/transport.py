@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import asyncio
 import functools
-import logging
 from collections.abc import Awaitable, Callable
 from typing import Any
 
@@ -27,8 +26,6 @@ from twisted.internet.interfaces import IPushProducer
 from zope.interface import implementer
 
 from telemetry.domain.encoding import Wire
-
-logger = logging.getLogger(__name__)
 
 AsgiSend = Callable[[dict[str, Any]], Awaitable[None]]
 # Frames held for the next loop turn, per connection, before it counts as not writable.
