@@ -24,7 +24,7 @@ def test_bench_rosbridge_prints_a_measurement(capsys):
     )
     header, row = capsys.readouterr().out.strip().splitlines()[-2:]
     assert "delivered/s" in header
-    robots, rate, subscribers, offered, delivered, loss = row.split()[:6]
+    robots, _rate, subscribers, _offered, delivered, loss = row.split()[:6]
     assert (robots, subscribers) == ("3", "2")
     assert float(delivered) > 0
     assert loss == "0.00%"
