@@ -115,7 +115,9 @@ async def test_a_stalled_subscriber_neither_delays_others_nor_grows_memory(serve
     finally:
         stalled.close()
     delays.sort()
+    # Were the stalled subscriber able to hold the others up, they would stop altogether;
+    # the bound leaves room for a busy machine's scheduling hiccups.
     p99 = delays[int(len(delays) * 0.99)]
-    assert p99 < 0.25, f"the healthy subscriber's p99 delay was {p99:.3f} s"
+    assert p99 < 1.0, f"the healthy subscriber's p99 delay was {p99:.3f} s"
     # 100 MB went to the stalled subscriber; its queue holds at most 2 MiB of it.
     assert grown < 30 * 2**20, f"server memory grew by {grown / 2**20:.1f} MiB"
