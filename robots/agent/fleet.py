@@ -118,7 +118,10 @@ async def _close(member: FleetRobot) -> None:
 
 def parse_pose(text: str) -> Pose:
     """``"x,y,yaw"`` (metres, radians). Raises ValueError."""
-    values = [float(part) for part in text.split(",")]
+    try:
+        values = [float(part) for part in text.split(",")]
+    except ValueError:
+        values = []
     if len(values) != 3 or not all(math.isfinite(v) for v in values):
         raise ValueError(f"'{text}' is not x,y,yaw")
     return values[0], values[1], values[2]
