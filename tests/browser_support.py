@@ -1,0 +1,156 @@
+"""Fixtures of the browser tests (``test_browser_*.py`` load them with ``pytest_plugins``).
+
+A real Chromium (Debian's, at ``/usr/bin/chromium``) driven by Playwright for Python,
+against a live daphne server (``tests.fixtures_live``) on the test database, with the demo
+building seeded and, where a test needs one, a simulated robot: ``python -m robots.agent``
+in its own process. Screenshots go to ``test-artifacts/screenshots/``.
+
+Playwright's sync API keeps an event loop running in the test's thread, where Django then
+refuses ORM calls; so the browser starts after the database work (seeding, sessions) is
+done and closes before the test database is flushed, and test bodies read the server's
+state through its API, not the ORM. (No asserts here: PYTEST_DONT_REWRITE.)
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import math
+import subprocess
+import sys
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import pytest
+from django.contrib.auth.models import User
+from django.core.management import call_command
+from playwright.sync_api import Browser, BrowserContext, Page, sync_playwright
+
+from tests.fixtures_live import BASE_DIR, LiveServer, session_cookie
+
+CHROMIUM = "/usr/bin/chromium"
+CHROMIUM_ARGS = [
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--no-first-run",
+]
+SCREENSHOTS = BASE_DIR / "test-artifacts" / "screenshots"
+VIEWPORT = {"width": 1440, "height": 960}
+BUILDING = "boccioni_1"
+ROBOT = "robot_0"
+# The agent's simulated seconds per wall second: quick, yet teleop stays responsive.
+TIME_SCALE = 3.0
+
+
+@dataclass
+class Demo:
+    """The demo building seeded into the test database, its robots' tokens, and the session
+    cookies (name, value) of its people."""
+
+    server: LiveServer
+    tokens: dict[str, str]
+    cookies: dict[str, tuple[str, str]]
+
+    def url(self, path: str) -> str:
+        return self.server.url + path
+
+
+@pytest.fixture
+def demo(daphne_server: LiveServer, tmp_path: Path) -> Demo:
+    """``seed_demo`` (building, users admin/operator/viewer, one robot) on the live server."""
+    tokens = tmp_path / "tokens.json"
+    call_command("seed_demo", "--robots", "1", "--tokens-file", str(tokens), stdout=io.StringIO())
+    cookies = {}
+    for user in User.objects.filter(username__in=["admin", "operator", "viewer"]):
+        name, value = session_cookie(user).decode().split("=", 1)
+        cookies[user.username] = (name, value)
+    return Demo(daphne_server, json.loads(tokens.read_text()), cookies)
+
+
+@pytest.fixture
+def browser(demo: Demo) -> Iterator[Browser]:
+    """Chromium, started once the database is ready (see the module's docstring)."""
+    with sync_playwright() as playwright:
+        launched = playwright.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
+        yield launched
+        launched.close()
+
+
+@pytest.fixture
+def context(browser: Browser) -> Iterator[BrowserContext]:
+    opened = browser.new_context(viewport=VIEWPORT)  # type: ignore[arg-type]
+    opened.set_default_timeout(15_000)
+    yield opened
+    opened.close()
+
+
+@pytest.fixture
+def agent(demo: Demo, tmp_path: Path) -> Iterator[Path]:
+    """The simulated robot ``robot_0`` in its own process; yields its log file."""
+    log = tmp_path / "agent.log"
+    command = [
+        sys.executable, "-m", "robots.agent", "--server", demo.server.url,
+        "--token", demo.tokens[ROBOT], "--time-scale", str(TIME_SCALE), "--camera-rate", "5",
+    ]  # fmt: skip
+    with log.open("wb") as out:
+        process = subprocess.Popen(command, cwd=BASE_DIR, stdout=out, stderr=subprocess.STDOUT)
+    yield log
+    process.terminate()
+    try:
+        process.wait(10)
+    except subprocess.TimeoutExpired:
+        process.kill()
+        process.wait(10)
+
+
+def open_as(context: BrowserContext, demo: Demo, username: str, path: str) -> Page:
+    """A page of ``path`` for a signed-in demo user (session cookie set directly)."""
+    name, value = demo.cookies[username]
+    context.add_cookies([{"name": name, "value": value, "url": demo.server.url}])
+    page = context.new_page()
+    page.goto(demo.url(path))
+    return page
+
+
+def screenshot(page: Page, name: str) -> None:
+    SCREENSHOTS.mkdir(parents=True, exist_ok=True)
+    page.screenshot(path=str(SCREENSHOTS / f"{name}.png"), full_page=True)
+
+
+def world_to_page(page: Page, canvas: str, x: float, y: float) -> tuple[float, float]:
+    """Where the map point (x, y), in metres, is on the page, for mouse actions."""
+    found: Any = page.evaluate(
+        """([canvas, x, y]) => {
+            const views = window.cloudnav.robotPage?.view || window.cloudnav.submapPage?.view;
+            const rect = document.querySelector(canvas).getBoundingClientRect();
+            const at = views.toScreen(x, y);
+            return [rect.left + at.sx, rect.top + at.sy];
+        }""",
+        [canvas, x, y],
+    )
+    return float(found[0]), float(found[1])
+
+
+def press_and_drag(page: Page, x: float, y: float, yaw: float, canvas: str = "#map-canvas") -> None:
+    """Press on the map at (x, y) and drag one metre along ``yaw``: a pose tool's gesture."""
+    start = world_to_page(page, canvas, x, y)
+    end = world_to_page(page, canvas, x + math.cos(yaw), y + math.sin(yaw))
+    page.mouse.move(*start)
+    page.mouse.down()
+    page.mouse.move(*end, steps=6)
+    page.mouse.up()
+
+
+def drawn_robot(page: Page) -> tuple[float, float] | None:
+    """The robot's position as the map draws it, or None while it is not drawn."""
+    value = page.get_attribute("#map-wrap", "data-robot")
+    if not value:
+        return None
+    x, y = value.split(",")
+    return float(x), float(y)
