@@ -227,7 +227,10 @@ class RosbridgeClient:
 
     def _declarations(self) -> list[Json]:
         """Frames that re-create this robot's state on a server that knows nothing of it:
-        advertisements, latched messages, subscriptions, services."""
+        advertisements and latched messages, subscriptions, services."""
+        return [*self._advertisements(), *self._subscribe_frames(), *self._service_frames()]
+
+    def _advertisements(self) -> list[Json]:
         frames: list[Json] = []
         for topic, declared in self._topics.items():
             frames.append({"op": "advertise", "topic": topic, "type": declared.type})
@@ -235,19 +238,25 @@ class RosbridgeClient:
                 frames[-1]["latch"] = True
                 if declared.last is not None:
                     frames.append({"op": "publish", "topic": topic, "msg": declared.last})
-        for topic, sub in self._subscriptions.items():
-            frames.append(
-                {
-                    "op": "subscribe",
-                    "topic": topic,
-                    "type": sub.type,
-                    "throttle_rate": sub.throttle_rate,
-                    "queue_length": sub.queue_length,
-                }
-            )
-        for service, (type_name, _) in self._services.items():
-            frames.append({"op": "advertise_service", "service": service, "type": type_name})
         return frames
+
+    def _subscribe_frames(self) -> list[Json]:
+        return [
+            {
+                "op": "subscribe",
+                "topic": topic,
+                "type": sub.type,
+                "throttle_rate": sub.throttle_rate,
+                "queue_length": sub.queue_length,
+            }
+            for topic, sub in self._subscriptions.items()
+        ]
+
+    def _service_frames(self) -> list[Json]:
+        return [
+            {"op": "advertise_service", "service": service, "type": type_name}
+            for service, (type_name, _) in self._services.items()
+        ]
 
     def _lost(self) -> None:
         """Forget the connection and fail the calls that waited on it."""
