@@ -1,0 +1,151 @@
+"""An admin shaping a building in a real browser: the topology editor and routes, sub-map
+upload with its preview, tag placement and printing."""
+
+from __future__ import annotations
+
+import io
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+from playwright.sync_api import BrowserContext, Page, expect
+
+from maps.domain.mapfile import load_map_upload
+from tests.browser_support import BUILDING, Demo, open_as, press_and_drag, screenshot
+from tests.conftest import map_yaml
+
+pytest_plugins = ["tests.browser_support"]
+pytestmark = [pytest.mark.browser, pytest.mark.django_db(transaction=True)]
+
+
+def route_steps(page: Page) -> list[str]:
+    return [str(code) for code in page.locator("#route-steps li").evaluate_all("items => items.map(i => i.dataset.map)")]
+
+
+def topology_of(page: Page, demo: Demo) -> dict[str, object]:
+    answer = page.request.get(demo.url(f"/api/buildings/{BUILDING}/topology"))
+    assert answer.ok
+    return answer.json()  # type: ignore[no-any-return]
+
+
+def save_topology(page: Page) -> None:
+    page.click("#topology-save")
+
+
+def test_an_admin_edits_the_topology_and_sees_the_route_change(
+    context: BrowserContext, demo: Demo
+) -> None:
+    page = open_as(context, demo, "admin", f"/buildings/{BUILDING}/")
+    page.select_option("#route-from", "CorridorC")
+    page.select_option("#route-to", "Atrium2")
+    expect(page.locator("#route-steps li")).to_have_count(2)
+
+    page.locator('g[data-edge="Atrium2↔CorridorC"] .topo-edge-hit').click()
+    expect(page.locator("#edge-editor")).to_be_visible()
+    page.fill("#edge-cost", "0")
+    save_topology(page)
+    expect(page.locator("#topology-messages .alert.error")).to_contain_text("positive")
+
+    page.fill("#edge-cost", "20")
+    save_topology(page)
+    expect(page.locator("#topology-messages .alert.ok")).to_contain_text("saved")
+    expect(page.locator("#route-steps li")).to_have_count(3)
+    assert route_steps(page) == ["CorridorC", "RoomB", "Atrium2"]
+    expect(page.locator("g.topo-node.route")).to_have_count(3)
+
+    page.locator('g[data-node="CorridorA"]').click()
+    page.locator('g[data-node="Office7"]').click()
+    expect(page.locator('g[data-edge="CorridorA↔Office7"]')).to_have_count(1)
+    office = page.locator('g[data-node="Office7"] circle').bounding_box()
+    assert office is not None
+    page.mouse.move(office["x"] + office["width"] / 2, office["y"] + office["height"] / 2)
+    page.mouse.down()
+    page.mouse.move(office["x"] - 40, office["y"] + 60, steps=8)
+    page.mouse.up()
+    before = {n["code"]: n for n in topology_of(page, demo)["nodes"]}  # type: ignore[attr-defined]
+    save_topology(page)
+    expect(page.locator("#topology-messages .alert.ok")).to_contain_text("saved")
+    expect(page.locator("#topology-validation")).to_contain_text("No tag lets a robot cross")
+    expect(page.locator('g[data-edge="CorridorA↔Office7"] .topo-edge.invalid')).to_have_count(1)
+    screenshot(page, "building-topology-editor")
+
+    after = {n["code"]: n for n in topology_of(page, demo)["nodes"]}  # type: ignore[attr-defined]
+    assert after["Office7"]["x"] < before["Office7"]["x"]
+    assert after["Office7"]["y"] < before["Office7"]["y"]
+    edges = {(e["a"], e["b"]) for e in topology_of(page, demo)["edges"]}  # type: ignore[attr-defined]
+    assert ("CorridorA", "Office7") in edges or ("Office7", "CorridorA") in edges
+
+
+def rgba_map() -> bytes:
+    """A colour PNG with see-through pixels: the boundary cases of the conversion rule."""
+    rng = np.random.default_rng(7)
+    pixels = rng.integers(0, 256, (48, 64, 4), dtype=np.uint8)
+    pixels[..., 3] = np.where(rng.random((48, 64)) < 0.1, rng.integers(0, 255, (48, 64)), 255)
+    out = io.BytesIO()
+    Image.fromarray(pixels, "RGBA").save(out, "PNG")
+    return out.getvalue()
+
+
+def test_an_admin_previews_a_submap_before_storing_it(
+    context: BrowserContext, demo: Demo, tmp_path: Path
+) -> None:
+    image, yaml = rgba_map(), map_yaml(image="lab.png", mode="scale", origin=[1.0, 2.0, 0.0])
+    (tmp_path / "lab.png").write_bytes(image)
+    (tmp_path / "lab.yaml").write_bytes(yaml)
+    grid = load_map_upload(yaml, {"lab.png": image}, 10**6).grid
+    expected = {
+        "free": int((grid == 0).sum()),
+        "occupied": int((grid == 100).sum()),
+        "unknown": int((grid == -1).sum()),
+        "other": int(((grid > 0) & (grid < 100)).sum()),
+    }
+
+    page = open_as(context, demo, "admin", f"/buildings/{BUILDING}/upload/")
+    page.fill("input[name=code]", "Lab")
+    page.fill("input[name=name]", "Laboratory")
+    page.set_input_files("input[name=image]", str(tmp_path / "lab.png"))
+    page.set_input_files("input[name=yaml]", str(tmp_path / "lab.yaml"))
+    counts = page.locator("#preview-counts")
+    expect(counts).to_have_attribute("data-free", str(expected["free"]))
+    for kind, count in expected.items():
+        assert counts.get_attribute(f"data-{kind}") == str(count), kind
+    expect(page.locator("#preview-size")).to_contain_text("64×48 cells")
+    assert page.request.get(demo.url(f"/api/buildings/{BUILDING}/maps/Lab/")).status == 404
+    screenshot(page, "upload-preview")
+
+    page.click("#upload-submit")
+    expect(page.locator("#upload-messages .alert.ok")).to_contain_text(f"{BUILDING}/Lab")
+    page.click("#stored-link")
+    expect(page.locator("#map-wrap")).to_have_attribute("data-loaded", "Lab")
+    stored = page.request.get(demo.url(f"/api/buildings/{BUILDING}/maps/Lab/grid")).json()
+    assert stored["data"] == np.ascontiguousarray(grid).reshape(-1).tolist()
+
+
+def test_an_admin_places_a_tag_and_prints_it(context: BrowserContext, demo: Demo) -> None:
+    page = open_as(context, demo, "admin", f"/buildings/{BUILDING}/maps/CorridorC/")
+    expect(page.locator("#map-wrap")).to_have_attribute("data-loaded", "CorridorC")
+    expect(page.locator("#tag-list tr")).to_have_count(4)
+    page.click("#place-tag")
+    press_and_drag(page, 30.0, 7.5, math.pi / 2)
+    assert abs(float(page.input_value("input[name=x]")) - 30.0) < 0.05
+    assert abs(float(page.input_value("input[name=yaw_deg]")) - 90.0) < 3.0
+    page.select_option("select[name=links_to]", "RoomB")
+    page.click("#tag-save")
+    expect(page.locator("#tag-messages .alert.ok")).to_contain_text("saved")
+    expect(page.locator("#tag-list tr")).to_have_count(5)
+    screenshot(page, "submap-tag-editor")
+
+    tags = page.request.get(demo.url(f"/api/tags/?building={BUILDING}&map=CorridorC")).json()
+    placed = next(tag for tag in tags if tag["marker_id"] == 21)
+    assert placed["links_to"] == "RoomB"
+    assert abs(placed["x"] - 30.0) < 0.05 and abs(placed["y"] - 7.5) < 0.05
+    assert abs(placed["yaw"] - math.pi / 2) < 0.05
+
+    png = page.request.get(demo.url(page.get_attribute("#tag-png", "href") or ""))
+    assert png.ok and png.headers["content-type"] == "image/png"
+    page.goto(demo.url(f"/buildings/{BUILDING}/"))
+    sheet = page.request.get(demo.url(page.get_attribute("#print-sheet", "href") or ""))
+    assert sheet.ok and sheet.headers["content-type"] == "application/pdf"
+    screenshot(page, "building-page")
