@@ -21,13 +21,18 @@ pytestmark = [pytest.mark.browser, pytest.mark.django_db(transaction=True)]
 
 
 def route_steps(page: Page) -> list[str]:
-    return [str(code) for code in page.locator("#route-steps li").evaluate_all("items => items.map(i => i.dataset.map)")]
+    return [
+        str(code)
+        for code in page.locator("#route-steps li").evaluate_all(
+            "items => items.map(i => i.dataset.map)"
+        )
+    ]
 
 
 def topology_of(page: Page, demo: Demo) -> dict[str, object]:
     answer = page.request.get(demo.url(f"/api/buildings/{BUILDING}/topology"))
     assert answer.ok
-    return answer.json()  # type: ignore[no-any-return]
+    return answer.json()
 
 
 def save_topology(page: Page) -> None:
@@ -111,7 +116,7 @@ def test_an_admin_previews_a_submap_before_storing_it(
     expect(counts).to_have_attribute("data-free", str(expected["free"]))
     for kind, count in expected.items():
         assert counts.get_attribute(f"data-{kind}") == str(count), kind
-    expect(page.locator("#preview-size")).to_contain_text("64×48 cells")
+    expect(page.locator("#preview-size")).to_contain_text("64\N{MULTIPLICATION SIGN}48 cells")
     assert page.request.get(demo.url(f"/api/buildings/{BUILDING}/maps/Lab/")).status == 404
     screenshot(page, "upload-preview")
 
@@ -140,12 +145,15 @@ def test_an_admin_places_a_tag_and_prints_it(context: BrowserContext, demo: Demo
     tags = page.request.get(demo.url(f"/api/tags/?building={BUILDING}&map=CorridorC")).json()
     placed = next(tag for tag in tags if tag["marker_id"] == 21)
     assert placed["links_to"] == "RoomB"
-    assert abs(placed["x"] - 30.0) < 0.05 and abs(placed["y"] - 7.5) < 0.05
+    assert abs(placed["x"] - 30.0) < 0.05
+    assert abs(placed["y"] - 7.5) < 0.05
     assert abs(placed["yaw"] - math.pi / 2) < 0.05
 
     png = page.request.get(demo.url(page.get_attribute("#tag-png", "href") or ""))
-    assert png.ok and png.headers["content-type"] == "image/png"
+    assert png.ok
+    assert png.headers["content-type"] == "image/png"
     page.goto(demo.url(f"/buildings/{BUILDING}/"))
     sheet = page.request.get(demo.url(page.get_attribute("#print-sheet", "href") or ""))
-    assert sheet.ok and sheet.headers["content-type"] == "application/pdf"
+    assert sheet.ok
+    assert sheet.headers["content-type"] == "application/pdf"
     screenshot(page, "building-page")

@@ -70,7 +70,9 @@ def test_an_operator_sends_a_goal_and_watches_the_robot_arrive(
     press_and_drag(page, *GOAL)
 
     # The robot, which had no map, reads the entrance tag, appears on the map and moves.
-    page.wait_for_function("() => document.getElementById('map-wrap').dataset.robot", timeout=30_000)
+    page.wait_for_function(
+        "() => document.getElementById('map-wrap').dataset.robot", timeout=30_000
+    )
     first = drawn_robot(page)
     page.wait_for_function(
         """([x, y]) => {
@@ -104,8 +106,8 @@ def test_an_operator_takes_the_lock_and_drives_with_the_keyboard(
     expect(page.locator("#keys kbd[data-direction=forward]")).to_have_class("on")
     page.wait_for_function(
         """([x, y]) => {
-            const [px, py] = document.getElementById('map-wrap').dataset.robot.split(',').map(Number);
-            return Math.hypot(px - x, py - y) > 0.3;
+            const at = document.getElementById('map-wrap').dataset.robot.split(',');
+            return Math.hypot(Number(at[0]) - x, Number(at[1]) - y) > 0.3;
         }""",
         arg=list(before),
         timeout=15_000,

@@ -39,13 +39,15 @@ def test_it_redirects_anonymous_visitors_to_the_sign_in_page(building: Building)
 def test_the_sign_in_page_is_styled_like_the_app() -> None:
     page = Client().get("/accounts/login/").content.decode()
     assert "css/app.css" in page
-    assert 'name="username"' in page and 'name="password"' in page
+    assert 'name="username"' in page
+    assert 'name="password"' in page
 
 
 def test_signing_in_opens_the_fleet_dashboard(operator: User) -> None:
     client = Client()
     answer = client.post("/accounts/login/", {"username": "operator", "password": "pw-operator"})
-    assert answer.status_code == 302 and answer["Location"] == "/"
+    assert answer.status_code == 302
+    assert answer["Location"] == "/"
     assert 'id="fleet-table"' in client.get("/").content.decode()
 
 
@@ -58,7 +60,8 @@ def test_signing_out_takes_a_post(operator: User) -> None:
 def test_the_dashboard_loads_its_script_and_the_bundled_roslib_path(viewer: User) -> None:
     page = signed_in(viewer).get("/").content.decode()
     assert "js/fleet.js" in page
-    assert "cdn" not in page.lower() and "unpkg" not in page.lower()
+    assert "cdn" not in page.lower()
+    assert "unpkg" not in page.lower()
 
 
 def test_it_tells_someone_without_a_role_that_they_have_none(outsider: User) -> None:
@@ -78,7 +81,8 @@ def test_people_who_drive_see_the_teleop_and_goal_controls(
 
 def test_a_viewer_sees_the_robot_but_no_controls(viewer: User, robot: str) -> None:
     page = signed_in(viewer).get(f"/robots/{robot}/").content.decode()
-    assert 'id="map-canvas"' in page and 'id="camera-card"' in page
+    assert 'id="map-canvas"' in page
+    assert 'id="camera-card"' in page
     for control in ("teleop-card", "stop-button", "goal-card", "map-tools", "lock-acquire"):
         assert control not in page
 
@@ -93,16 +97,21 @@ def test_an_unknown_robot_is_not_found(operator: User, building: Building) -> No
 
 def test_admins_get_the_topology_editor_and_upload(admin: User, submap: SubMap) -> None:
     page = signed_in(admin).get("/buildings/boccioni_1/").content.decode()
-    assert 'id="topology-save"' in page and 'id="upload-link"' in page
+    assert 'id="topology-save"' in page
+    assert 'id="upload-link"' in page
 
 
 @pytest.mark.parametrize("persona", ["operator", "viewer"])
 def test_operators_and_viewers_see_the_building_without_editors(
     persona: str, submap: SubMap, request: pytest.FixtureRequest
 ) -> None:
-    page = signed_in(request.getfixturevalue(persona)).get("/buildings/boccioni_1/").content.decode()
-    assert 'id="topology"' in page and "CorridorA" in page
-    assert 'id="topology-save"' not in page and 'id="upload-link"' not in page
+    page = (
+        signed_in(request.getfixturevalue(persona)).get("/buildings/boccioni_1/").content.decode()
+    )
+    assert 'id="topology"' in page
+    assert "CorridorA" in page
+    assert 'id="topology-save"' not in page
+    assert 'id="upload-link"' not in page
 
 
 def test_the_building_page_rejects_outsider(outsider: User, building: Building) -> None:
@@ -112,7 +121,8 @@ def test_the_building_page_rejects_outsider(outsider: User, building: Building) 
 def test_the_buildings_list_shows_only_member_buildings(operator: User, building: Building) -> None:
     Building.objects.create(code="elsewhere", name="Elsewhere")
     page = signed_in(operator).get("/buildings/").content.decode()
-    assert "boccioni_1" in page and "elsewhere" not in page
+    assert "boccioni_1" in page
+    assert "elsewhere" not in page
 
 
 def test_only_admins_place_tags_on_a_submap(admin: User, operator: User, submap: SubMap) -> None:
@@ -135,4 +145,5 @@ def test_only_admins_open_the_upload_page(admin: User, operator: User, building:
 
 def test_the_page_hands_its_script_the_role_and_subject(operator: User, robot: str) -> None:
     page = signed_in(operator).get(f"/robots/{robot}/").content.decode()
-    assert '"role": "operator"' in page and '"robot": "r1"' in page
+    assert '"role": "operator"' in page
+    assert '"robot": "r1"' in page
