@@ -81,6 +81,9 @@ def test_a_viewer_finds_no_controls(context: BrowserContext, demo: Demo, agent: 
     page.keyboard.press("KeyW")
     screenshot(page, "robot-viewer")
 
+    page.goto(demo.url("/buildings/"))
+    expect(page.locator(".building-card")).to_have_count(1)
+    screenshot(page, "buildings-viewer")
     page.goto(demo.url("/buildings/boccioni_1/"))
     expect(page.locator("#topology .topo-node")).to_have_count(10)
     for editor in ("#topology-save", "#edge-editor", "#upload-link"):

@@ -28,6 +28,7 @@ pytestmark = [pytest.mark.browser, pytest.mark.django_db(transaction=True)]
 CORRIDOR_A = f"{BUILDING}/CorridorA"
 START = (2.4, 22.6, 0.0)  # the demo robot's start pose, facing the entrance tag
 GOAL = (8.0, 23.2, 0.0)
+ATRIUM_1 = (20.0, 23.2, 0.0)  # between the door and the central pillar
 CAMERA_TOPIC = f"/{ROBOT}/camera/image/compressed"
 SOMETHING = re.compile(r".+")
 
@@ -91,6 +92,19 @@ def test_an_operator_sends_a_goal_and_watches_the_robot_arrive(
     expect(page.locator("#latency")).to_have_attribute("data-ms", SOMETHING)
     screenshot(page, "robot-goal-arrived")
 
+    # A goal in the next sub-map: its route is drawn on the topology; then it is cancelled.
+    page.select_option("#goal-map", f"{BUILDING}/Atrium1")
+    expect(page.locator("#map-wrap")).to_have_attribute("data-loaded", f"{BUILDING}/Atrium1")
+    page.click("#map-tools button[data-tool=goal]")
+    press_and_drag(page, *ATRIUM_1)
+    expect(page.locator("#route-label")).to_have_text("route: CorridorA → Atrium1")
+    expect(page.locator("#robot-topology g.topo-node.route")).to_have_count(2)
+    expect(page.locator("#goal-state")).to_have_text("active", timeout=15_000)
+    screenshot(page, "robot-goal-in-another-submap")
+    page.click("#goal-cancel")
+    expect(page.locator("#goal-text")).to_have_text("cancelled")
+    expect(page.locator("#goal-state")).to_have_text("preempted", timeout=15_000)
+
 
 def test_an_operator_takes_the_lock_and_drives_with_the_keyboard(
     context: BrowserContext, demo: Demo, agent: Path
@@ -115,6 +129,31 @@ def test_an_operator_takes_the_lock_and_drives_with_the_keyboard(
     screenshot(page, "robot-teleop")
     page.keyboard.up("ArrowUp")
     expect(page.locator("#odom-speed")).to_have_text("0.00 m/s", timeout=10_000)
+
+    # Someone else asking for the lock is told who holds it.
+    other = open_as(context.browser.new_context(), demo, "admin", f"/robots/{ROBOT}/")  # type: ignore[union-attr]
+    expect(other.locator("#conn-state")).to_contain_text("Live")
+    other.click("#lock-acquire")
+    expect(other.locator("#lock-state")).to_have_text("Driven by operator")
+    expect(other.locator("#lock-message")).to_contain_text("robot_0 is driven by user:operator")
+    other.context.close()
+
+    # The on-screen joystick drives too: pushed up, the robot moves forward.
+    before = drawn_robot(page)
+    assert before is not None
+    pad = page.locator("#joystick").bounding_box()
+    assert pad is not None
+    centre = (pad["x"] + pad["width"] / 2, pad["y"] + pad["height"] / 2)
+    page.mouse.move(*centre)
+    page.mouse.down()
+    page.mouse.move(centre[0], centre[1] - pad["height"] / 2, steps=4)
+    expect(page.locator("#odom-speed")).not_to_have_text("0.00 m/s", timeout=10_000)
+    page.mouse.up()
+    page.click("#stop-button")
+    expect(page.locator("#odom-speed")).to_have_text("0.00 m/s", timeout=10_000)
+    moved = drawn_robot(page)
+    assert moved is not None
+    assert math.hypot(moved[0] - before[0], moved[1] - before[1]) > 0.05
 
     page.click("#lock-release")
     expect(page.locator("#lock-state")).to_have_text("Not driving")
