@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import io
 import math
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -119,6 +120,16 @@ def test_an_admin_previews_a_submap_before_storing_it(
     expect(page.locator("#preview-size")).to_contain_text("64\N{MULTIPLICATION SIGN}48 cells")
     assert page.request.get(demo.url(f"/api/buildings/{BUILDING}/maps/Lab/")).status == 404
     screenshot(page, "upload-preview")
+
+    with zipfile.ZipFile(tmp_path / "lab.zip", "w", zipfile.ZIP_DEFLATED) as archive:
+        archive.writestr("lab/lab.yaml", yaml)
+        archive.writestr("lab/lab.png", image)
+    page.click("#upload-kind button[data-kind=archive]")
+    page.evaluate("document.getElementById('preview-counts').removeAttribute('data-free')")
+    page.set_input_files("input[name=archive]", str(tmp_path / "lab.zip"))
+    expect(counts).to_have_attribute("data-free", str(expected["free"]))
+    assert counts.get_attribute("data-other") == str(expected["other"])
+    page.click("#upload-kind button[data-kind=pair]")
 
     page.click("#upload-submit")
     expect(page.locator("#upload-messages .alert.ok")).to_contain_text(f"{BUILDING}/Lab")

@@ -305,6 +305,7 @@ function bindOperatorControls() {
   $("goal-map").addEventListener("change", (event) => {
     state.followRobotMap = event.target.value === state.robotMap;
     showMap(event.target.value);
+    event.target.blur(); // give the arrow keys back to driving
   });
   $("back-to-robot").addEventListener("click", () => {
     state.followRobotMap = true;
