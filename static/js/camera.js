@@ -52,7 +52,7 @@ export class CameraPanel {
   }
 
   #mjpeg() {
-    const img = this.#mount("img", { alt: "camera (MJPEG)" });
+    const img = this.#mount("img", { alt: "", title: "camera (MJPEG)" });
     img.addEventListener("load", () => this.#frame());
     img.addEventListener("error", () => {
       // Without the relay, the rosbridge topic still carries the same JPEG frames.
@@ -86,7 +86,7 @@ export class CameraPanel {
   }
 
   #viaTopic() {
-    const img = this.#mount("img", { alt: "camera (rosbridge)" });
+    const img = this.#mount("img", { alt: "", title: "camera (rosbridge topic)" });
     const unsubscribe = this.connection.subscribe(this.topic, "sensor_msgs/CompressedImage", (msg) => {
       img.src = `data:image/${msg.format?.includes("png") ? "png" : "jpeg"};base64,${msg.data}`;
       this.#frame();
