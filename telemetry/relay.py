@@ -38,6 +38,15 @@ MAX_PENDING = 10_000
 
 
 @dataclass(frozen=True)
+class _Call:
+    """One queued channel-layer or Redis call, and the future of its completion."""
+
+    call: Callable[..., Awaitable[Any]]
+    args: tuple[Any, ...]
+    done: asyncio.Future[None]
+
+
+@dataclass(frozen=True)
 class RemotePeer:
     """A connection on another process, as the local bus and call tables see it."""
 
@@ -62,9 +71,7 @@ class Relay:
         self.redis = redis
         self.channel = ""
         self.process = uuid.uuid4().hex[:12]
-        self._outbox: asyncio.Queue[tuple[Callable[..., Awaitable[Any]], tuple[Any, ...]]] = (
-            asyncio.Queue()
-        )
+        self._outbox: asyncio.Queue[_Call] = asyncio.Queue()
         self._settled: asyncio.Future[None] | None = None
         self._groups: set[str] = set()
         self._tasks: list[asyncio.Task[None]] = []
@@ -81,30 +88,27 @@ class Relay:
     # ------------------------------------------------------------ ordered sending
 
     def _queue(self, call: Callable[..., Awaitable[Any]], *args: Any) -> asyncio.Future[None]:
-        """Queue one channel-layer or Redis call; calls run one at a time, in order."""
-        if self._outbox.qsize() >= MAX_PENDING:
-            self._outbox.get_nowait()
-            self.dropped += 1
-        done: asyncio.Future[None] = asyncio.get_running_loop().create_future()
-        self._outbox.put_nowait((self._run, (call, args, done)))
-        return done
+        """Queue one channel-layer or Redis call; calls run one at a time, in order.
 
-    async def _run(
-        self, call: Callable[..., Awaitable[Any]], args: tuple[Any, ...], done: asyncio.Future[None]
-    ) -> None:
-        try:
-            await call(*args)
-        finally:
-            if not done.done():
-                done.set_result(None)
+        Past ``MAX_PENDING`` (Redis too slow) the oldest queued call is dropped.
+        """
+        if self._outbox.qsize() >= MAX_PENDING:
+            self._outbox.get_nowait().done.set_result(None)  # no one waits on it forever
+            self.dropped += 1
+        queued = _Call(call, args, asyncio.get_running_loop().create_future())
+        self._outbox.put_nowait(queued)
+        return queued.done
 
     async def _send_loop(self) -> None:
         while True:
-            run, args = await self._outbox.get()
+            queued = await self._outbox.get()
             try:
-                await run(*args)
+                await queued.call(*queued.args)
             except Exception:
                 logger.exception("relay: a channel-layer call failed")
+            finally:
+                if not queued.done.done():
+                    queued.done.set_result(None)
 
     # ------------------------------------------------------------ BusListener
 
