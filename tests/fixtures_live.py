@@ -5,8 +5,11 @@ opens a ``channels.testing.WebsocketCommunicator`` on the real application and r
 ``RosClient`` speaking rosbridge JSON. Tests using it need ``transactional_db``: the consumer
 reads the database from other threads.
 
-Live servers (``daphne_server``, ``daphne_servers``): real daphne processes on loopback
-ports, for network behaviour and unmodified clients; see the second half of this module.
+Live servers (``daphne_server``, ``daphne_servers.start(env=...)``): real daphne processes
+on loopback ports against the test database, for network behaviour and unmodified clients.
+
+Scaled mode (``scaled_servers(2)``): daphne processes sharing a real Redis and a PostgreSQL
+database made for the test; mark such tests ``@pytest.mark.scaled``.
 """
 
 from __future__ import annotations
