@@ -214,3 +214,24 @@ async def test_header_stamps_reach_subscribers_in_both_spellings(rosbridge, toke
     await robot.send(op="publish", topic="pose", msg={**POSE, "header": {"stamp": spelling}})
     stamp = (await robot.receive())["msg"]["header"]["stamp"]
     assert stamp == {"sec": 5, "nanosec": 6, "secs": 5, "nsecs": 6}
+
+
+async def test_the_publish_path_reads_the_database_once_per_connection_and_topic(
+    rosbridge, token, operator, monkeypatch
+):
+    from telemetry import services
+
+    lookups = []
+    owner_named = services.owner_named
+    monkeypatch.setattr(
+        services, "owner_named", lambda seg: lookups.append(seg) or owner_named(seg)
+    )
+    robot, watcher = await rosbridge(token=token), await rosbridge(user=operator)
+    await watcher.send(op="subscribe", topic="/r1/goal")
+    await watcher.sync()
+    for _ in range(20):
+        await watcher.send(op="publish", topic="/r1/goal", msg=POSE)
+        await robot.send(op="publish", topic="pose", msg=POSE)
+    await watcher.sync()
+    await robot.sync()
+    assert lookups == ["r1"]  # the operator's first use of r1's names; the robot knows itself
