@@ -30,6 +30,8 @@ logger = logging.getLogger(__name__)
 
 
 class RosbridgeConsumer(AsyncWebsocketConsumer):
+    """One rosbridge v2 client: robot (by token) or person (by session, from our origin)."""
+
     # Connections need no channel of their own: fan-out is in-process, and scaled mode has
     # one channel per server process (see ``telemetry.relay``). An alias that names no
     # layer makes Channels skip the per-connection channel.
@@ -111,6 +113,9 @@ class RosbridgeConsumer(AsyncWebsocketConsumer):
             await _HANDLERS[type(op)](self, op)
         except RosbridgeError as error:
             replies.answer(conn, error, frame)
+        except Exception:
+            # A frame must never take the connection down with it, even through a bug here.
+            logger.exception("%s: frame failed: %.200r", conn.principal.label, data)
 
     # ------------------------------------------------------------ topics
 
