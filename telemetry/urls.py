@@ -2,6 +2,15 @@
 
 from __future__ import annotations
 
-from django.urls import URLPattern
+from django.urls import URLPattern, path
 
-urlpatterns: list[URLPattern] = []
+from telemetry.video import views as video
+
+urlpatterns: list[URLPattern] = [
+    # web_video_server's URLs, without a trailing slash as there
+    path("stream", video.stream, name="video-stream"),
+    path("snapshot", video.snapshot_view, name="video-snapshot"),
+    path("stream_viewer", video.stream_viewer, name="video-viewer"),
+    path("video/", video.camera_topics, name="video-page"),
+    path("api/video/stats", video.video_stats, name="video-stats"),
+]

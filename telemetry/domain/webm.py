@@ -1,0 +1,338 @@
+"""A live WebM stream written by hand: an init segment, then one Cluster per frame.
+
+PyAV's WebM muxer, even with ``live=1`` and ``cluster_time_limit=0``, closes a Cluster only
+when the next frame arrives, so every frame would leave one frame late (200 ms at 5 Hz).
+The format a live stream needs is small (Matroska's EBML, WebM subset), so it is written
+here and each frame leaves the moment it is encoded:
+
+- the init segment: the EBML header, a Segment of unknown size (it never ends), its Info
+  (millisecond timestamps) and Tracks (one VP8 video track);
+- per frame, a Cluster of known size holding its Timestamp and one SimpleBlock.
+
+``LiveWebm`` keeps the Clusters since the last keyframe. A viewer who joins late (or falls
+a whole keyframe interval behind) gets them in one go, re-timed a millisecond apart and
+ending at the newest frame's time, so a player decodes them at once and plays from now
+instead of a keyframe interval behind; Media Source Extensions in ``sequence`` mode and a
+plain ``<video>`` both accept this.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+# Element IDs (Matroska specification), with their marker bits, as written.
+EBML = b"\x1a\x45\xdf\xa3"
+EBML_VERSION = b"\x42\x86"
+EBML_READ_VERSION = b"\x42\xf7"
+EBML_MAX_ID_LENGTH = b"\x42\xf2"
+EBML_MAX_SIZE_LENGTH = b"\x42\xf3"
+DOC_TYPE = b"\x42\x82"
+DOC_TYPE_VERSION = b"\x42\x87"
+DOC_TYPE_READ_VERSION = b"\x42\x85"
+SEGMENT = b"\x18\x53\x80\x67"
+INFO = b"\x15\x49\xa9\x66"
+TIMESTAMP_SCALE = b"\x2a\xd7\xb1"
+MUXING_APP = b"\x4d\x80"
+WRITING_APP = b"\x57\x41"
+TITLE = b"\x7b\xa9"
+DATE_UTC = b"\x44\x61"
+TRACKS = b"\x16\x54\xae\x6b"
+TRACK_ENTRY = b"\xae"
+TRACK_NUMBER = b"\xd7"
+TRACK_UID = b"\x73\xc5"
+TRACK_TYPE = b"\x83"
+FLAG_LACING = b"\x9c"
+CODEC_ID = b"\x86"
+VIDEO = b"\xe0"
+PIXEL_WIDTH = b"\xb0"
+PIXEL_HEIGHT = b"\xba"
+CLUSTER = b"\x1f\x43\xb6\x75"
+TIMESTAMP = b"\xe7"
+SIMPLE_BLOCK = b"\xa3"
+
+UNKNOWN_SIZE = b"\x01\xff\xff\xff\xff\xff\xff\xff"
+TRACK = 1
+MATROSKA_EPOCH = 978_307_200  # 2001-01-01T00:00:00 UTC in Unix seconds
+KEYFRAME_FLAG = 0x80
+APP = "CloudNav video relay"
+
+
+def size_vint(size: int) -> bytes:
+    """Return ``size`` as an EBML variable-length integer of the fewest bytes."""
+    for length in range(1, 9):
+        if size < (1 << (7 * length)) - 1:  # all ones is reserved for "unknown"
+            return (size | (1 << (7 * length))).to_bytes(length, "big")
+    raise ValueError(f"{size} is too large for an EBML size")
+
+
+def element(element_id: bytes, payload: bytes) -> bytes:
+    return element_id + size_vint(len(payload)) + payload
+
+
+def uint(element_id: bytes, value: int) -> bytes:
+    return element(element_id, value.to_bytes(max(1, (value.bit_length() + 7) // 8), "big"))
+
+
+def text(element_id: bytes, value: str) -> bytes:
+    return element(element_id, value.encode("utf-8"))
+
+
+def date(element_id: bytes, unix_seconds: float) -> bytes:
+    """A Matroska date: signed nanoseconds since 2001-01-01T00:00:00 UTC."""
+    nanoseconds = round((unix_seconds - MATROSKA_EPOCH) * 1e9)
+    return element(element_id, nanoseconds.to_bytes(8, "big", signed=True))
+
+
+def init_segment(width: int, height: int, title: str = "", epoch: float | None = None) -> bytes:
+    """Return the stream's start: EBML header, open Segment, Info and one VP8 track.
+
+    ``epoch`` (Unix seconds) is the wall-clock time of stream time 0, written as the
+    Segment's DateUTC, so a viewer can tell when each frame reached the server.
+    """
+    header = element(
+        EBML,
+        uint(EBML_VERSION, 1)
+        + uint(EBML_READ_VERSION, 1)
+        + uint(EBML_MAX_ID_LENGTH, 4)
+        + uint(EBML_MAX_SIZE_LENGTH, 8)
+        + text(DOC_TYPE, "webm")
+        + uint(DOC_TYPE_VERSION, 2)
+        + uint(DOC_TYPE_READ_VERSION, 2),
+    )
+    info = element(
+        INFO,
+        uint(TIMESTAMP_SCALE, 1_000_000)  # timestamps in milliseconds
+        + text(MUXING_APP, APP)
+        + text(WRITING_APP, APP)
+        + (text(TITLE, title) if title else b"")
+        + (date(DATE_UTC, epoch) if epoch is not None else b""),
+    )
+    track = element(
+        TRACK_ENTRY,
+        uint(TRACK_NUMBER, TRACK)
+        + uint(TRACK_UID, TRACK)
+        + uint(TRACK_TYPE, 1)  # video
+        + uint(FLAG_LACING, 0)
+        + text(CODEC_ID, "V_VP8")
+        + element(VIDEO, uint(PIXEL_WIDTH, width) + uint(PIXEL_HEIGHT, height)),
+    )
+    return header + SEGMENT + UNKNOWN_SIZE + info + element(TRACKS, track)
+
+
+def cluster(timestamp_ms: int, frame: bytes, keyframe: bool) -> bytes:
+    """Return one frame as a Cluster at ``timestamp_ms`` holding a single SimpleBlock."""
+    block = bytes((0x80 | TRACK, 0, 0, KEYFRAME_FLAG if keyframe else 0)) + frame
+    return element(CLUSTER, uint(TIMESTAMP, timestamp_ms) + element(SIMPLE_BLOCK, block))
+
+
+@dataclass(frozen=True, slots=True)
+class EncodedFrame:
+    """One encoded video frame: its bytes, whether it is a keyframe, its stream time (ms),
+    and the camera frame's stamp and arrival time (seconds) for the delay statistics."""
+
+    data: bytes
+    keyframe: bool
+    timestamp: int
+    origin: float
+    received: float
+
+
+@dataclass(frozen=True, slots=True)
+class Chunk:
+    """What one viewer is sent in one write: the bytes, the frames in them, the cursor to
+    read from next, and how many frames the viewer skipped to get here."""
+
+    data: bytes
+    frames: tuple[EncodedFrame, ...]
+    cursor: int
+    skipped: int
+
+
+class LiveWebm:
+    """One endless WebM stream shared by every viewer, with its current keyframe interval.
+
+    Frames are numbered from 0 as they are appended; a viewer keeps the number of the next
+    frame it needs (its cursor). Memory holds the init segment and the frames since the
+    last keyframe, however many viewers there are and however slowly they read.
+    """
+
+    def __init__(
+        self, width: int, height: int, title: str = "", epoch: float | None = None
+    ) -> None:
+        self.width = width
+        self.height = height
+        self.init = init_segment(width, height, title, epoch)
+        self._frames: list[EncodedFrame] = []
+        self._clusters: list[bytes] = []
+        self._first = 0  # the number of self._frames[0], a keyframe
+        self.next = 0  # the number the next appended frame gets
+        self.nbytes = 0  # bytes of the clusters held
+
+    def append(self, frame: EncodedFrame) -> bytes:
+        """Add the next frame; a keyframe starts a new interval. Returns its Cluster.
+
+        Raises ValueError for a first frame that is not a keyframe: nobody could decode it.
+        """
+        if frame.keyframe:
+            self._frames, self._clusters = [], []
+            self._first, self.nbytes = self.next, 0
+        elif not self._frames:
+            raise ValueError("a live WebM stream must start with a keyframe")
+        data = cluster(frame.timestamp, frame.data, frame.keyframe)
+        self._frames.append(frame)
+        self._clusters.append(data)
+        self.nbytes += len(data)
+        self.next += 1
+        return data
+
+    @property
+    def started(self) -> bool:
+        """True once a keyframe arrived, so a viewer can start."""
+        return bool(self._frames)
+
+    def join(self) -> Chunk:
+        """Return a new viewer's start: the init segment and the interval so far, re-timed."""
+        caught_up = self.catch_up()
+        return Chunk(self.init + caught_up.data, caught_up.frames, caught_up.cursor, 0)
+
+    def read(self, cursor: int) -> Chunk:
+        """Return the frames from ``cursor`` on. A viewer whose cursor fell out of the
+        current interval skips to its keyframe (re-timed, see the module's docstring)."""
+        if cursor < self._first:
+            caught_up = self.catch_up()
+            return Chunk(caught_up.data, caught_up.frames, self.next, self._first - cursor)
+        start = cursor - self._first
+        frames = tuple(self._frames[start:])
+        return Chunk(b"".join(self._clusters[start:]), frames, self.next, 0)
+
+    def catch_up(self) -> Chunk:
+        """Return the current interval as Clusters a millisecond apart, ending at the newest
+        frame's time, so a player shows the newest frame at once."""
+        frames = tuple(self._frames)
+        if not frames:
+            return Chunk(b"", (), self.next, 0)
+        newest = frames[-1].timestamp
+        count = len(frames)
+        data = b"".join(
+            cluster(newest - (count - 1 - i), f.data, f.keyframe) for i, f in enumerate(frames)
+        )
+        return Chunk(data, frames, self.next, 0)
+
+
+# ---------------------------------------------------------------- reading (the viewer's side)
+
+
+@dataclass(frozen=True, slots=True)
+class Block:
+    """One frame as a viewer reads it: Cluster time (ms), keyframe flag and VP8 bytes."""
+
+    timestamp: int
+    keyframe: bool
+    data: bytes
+
+
+def _vint(buffer: bytes | bytearray, at: int, keep_marker: bool) -> tuple[int, int] | None:
+    """Return ``(value, length)`` of the EBML variable-length integer at ``at``, or None
+    if the buffer ends first. Sizes of all ones (unknown) come back as -1."""
+    if at >= len(buffer):
+        return None
+    first = buffer[at]
+    length = 9 - first.bit_length() if first else 9
+    if length > 8:
+        raise ValueError("not an EBML variable-length integer")
+    if at + length > len(buffer):
+        return None
+    value = int.from_bytes(buffer[at : at + length], "big")
+    if keep_marker:
+        return value, length
+    value &= (1 << (7 * length)) - 1
+    return (-1 if value == (1 << (7 * length)) - 1 else value), length
+
+
+class WebmReader:
+    """Reads a live WebM body as it arrives (the client side, for tests and benchmarks).
+
+    ``feed`` returns the Blocks completed by the new bytes; ``epoch`` is the Segment's
+    DateUTC (Unix seconds) once the init segment was read. Raises ValueError on bytes that
+    are not EBML.
+    """
+
+    _CONTAINERS = frozenset({SEGMENT})
+
+    def __init__(self) -> None:
+        self._buffer = bytearray()
+        self.epoch: float | None = None
+        self.clusters = 0
+
+    def feed(self, data: bytes) -> list[Block]:
+        self._buffer += data
+        blocks: list[Block] = []
+        while (element_ := self._next_element()) is not None:
+            element_id, payload = element_
+            if element_id == INFO:
+                self._read_info(payload)
+            elif element_id == CLUSTER:
+                self.clusters += 1
+                blocks.extend(self._read_cluster(payload))
+        return blocks
+
+    def _next_element(self) -> tuple[bytes, bytes] | None:
+        """Take the next complete top-level element (entering the Segment) off the buffer."""
+        while True:
+            header = self._header(self._buffer, 0)
+            if header is None:
+                return None
+            element_id, size, start = header
+            if element_id in self._CONTAINERS:
+                del self._buffer[:start]  # its children follow, read them one by one
+                continue
+            if size < 0:
+                raise ValueError("only the Segment may have an unknown size")
+            if len(self._buffer) < start + size:
+                return None
+            payload = bytes(self._buffer[start : start + size])
+            del self._buffer[: start + size]
+            return element_id, payload
+
+    @staticmethod
+    def _header(buffer: bytes | bytearray, at: int) -> tuple[bytes, int, int] | None:
+        """Return the ID, size and payload start of the element at ``at``, or None."""
+        found_id = _vint(buffer, at, keep_marker=True)
+        if found_id is None:
+            return None
+        found_size = _vint(buffer, at + found_id[1], keep_marker=False)
+        if found_size is None:
+            return None
+        element_id = bytes(buffer[at : at + found_id[1]])
+        return element_id, found_size[0], at + found_id[1] + found_size[1]
+
+    def _children(self, payload: bytes) -> list[tuple[bytes, bytes]]:
+        children, at = [], 0
+        while at < len(payload):
+            header = self._header(payload, at)
+            if header is None:
+                raise ValueError("an element ends inside a child's header")
+            element_id, size, start = header
+            children.append((element_id, payload[start : start + size]))
+            at = start + size
+        return children
+
+    def _read_info(self, payload: bytes) -> None:
+        for element_id, value in self._children(payload):
+            if element_id == DATE_UTC:
+                nanoseconds = int.from_bytes(value, "big", signed=True)
+                self.epoch = MATROSKA_EPOCH + nanoseconds / 1e9
+
+    def _read_cluster(self, payload: bytes) -> list[Block]:
+        timestamp, blocks = 0, []
+        for element_id, value in self._children(payload):
+            if element_id == TIMESTAMP:
+                timestamp = int.from_bytes(value, "big")
+            elif element_id == SIMPLE_BLOCK:
+                track = _vint(value, 0, keep_marker=False)
+                assert track is not None
+                offset = track[1]
+                relative = int.from_bytes(value[offset : offset + 2], "big", signed=True)
+                keyframe = bool(value[offset + 2] & KEYFRAME_FLAG)
+                blocks.append(Block(timestamp + relative, keyframe, value[offset + 3 :]))
+        return blocks

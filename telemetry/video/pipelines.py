@@ -1,0 +1,200 @@
+"""What one topic becomes for one parameter set, computed once for all its viewers.
+
+- ``ImagePipeline`` (``mjpeg``, ``ros_compressed``, snapshots): each frame as a ready
+  multipart part. Without ``quality``, ``width``, ``height`` or ``invert`` the robot's own
+  JPEG bytes go out untouched; otherwise the frame is re-encoded once, in a worker thread.
+- ``Vp8Pipeline`` (``vp8``): one libvpx encoder writing one live WebM stream
+  (``telemetry.domain.webm.LiveWebm``) that every viewer reads from its own cursor.
+
+A pipeline takes only the newest frame whenever it is free: when encoding is slower than
+the camera, frames are skipped, never queued. Encoders run in the relay's thread pool
+(OpenCV and libvpx release the GIL), one frame at a time per pipeline, so the event loop
+keeps serving rosbridge meanwhile; each pipeline stops when its last viewer leaves.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import time
+from collections.abc import Callable
+from concurrent.futures import Executor
+from dataclasses import dataclass
+from typing import TypeVar
+
+from telemetry.domain import jpeg, multipart
+from telemetry.domain.newest import Closed, Newest
+from telemetry.domain.video import (
+    DEFAULT_QUALITY,
+    MJPEG,
+    BadFrame,
+    Frame,
+    StreamParams,
+    Vp8Params,
+)
+from telemetry.domain.video_stats import StreamStats
+from telemetry.domain.vp8 import Vp8Encoder
+from telemetry.domain.webm import EncodedFrame, LiveWebm
+from telemetry.video.feeds import CameraFeed
+
+logger = logging.getLogger(__name__)
+
+T = TypeVar("T")
+# A keyframe interval past this many bytes ends early: late joiners get at most this much.
+MAX_INTERVAL_BYTES = 2 * 2**20
+# A new pipeline starts from the feed's current frame if it is at most this old.
+FRESH_FOR = 1.0
+
+
+@dataclass(frozen=True, slots=True)
+class Part:
+    """One image ready to send: as a multipart part (``data``) and as it is (``payload``)."""
+
+    frame: Frame
+    payload: bytes
+    content_type: str
+    data: bytes
+
+
+class Pipeline:
+    """Base of both kinds: a task turning the feed's frames into output, and statistics."""
+
+    def __init__(self, feed: CameraFeed, params: StreamParams, executor: Executor) -> None:
+        self.feed = feed
+        self.params = params
+        self.executor = executor
+        self.viewers = 0
+        self.stats = StreamStats(started=time.time())
+        self._task: asyncio.Task[None] | None = None
+
+    def start(self) -> None:
+        self._task = asyncio.get_running_loop().create_task(self._run())
+
+    def stop(self) -> None:
+        """Stop the task; readers waiting on the output are told it is over."""
+        if self._task is not None:
+            self._task.cancel()
+
+    async def _run(self) -> None:
+        version = self._first_version()
+        try:
+            while True:
+                version, frame = await self.feed.frames.newer(version)
+                await self._take(frame)
+        except Closed:
+            pass
+        finally:
+            self._closed()
+
+    def _first_version(self) -> int:
+        """Start from the feed's current frame if it is fresh, else from the next one."""
+        frames = self.feed.frames
+        fresh = frames.value is not None and time.time() - frames.value.received < FRESH_FOR
+        return frames.version - 1 if fresh else frames.version
+
+    async def _take(self, frame: Frame) -> None:
+        raise NotImplementedError
+
+    def _closed(self) -> None:
+        raise NotImplementedError
+
+    async def _in_worker(self, work: Callable[[], T]) -> T | None:
+        """Run ``work`` in the thread pool and account its CPU; None if the frame was bad."""
+
+        def timed() -> tuple[T, float]:
+            started = time.thread_time()
+            return work(), time.thread_time() - started
+
+        loop = asyncio.get_running_loop()
+        try:
+            result, cpu = await loop.run_in_executor(self.executor, timed)
+        except BadFrame as error:
+            logger.warning("video: %s: %s", self.feed.topic, error)
+            return None
+        self.stats.encoded(time.time(), cpu)
+        return result
+
+
+class ImagePipeline(Pipeline):
+    """Each frame as a multipart part, untouched or re-encoded as JPEG."""
+
+    def __init__(self, feed: CameraFeed, params: StreamParams, executor: Executor) -> None:
+        super().__init__(feed, params, executor)
+        self.output: Newest[Part] = Newest()
+
+    async def _take(self, frame: Frame) -> None:
+        payload = await self._payload(frame)
+        if payload is None:
+            return
+        content_type = frame.content_type if self._untouched(frame) else "image/jpeg"
+        assert content_type is not None  # feeds only take frames of image formats
+        data = multipart.part(payload, content_type, frame.origin_time)
+        self.output.put(Part(frame, payload, content_type, data))
+        self.stats.produced(time.time(), len(data))
+
+    def _untouched(self, frame: Frame) -> bool:
+        """True if the robot's bytes go out as they are: always for ``ros_compressed``, and
+        for ``mjpeg`` when nothing is asked of a JPEG."""
+        if self.params.type != MJPEG:
+            return True
+        return self.params.image.untouched and frame.is_jpeg
+
+    async def _payload(self, frame: Frame) -> bytes | None:
+        if self._untouched(frame):
+            return frame.data
+        image = self.params.image
+        return await self._in_worker(lambda: jpeg.reencode(frame.data, image, DEFAULT_QUALITY))
+
+    def _closed(self) -> None:
+        self.output.close()
+
+
+class Vp8Pipeline(Pipeline):
+    """One VP8 encoder and the live WebM stream it writes.
+
+    ``appended`` changes each time frames were added to ``stream``; viewers wait on it and
+    then read ``stream`` from their cursors.
+    """
+
+    def __init__(self, feed: CameraFeed, params: StreamParams, executor: Executor) -> None:
+        super().__init__(feed, params, executor)
+        assert params.vp8 is not None  # a vp8 stream always has its encoder settings
+        self.encoder = Vp8Encoder(params.vp8, params.image)
+        self.stream: LiveWebm | None = None
+        self.appended: Newest[int] = Newest()
+        self._epoch: float | None = None  # when the first frame arrived: stream time 0
+        self._last_timestamp = -1
+
+    @property
+    def vp8(self) -> Vp8Params:
+        assert self.params.vp8 is not None
+        return self.params.vp8
+
+    async def _take(self, frame: Frame) -> None:
+        timestamp = self._timestamp(frame)
+        encoded = await self._in_worker(lambda: self.encoder.encode(frame, timestamp))
+        if encoded:
+            self._append(encoded)
+
+    def _timestamp(self, frame: Frame) -> int:
+        """Return the frame's stream time in ms: when it arrived, strictly increasing."""
+        if self._epoch is None:
+            self._epoch = frame.received
+        timestamp = max(self._last_timestamp + 1, round((frame.received - self._epoch) * 1000))
+        self._last_timestamp = timestamp
+        return timestamp
+
+    def _append(self, encoded: list[EncodedFrame]) -> None:
+        if self.stream is None:
+            assert self.encoder.size is not None  # set by the first encode
+            self.stream = LiveWebm(*self.encoder.size, self.feed.topic, self._epoch)
+        for frame in encoded:
+            cluster = self.stream.append(frame)
+            self.stats.produced(time.time(), len(cluster))
+        if self.stream.nbytes > MAX_INTERVAL_BYTES:
+            self.encoder.force_keyframe()
+        self.appended.put(self.stream.next)
+
+    def _closed(self) -> None:
+        self.appended.close()
+        self.encoder.close()

@@ -1,0 +1,111 @@
+"""The video relay of one server process: camera feeds and pipelines, counted by viewer.
+
+``watch(topic, params)`` gives a viewer the pipeline of that topic and parameter set,
+starting it (and the topic's feed) for the first viewer; leaving stops the pipeline with
+its last viewer and unsubscribes the feed with its last pipeline. So a camera nobody
+watches costs nothing, and two viewers asking the same thing share one encoder.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import time
+import weakref
+from collections.abc import AsyncIterator
+from concurrent.futures import ThreadPoolExecutor
+from contextlib import asynccontextmanager
+from typing import Any
+
+from telemetry.domain.video import VP8, StreamParams
+from telemetry.hub import Hub, get_hub
+from telemetry.video.feeds import CameraFeed
+from telemetry.video.pipelines import ImagePipeline, Pipeline, Vp8Pipeline
+
+# Encoding threads; libvpx and OpenCV release the GIL, and the machines have two cores.
+WORKERS = 2
+
+
+class VideoRelay:
+    """Feeds by topic and pipelines by ``(topic, params)`` for this process's viewers."""
+
+    def __init__(self, hub: Hub) -> None:
+        self.hub = hub
+        self.executor = ThreadPoolExecutor(WORKERS, thread_name_prefix="video")
+        self.feeds: dict[str, CameraFeed] = {}
+        self.pipelines: dict[tuple[str, StreamParams], Pipeline] = {}
+
+    @asynccontextmanager
+    async def watch(self, topic: str, params: StreamParams) -> AsyncIterator[Pipeline]:
+        """Yield the pipeline serving ``params`` on ``topic`` for as long as it is watched.
+
+        Raises RosbridgeError (TypeConflict) if ``topic`` carries another message type.
+        """
+        pipeline = self._acquire(topic, params)
+        try:
+            yield pipeline
+        finally:
+            self._release(topic, pipeline)
+
+    def _acquire(self, topic: str, params: StreamParams) -> Pipeline:
+        pipeline = self.pipelines.get((topic, params))
+        if pipeline is None:
+            feed = self._feed(topic)
+            kind = Vp8Pipeline if params.type == VP8 else ImagePipeline
+            pipeline = self.pipelines[(topic, params)] = kind(feed, params, self.executor)
+            pipeline.start()
+        pipeline.viewers += 1
+        return pipeline
+
+    def _feed(self, topic: str) -> CameraFeed:
+        feed = self.feeds.get(topic)
+        if feed is None:
+            feed = CameraFeed(self.hub.bus, topic)
+            feed.start()
+            self.feeds[topic] = feed
+        return feed
+
+    def _release(self, topic: str, pipeline: Pipeline) -> None:
+        pipeline.viewers -= 1
+        if pipeline.viewers > 0:
+            return
+        del self.pipelines[(topic, pipeline.params)]
+        pipeline.stop()
+        if not any(key[0] == topic for key in self.pipelines):
+            self.feeds.pop(topic).stop()
+
+    def stats(self) -> list[dict[str, Any]]:
+        """Return the figures of every stream (busiest first for each topic), then of every
+        feed: the camera's frames as published, before any relay."""
+        now = time.time()
+        streams = [
+            _entry(topic, pipeline.params.type, pipeline.params.label(), pipeline.viewers)
+            | pipeline.stats.snapshot(now)
+            for (topic, _), pipeline in self.pipelines.items()
+        ]
+        streams.sort(key=lambda s: (s["topic"], -s["viewers"], s["type"]))
+        sources = [
+            _entry(topic, "source", "as published", 0)
+            | feed.stats.snapshot(now)
+            | {"frames_bad": feed.bad}
+            for topic, feed in self.feeds.items()
+        ]
+        return streams + sources
+
+
+def _entry(topic: str, kind: str, params: str, viewers: int) -> dict[str, Any]:
+    return {"topic": topic, "type": kind, "params": params, "viewers": viewers}
+
+
+_relays: weakref.WeakKeyDictionary[asyncio.AbstractEventLoop, VideoRelay] = (
+    weakref.WeakKeyDictionary()
+)
+
+
+async def get_video_relay() -> VideoRelay:
+    """Return this process's relay (one per event loop, on its hub), creating it first."""
+    loop = asyncio.get_running_loop()
+    relay = _relays.get(loop)
+    if relay is None:
+        hub = await get_hub()
+        relay = _relays.setdefault(loop, VideoRelay(hub))
+    return relay

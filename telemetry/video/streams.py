@@ -1,0 +1,117 @@
+"""The bodies of the stream responses, one generator per viewer, and snapshots.
+
+Each body holds its pipeline for as long as the response lasts (the relay stops encoders
+that nobody reads) and writes only when the viewer's socket took the previous write
+(``readiness``):
+
+- MJPEG and ``ros_compressed``: the newest part each time, so a slow viewer skips frames;
+- VP8: the init segment and the current keyframe interval first, then every new Cluster;
+  a viewer too slow to keep the interval skips to the next keyframe (``LiveWebm.read``),
+  because a VP8 frame without the ones before it cannot be decoded.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import time
+from collections.abc import AsyncIterator, Mapping
+from typing import Any
+
+from telemetry.domain import multipart
+from telemetry.domain.newest import Closed
+from telemetry.domain.video import MJPEG, NoFrame, StreamParams
+from telemetry.video.cameras import Camera
+from telemetry.video.pipelines import FRESH_FOR, ImagePipeline, Part, Vp8Pipeline
+from telemetry.video.readiness import Readiness, readiness_for
+from telemetry.video.relay import VideoRelay
+
+SNAPSHOT_TIMEOUT = 5.0
+
+
+async def image_body(
+    relay: VideoRelay, camera: Camera, params: StreamParams, scope: Mapping[str, Any]
+) -> AsyncIterator[bytes]:
+    """Yield a multipart body: the preamble, then the newest part whenever it can go."""
+    readiness = readiness_for(scope)
+    try:
+        async with relay.watch(camera.topic, params) as pipeline:
+            assert isinstance(pipeline, ImagePipeline)
+            yield multipart.preamble()
+            async for part in _newest_parts(pipeline, readiness):
+                yield part.data
+    finally:
+        readiness.close()
+
+
+async def _newest_parts(pipeline: ImagePipeline, readiness: Readiness) -> AsyncIterator[Part]:
+    output = pipeline.output
+    version = 0
+    while True:
+        try:
+            await output.newer(version)
+        except Closed:
+            return
+        await readiness.wait()
+        # Frames that arrived while the socket was busy are skipped: take the newest.
+        newest, part = output.version, output.value
+        assert part is not None  # a version was put
+        if version:
+            pipeline.stats.skipped(newest - version - 1)
+        version = newest
+        times = [(part.frame.origin_time, part.frame.received)]
+        pipeline.stats.sent(time.time(), times, len(part.data))
+        yield part
+
+
+async def webm_body(
+    relay: VideoRelay, camera: Camera, params: StreamParams, scope: Mapping[str, Any]
+) -> AsyncIterator[bytes]:
+    """Yield a live WebM body: a start the viewer can decode at once, then new Clusters."""
+    readiness = readiness_for(scope)
+    try:
+        async with relay.watch(camera.topic, params) as pipeline:
+            assert isinstance(pipeline, Vp8Pipeline)
+            async for data in _clusters(pipeline, readiness):
+                yield data
+    finally:
+        readiness.close()
+
+
+async def _clusters(pipeline: Vp8Pipeline, readiness: Readiness) -> AsyncIterator[bytes]:
+    version = 0
+    cursor: int | None = None
+    while True:
+        try:
+            version, _ = await pipeline.appended.newer(version)
+        except Closed:
+            return
+        await readiness.wait()
+        stream = pipeline.stream
+        assert stream is not None  # frames were appended
+        chunk = stream.join() if cursor is None else stream.read(cursor)
+        cursor = chunk.cursor
+        if chunk.data:
+            pipeline.stats.skipped(chunk.skipped)
+            times = [(f.origin, f.received) for f in chunk.frames]
+            pipeline.stats.sent(time.time(), times, len(chunk.data))
+            yield chunk.data
+
+
+async def snapshot(relay: VideoRelay, camera: Camera, params: StreamParams) -> Part:
+    """Return the camera's newest image if it is fresh, else the next one.
+
+    Shares the MJPEG pipeline of the same parameters with any viewer. Raises NoFrame when
+    no frame arrives within ``SNAPSHOT_TIMEOUT`` seconds.
+    """
+    image_params = StreamParams(MJPEG, params.image)
+    async with relay.watch(camera.topic, image_params) as pipeline:
+        assert isinstance(pipeline, ImagePipeline)
+        output = pipeline.output
+        current = output.value
+        if current is not None and time.time() - current.frame.received < FRESH_FOR:
+            return current
+        try:
+            async with asyncio.timeout(SNAPSHOT_TIMEOUT):
+                return (await output.newer(output.version))[1]
+        except (TimeoutError, Closed):
+            raise NoFrame(f"no frame arrived on {camera.topic}") from None

@@ -1,0 +1,179 @@
+"""HTTP views of the video relays, at web_video_server's URLs.
+
+- ``/stream?topic=T&type=mjpeg|vp8|ros_compressed`` (``quality``, ``width``, ``height``,
+  ``invert``; ``bitrate``, ``qmin``, ``qmax``, ``gop`` for VP8): an endless stream;
+- ``/snapshot?topic=T``: one JPEG;
+- ``/stream_viewer?topic=T&type=...``: a page showing one stream;
+- ``/video/``: the cameras the user may watch, with links to all of the above;
+- ``/api/video/stats``: the figures of every stream the user may watch (JSON).
+
+Views parse, authorise (``cameras``) and hand over to ``streams``; every video error maps
+to its HTTP status in ``error_response`` only.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from asgiref.sync import sync_to_async
+from channels.db import database_sync_to_async
+from django.contrib.auth.views import redirect_to_login
+from django.http import (
+    HttpRequest,
+    HttpResponse,
+    HttpResponseBase,
+    JsonResponse,
+    StreamingHttpResponse,
+)
+from django.shortcuts import render
+from django.urls import reverse
+from django.views.decorators.http import require_GET
+
+from cloudnav_web.pages import _context as page_context
+from maps.access import global_role
+from telemetry.domain import multipart, names
+from telemetry.domain.rules import Principal
+from telemetry.domain.video import (
+    MJPEG,
+    VP8,
+    BadFrame,
+    BadStreamParam,
+    NoFrame,
+    NotAuthenticated,
+    NotWatchable,
+    StreamRequest,
+    UnknownStream,
+    VideoError,
+    parse_stream_request,
+)
+from telemetry.services import owner_named
+from telemetry.video.cameras import (
+    Camera,
+    find_camera,
+    may_watch,
+    principal_of,
+    token_of,
+    watchable_cameras,
+)
+from telemetry.video.relay import VideoRelay, get_video_relay
+from telemetry.video.streams import image_body, snapshot, webm_body
+
+WEBM = "video/webm"
+ERROR_STATUS: dict[type[VideoError], int] = {
+    NotAuthenticated: 401,
+    BadStreamParam: 400,
+    UnknownStream: 404,
+    NotWatchable: 403,
+    NoFrame: 503,
+    BadFrame: 502,
+}
+
+
+def error_response(error: VideoError, as_json: bool = False) -> HttpResponse:
+    """Return the answer to ``error``: its status, and the reason as text (or JSON)."""
+    status = next(code for kind, code in ERROR_STATUS.items() if isinstance(error, kind))
+    if as_json:
+        response: HttpResponse = JsonResponse({"detail": str(error)}, status=status)
+    else:
+        response = HttpResponse(f"{error}\n", status=status, content_type="text/plain")
+    if status == 401:
+        response["WWW-Authenticate"] = "Token"
+    return response
+
+
+async def _requested(request: HttpRequest) -> tuple[VideoRelay, Camera, StreamRequest]:
+    """Return the relay, the camera and the stream a request asks for. Raises VideoError."""
+    principal = await principal_of(request)
+    asked = parse_stream_request(request.GET)
+    relay = await get_video_relay()
+    camera = await find_camera(relay.hub, asked.topic, principal)
+    return relay, camera, asked
+
+
+@require_GET
+async def stream(request: HttpRequest) -> HttpResponseBase:
+    try:
+        relay, camera, asked = await _requested(request)
+    except VideoError as error:
+        return error_response(error)
+    scope = getattr(request, "scope", {})
+    if asked.params.type == VP8:
+        body = webm_body(relay, camera, asked.params, scope)
+        return StreamingHttpResponse(body, headers=multipart.video_headers(WEBM))
+    body = image_body(relay, camera, asked.params, scope)
+    return StreamingHttpResponse(body, headers=multipart.stream_headers())
+
+
+@require_GET
+async def snapshot_view(request: HttpRequest) -> HttpResponse:
+    try:
+        relay, camera, asked = await _requested(request)
+        part = await snapshot(relay, camera, asked.params)
+    except VideoError as error:
+        return error_response(error)
+    headers = multipart.snapshot_headers(
+        part.content_type, part.frame.origin_time, len(part.payload)
+    )
+    return HttpResponse(part.payload, headers=headers)
+
+
+@require_GET
+async def stream_viewer(request: HttpRequest) -> HttpResponse:
+    """A page with one stream, as web_video_server's viewer (VP8 through Media Source
+    Extensions, which Chromium plays live where a plain ``<video>`` lags)."""
+    try:
+        _, camera, asked = await _requested(request)
+    except NotAuthenticated:
+        if token_of(request) is None:
+            return redirect_to_login(request.get_full_path())
+        raise
+    except VideoError as error:
+        return error_response(error)
+    query = request.META.get("QUERY_STRING", "")
+    context = {
+        "topic": camera.topic,
+        "robot": camera.robot,
+        "type": asked.params.type,
+        "params": asked.params.label(),
+        "stream_url": f"{reverse('video-stream')}?{query}",
+        "snapshot_url": f"{reverse('video-snapshot')}?{query}",
+        "webm": asked.params.type == VP8,
+    }
+    return await sync_to_async(render)(request, "telemetry/stream_viewer.html", context)
+
+
+@require_GET
+async def camera_topics(request: HttpRequest) -> HttpResponse:
+    """The cameras the user may watch, each with its viewers, stream and snapshot."""
+    try:
+        principal = await principal_of(request)
+    except NotAuthenticated:
+        return redirect_to_login(request.get_full_path())
+    relay = await get_video_relay()
+    cameras = await watchable_cameras(relay.hub, principal)
+    return await sync_to_async(_render_topics)(request, cameras)
+
+
+def _render_topics(request: HttpRequest, cameras: list[Any]) -> HttpResponse:
+    context = page_context(request, global_role(request.user), page="video", cameras=cameras)
+    context["stream_types"] = [MJPEG, VP8]
+    return render(request, "telemetry/camera_topics.html", context)
+
+
+@require_GET
+async def video_stats(request: HttpRequest) -> HttpResponse:
+    """``{"streams": [...]}``: each stream's figures, then each camera feed's, for the
+    cameras the asker may watch (see ``VideoRelay.stats``)."""
+    try:
+        principal = await principal_of(request)
+    except NotAuthenticated as error:
+        return error_response(error, as_json=True)
+    relay = await get_video_relay()
+    entries = relay.stats()
+    allowed = await database_sync_to_async(_watchable)(principal, {e["topic"] for e in entries})
+    return JsonResponse({"streams": [e for e in entries if e["topic"] in allowed]})
+
+
+def _watchable(principal: Principal, topics: set[str]) -> set[str]:
+    owners = {robot: owner_named(robot) for robot in {names.first_segment(t) for t in topics}}
+    return {t for t in topics if may_watch(principal, owners[names.first_segment(t)])}
