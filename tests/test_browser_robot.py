@@ -135,7 +135,8 @@ def test_an_operator_takes_the_lock_and_drives_with_the_keyboard(
     expect(other.locator("#lock-message")).to_contain_text("robot_0 is driven by user:operator")
     other.context.close()
 
-    # The on-screen joystick drives too: pushed up, the robot moves forward.
+    # The on-screen joystick drives too: pulled back, the robot reverses away from the wall
+    # it has just driven up to.
     before = drawn_robot(page)
     assert before is not None
     pad = page.locator("#joystick").bounding_box()
@@ -143,7 +144,7 @@ def test_an_operator_takes_the_lock_and_drives_with_the_keyboard(
     centre = (pad["x"] + pad["width"] / 2, pad["y"] + pad["height"] / 2)
     page.mouse.move(*centre)
     page.mouse.down()
-    page.mouse.move(centre[0], centre[1] - pad["height"] / 2, steps=4)
+    page.mouse.move(centre[0], centre[1] + pad["height"] / 2, steps=4)
     expect(page.locator("#odom-speed")).not_to_have_text("0.00 m/s", timeout=10_000)
     wait_until_moved(page, before, 0.05, timeout=15_000)
     page.mouse.up()
