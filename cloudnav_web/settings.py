@@ -123,8 +123,9 @@ USE_TZ = True
 
 STATIC_URL = "static/"
 STATICFILES_DIRS = [BASE_DIR / "static"]
-STATIC_ROOT = BASE_DIR / "var" / "staticfiles"
-# Without collectstatic, WhiteNoise finds files where Django's finders do.
+# Set STATIC_ROOT to serve collected files (``manage.py collectstatic``); without it,
+# WhiteNoise finds files where Django's finders do.
+STATIC_ROOT = os.environ.get("STATIC_ROOT") or None
 WHITENOISE_USE_FINDERS = True
 WHITENOISE_AUTOREFRESH = DEBUG
 
