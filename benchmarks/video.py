@@ -1,0 +1,375 @@
+"""Video relays: one robot camera (480x320, 30 Hz) to 20 MJPEG, then 20 VP8 viewers.
+
+The server runs as its own daphne process (embedded mode, on a scratch SQLite database
+seeded with one robot and a viewer), or ``--url`` points at a running one together with
+``--token`` and ``--cookie``. This process is the load: the robot, publishing JPEG
+``sensor_msgs/CompressedImage`` over rosbridge with its send time in ``header.stamp``, and
+the viewers, reading ``/stream`` over plain sockets (HTTP/1.0, as web_video_server speaks).
+
+For each stream type it prints what one viewer receives (KB/s), frames delivered per
+viewer against frames published, the delay from a frame's stamp to its arrival at the
+viewer (p50, p99), the encoder's share of a core (from the relay's statistics) and the
+server's CPU. The second paper's Table I measured web_video_server at 687 KB/s for MJPEG
+at quality 90 and 291 KB/s for VP8 at its default bitrate.
+
+The stream client here (``open_stream``) is also what the video tests read streams with.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import base64
+import bisect
+import json
+import socket
+import time
+import urllib.parse
+import urllib.request
+from dataclasses import dataclass, field
+from typing import Any
+
+import cbor2
+import cv2
+import numpy as np
+import psutil
+import websockets
+
+from benchmarks.rosbridge import Server, start_server
+from telemetry.domain.multipart import PartReader
+from telemetry.domain.video_stats import percentile
+from telemetry.domain.webm import WebmReader
+
+ROBOT = "b0"
+TOPIC = f"/{ROBOT}/camera/image/compressed"
+PAPER_KB_PER_S = {"mjpeg": 687, "vp8": 291}
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--width", type=int, default=480)
+    parser.add_argument("--height", type=int, default=320)
+    parser.add_argument("--rate", type=float, default=30.0, help="camera frames per second")
+    parser.add_argument("--duration", type=float, default=30.0, help="seconds measured per type")
+    parser.add_argument("--warmup", type=float, default=2.0, help="seconds before measuring")
+    parser.add_argument("--viewers", type=int, default=20, help="viewers of each stream type")
+    parser.add_argument(
+        "--quality", type=int, help="MJPEG quality viewers ask (re-encoded; default: as sent)"
+    )
+    parser.add_argument("--camera-quality", type=int, default=90, help="the robot's JPEG quality")
+    parser.add_argument("--types", default="mjpeg,vp8", help="stream types, in order")
+    parser.add_argument("--url", help="a running server's http:// URL instead of starting one")
+    parser.add_argument("--token", help="with --url: the token of robot b0")
+    parser.add_argument("--cookie", help="with --url: a viewer's session Cookie header")
+    parser.add_argument("--server-pid", type=int, help="with --url: the server's pid, for CPU")
+
+
+def run(options: dict[str, Any]) -> None:
+    with _server(options) as server:
+        frames = camera_frames(options["width"], options["height"], options["camera_quality"])
+        source = sum(map(len, frames)) / len(frames) * options["rate"] / 1000
+        print(
+            f"camera: {options['width']}x{options['height']} at {options['rate']:g} Hz, "
+            f"JPEG quality {options['camera_quality']} ({source:.0f} KB/s as published); "
+            f"{options['viewers']} viewers per type, {options['duration']:g} s each",
+            flush=True,
+        )
+        print(HEADER, flush=True)
+        for kind in options["types"].split(","):
+            print(line(asyncio.run(measure(server, options, frames, kind))), flush=True)
+
+
+def _server(options: dict[str, Any]) -> Server:
+    if options["url"]:
+        ws = options["url"].replace("http://", "ws://") + "/rosbridge"
+        tokens = {ROBOT: options["token"]}
+        return Server(ws, options["url"], tokens, options["cookie"], options["server_pid"])
+    return start_server(1, ["LOG_LEVEL=WARNING"])
+
+
+# ---------------------------------------------------------------- the camera
+
+
+def camera_frames(width: int, height: int, quality: int, count: int = 150) -> list[bytes]:
+    """Return ``count`` JPEGs of a camera-like scene: a textured room with a moving object
+    and sensor noise, so both codecs work as hard as on a real camera."""
+    rng = np.random.default_rng(7)
+    ys, xs = np.mgrid[0:height, 0:width]
+    room = (110 + 60 * np.sin(xs / 37.0) * np.cos(ys / 23.0)).astype(np.float32)
+    texture = rng.normal(0, 5, (height, width)).astype(np.float32)
+    base = np.clip(np.dstack([room + texture, room * 0.9, room * 0.8 + texture]), 0, 255)
+    base = base.astype(np.uint8)
+    frames = []
+    for i in range(count):
+        image = base.copy()
+        x = int(width / 2 + width / 3 * np.sin(2 * np.pi * i / count))
+        cv2.circle(image, (x, height // 2), height // 6, (40, 60, 200), -1)
+        cv2.putText(image, f"{i:03d}", (10, 30), cv2.FONT_HERSHEY_SIMPLEX, 1, (250, 250, 250), 2)
+        noise = rng.normal(0, 1.5, image.shape)
+        noisy = np.clip(image.astype(np.float32) + noise, 0, 255).astype(np.uint8)
+        frames.append(cv2.imencode(".jpg", noisy, [cv2.IMWRITE_JPEG_QUALITY, quality])[1].tobytes())
+    return frames
+
+
+def image_message(jpeg: bytes, stamp: float) -> dict[str, Any]:
+    """Return a JPEG ``sensor_msgs/CompressedImage`` stamped ``stamp`` (Unix seconds)."""
+    sec = int(stamp)
+    return {
+        "header": {
+            "frame_id": "camera",
+            "stamp": {"sec": sec, "nanosec": int((stamp - sec) * 1e9)},
+        },
+        "format": "jpeg",
+        "data": jpeg,
+    }
+
+
+class Camera:
+    """A robot's camera publishing over rosbridge: JSON with base64 data, or CBOR frames
+    with the bytes as they are (both are rosbridge's)."""
+
+    def __init__(self, ws: websockets.ClientConnection, cbor: bool = False) -> None:
+        self.ws = ws
+        self.cbor = cbor
+
+    @classmethod
+    async def connect(cls, rosbridge_url: str, cbor: bool = False) -> Camera:
+        """Connect (the URL carries the robot's token) and advertise the camera topic."""
+        ws = await websockets.connect(rosbridge_url, compression=None, max_size=None)
+        advertise = {"op": "advertise", "topic": "camera/image/compressed"}
+        await ws.send(json.dumps({**advertise, "type": "sensor_msgs/CompressedImage"}))
+        return cls(ws, cbor)
+
+    async def send(self, jpeg: bytes, stamp: float | None = None) -> float:
+        """Publish one frame; return its stamp (now, unless given)."""
+        stamp = time.time() if stamp is None else stamp
+        msg = image_message(jpeg, stamp)
+        frame = {"op": "publish", "topic": "camera/image/compressed", "msg": msg}
+        if self.cbor:
+            await self.ws.send(cbor2.dumps(frame))
+        else:
+            msg["data"] = base64.b64encode(jpeg).decode("ascii")
+            await self.ws.send(json.dumps(frame))
+        return stamp
+
+    async def close(self) -> None:
+        await self.ws.close()
+
+
+async def publish(
+    server: Server, frames: list[bytes], rate: float, until: float, stamps: list[float]
+) -> None:
+    """Publish ``frames`` in a loop at ``rate`` Hz until ``until``, adding each frame's
+    stamp to ``stamps`` as it goes."""
+    camera = await Camera.connect(f"{server.url}?token={server.tokens[ROBOT]}")
+    try:
+        due = time.time()
+        while due < until:
+            await asyncio.sleep(max(0.0, due - time.time()))
+            stamps.append(await camera.send(frames[len(stamps) % len(frames)]))
+            due += 1.0 / rate
+    finally:
+        await camera.close()
+
+
+# ---------------------------------------------------------------- the viewers
+
+
+@dataclass
+class Stream:
+    """An open HTTP response: its status, headers (lower-case names) and body reader."""
+
+    status: int
+    headers: dict[str, str]
+    reader: asyncio.StreamReader
+    writer: asyncio.StreamWriter
+
+    def close(self) -> None:
+        self.writer.close()
+
+
+async def open_stream(
+    base_url: str,
+    path: str,
+    cookie: str | None = None,
+    token: str | None = None,
+    receive_buffer: int | None = None,
+) -> Stream:
+    """GET ``path`` over HTTP/1.0 and return once the response headers are in.
+
+    ``token`` goes in an ``Authorization: Token`` header; ``receive_buffer`` shrinks the
+    socket's receive buffer (to play a slow viewer). Raises OSError if it cannot connect.
+    """
+    parts = urllib.parse.urlsplit(base_url)
+    host, port = parts.hostname or "127.0.0.1", parts.port or 80
+    sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+    if receive_buffer is not None:
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, receive_buffer)
+    sock.setblocking(False)
+    await asyncio.get_running_loop().sock_connect(sock, (host, port))
+    reader, writer = await asyncio.open_connection(sock=sock, limit=2**22)
+    lines = [f"GET {path} HTTP/1.0", f"Host: {host}:{port}"]
+    lines += [f"Cookie: {cookie}"] if cookie else []
+    lines += [f"Authorization: Token {token}"] if token else []
+    writer.write(("\r\n".join(lines) + "\r\n\r\n").encode("latin-1"))
+    head = await reader.readuntil(b"\r\n\r\n")
+    status_line, *header_lines = head.decode("latin-1").split("\r\n")
+    headers = {}
+    for header in filter(None, header_lines):
+        name, _, value = header.partition(":")
+        headers[name.strip().lower()] = value.strip()
+    return Stream(int(status_line.split()[1]), headers, reader, writer)
+
+
+@dataclass
+class Viewer:
+    """What one viewer received: bytes, and each frame's time and arrival."""
+
+    kind: str
+    received: list[tuple[float, float, int]] = field(default_factory=list)  # (stamp, at, bytes)
+    joined: asyncio.Event = field(default_factory=asyncio.Event)
+
+
+async def watch(server: Server, kind: str, query: str, viewer: Viewer, stamps: list[float]) -> None:
+    """Read one stream until cancelled, noting each frame (see ``Viewer``)."""
+    stream = await open_stream(
+        server.origin, f"/stream?topic={TOPIC}&type={kind}{query}", server.cookie
+    )
+    if stream.status != 200:
+        raise RuntimeError(f"/stream answered {stream.status}")
+    viewer.joined.set()
+    try:
+        reader = WebmReader() if kind == "vp8" else PartReader()
+        first_chunk = True
+        while data := await stream.reader.read(2**20):
+            at = time.time()
+            if isinstance(reader, PartReader):
+                for headers, payload in reader.feed(data):
+                    viewer.received.append((float(headers["x-timestamp"]), at, len(payload)))
+            else:
+                blocks = reader.feed(data)
+                if blocks and not first_chunk:  # the join chunk is re-timed: not live frames
+                    epoch = reader.epoch or 0.0
+                    for block in blocks:
+                        stamp = _published(stamps, epoch + block.timestamp / 1000)
+                        viewer.received.append((stamp, at, len(block.data)))
+                first_chunk = first_chunk and not blocks
+    finally:
+        stream.close()
+
+
+def _published(stamps: list[float], arrived: float) -> float:
+    """Return the stamp of the frame the server received at ``arrived`` (the latest stamp
+    before it: frames leave the robot 33 ms apart and cross loopback in about 1 ms)."""
+    index = bisect.bisect_right(stamps, arrived + 0.002) - 1
+    return stamps[max(index, 0)]
+
+
+# ---------------------------------------------------------------- one measurement
+
+
+@dataclass
+class Result:
+    kind: str
+    viewers: int
+    seconds: float
+    published: int = 0
+    frames: list[int] = field(default_factory=list)
+    kb_per_s: float = 0.0
+    delays: list[float] = field(default_factory=list)
+    encoder_cpu: float | None = None
+    server_cpu: float | None = None
+
+
+async def measure(
+    server: Server, options: dict[str, Any], frames: list[bytes], kind: str
+) -> Result:
+    """Stream ``kind`` to the viewers while the robot publishes; return the figures."""
+    query = f"&quality={options['quality']}" if kind == "mjpeg" and options["quality"] else ""
+    start = time.time() + options["warmup"]
+    end = start + options["duration"]
+    stamps: list[float] = []
+    robot = asyncio.create_task(publish(server, frames, options["rate"], end, stamps))
+    viewers = [Viewer(kind) for _ in range(options["viewers"])]
+    tasks = [asyncio.create_task(watch(server, kind, query, v, stamps)) for v in viewers]
+    await asyncio.wait_for(asyncio.gather(*(v.joined.wait() for v in viewers)), 30)
+    await asyncio.sleep(max(0.0, start - time.time()))
+    cpu_before = _cpu(server.pid)
+    await robot
+    server_cpu = _cpu_share(server.pid, cpu_before, time.time() - start)
+    await asyncio.sleep(0.5)  # frames in flight arrive
+    stats = await asyncio.to_thread(_stream_stats, server, kind)
+    for task in tasks:
+        task.cancel()
+    await asyncio.gather(*tasks, return_exceptions=True)
+    return _result(kind, viewers, stamps, start, end, stats, server_cpu)
+
+
+def _result(
+    kind: str,
+    viewers: list[Viewer],
+    stamps: list[float],
+    start: float,
+    end: float,
+    stats: dict[str, Any] | None,
+    server_cpu: float | None,
+) -> Result:
+    seconds = end - start
+    result = Result(kind, len(viewers), seconds, server_cpu=server_cpu)
+    result.published = sum(1 for s in stamps if start <= s < end)
+    in_window = [[r for r in v.received if start <= r[0] < end] for v in viewers]
+    result.frames = [len({r[0] for r in got}) for got in in_window]
+    result.kb_per_s = (
+        sum(sum(r[2] for r in got) for got in in_window) / len(viewers) / seconds / 1000
+    )
+    result.delays = [at - stamp for got in in_window for stamp, at, _ in got]
+    result.encoder_cpu = stats.get("encoder_cpu") if stats else None
+    return result
+
+
+def _stream_stats(server: Server, kind: str) -> dict[str, Any] | None:
+    request = urllib.request.Request(
+        server.origin + "/api/video/stats", headers={"Cookie": server.cookie}
+    )
+    with urllib.request.urlopen(request, timeout=10) as response:
+        streams = json.load(response)["streams"]
+    return next((s for s in streams if s["topic"] == TOPIC and s["type"] == kind), None)
+
+
+def _cpu(pid: int | None) -> float | None:
+    if pid is None:
+        return None
+    times = psutil.Process(pid).cpu_times()
+    return float(times.user + times.system)
+
+
+def _cpu_share(pid: int | None, before: float | None, seconds: float) -> float | None:
+    after = _cpu(pid)
+    return None if after is None or before is None else (after - before) / seconds
+
+
+# ---------------------------------------------------------------- reporting
+
+HEADER = (
+    f"{'type':<6} {'viewers':>7} {'KB/s':>7} {'paper':>6} {'frames/viewer':>17} "
+    f"{'p50 ms':>7} {'p99 ms':>7} {'encoder':>8} {'server':>7}"
+)
+
+
+def line(result: Result) -> str:
+    low, mean = min(result.frames, default=0), np.mean(result.frames) if result.frames else 0
+    delivered = f"{low}..{max(result.frames, default=0)}/{result.published}"
+    p50, p99 = (percentile(result.delays, p) for p in (50, 99))
+    return (
+        f"{result.kind:<6} {result.viewers:>7} {result.kb_per_s:>7.1f} "
+        f"{PAPER_KB_PER_S.get(result.kind, 0):>6} {delivered:>17} "
+        f"{_ms(p50):>7} {_ms(p99):>7} {_core(result.encoder_cpu):>8} {_core(result.server_cpu):>7}"
+        f"   (mean {mean:.1f} frames)"
+    )
+
+
+def _ms(seconds: float | None) -> str:
+    return "-" if seconds is None else f"{seconds * 1000:.1f}"
+
+
+def _core(share: float | None) -> str:
+    return "-" if share is None else f"{share:.3f}"
