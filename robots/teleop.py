@@ -32,6 +32,9 @@ class LockStore(Protocol):
     async def release(self, robot: str, holder: str) -> bool:
         """Free ``holder``'s lock; False if it did not hold it."""
 
+    async def holder(self, robot: str) -> str:
+        """Return who holds ``robot``'s lock now, or "" when nobody does."""
+
 
 class MemoryLockStore:
     """Locks of one process (embedded mode)."""
@@ -62,6 +65,9 @@ class MemoryLockStore:
             return False
         del self._locks[robot]
         return True
+
+    async def holder(self, robot: str) -> str:
+        return self._current(robot) or ""
 
 
 # Compare-and-set scripts: only the holder may extend or delete its lock.
@@ -96,6 +102,10 @@ class RedisLockStore:
 
     async def release(self, robot: str, holder: str) -> bool:
         return bool(await self.redis.eval(_RELEASE, 1, redis_key("teleop", robot), holder))
+
+    async def holder(self, robot: str) -> str:
+        current = await self.redis.get(redis_key("teleop", robot))
+        return current.decode() if isinstance(current, bytes) else (current or "")
 
 
 @dataclass
@@ -151,6 +161,11 @@ class TeleopLocks:
         else:
             hold.expires, hold.refreshed = now + self.ttl, now
         return True, label
+
+    async def holder(self, robot: str) -> str:
+        """Return the label of whoever holds ``robot``'s lock, in any process, or ""."""
+        current = await self.store.holder(robot)
+        return self.label_of(current) if current else ""
 
     async def release(self, robot: str, connection: str) -> bool:
         """Let go of ``robot``'s lock; the robot is stopped. False if not held by it."""

@@ -15,7 +15,7 @@ pids=()
 cleanup() { kill "${pids[@]}" 2>/dev/null || true; wait 2>/dev/null || true; }
 trap cleanup EXIT INT TERM
 
-.venv/bin/daphne -b "$HOST" -p "$PORT" cloudnav_web.asgi:application &
+.venv/bin/daphne --websocket_timeout -1 -b "$HOST" -p "$PORT" cloudnav_web.asgi:application &
 pids+=($!)
 
 for _ in $(seq 1 100); do

@@ -36,14 +36,18 @@ def _text(call: ServiceCall, key: str) -> str:
 
 
 async def teleop_lock(call: ServiceCall) -> Json:
-    """``{robot, action: acquire|release}`` -> ``{success, holder, message}``.
+    """``{robot, action: acquire|release|status}`` -> ``{success, holder, message}``.
 
     Only someone who may drive the robot may take its lock; one connection holds it at a
     time, until it releases it, disconnects, or sends no ``cmd_vel`` for the lock's TTL.
+    ``status`` tells anyone who may see the robot who holds it ("" for nobody).
     """
     robot, action = _text(call, "robot"), call.arg("action", "acquire")
-    await call.access.require("drive", names.robot_topic(robot, names.CMD_VEL))
     locks, conn = call.hub.teleop, call.conn
+    if action == "status":
+        await call.access.require("see", names.robot_topic(robot, names.CMD_VEL))
+        return {"success": True, "holder": await locks.holder(robot), "message": ""}
+    await call.access.require("drive", names.robot_topic(robot, names.CMD_VEL))
     if action == "acquire":
         granted, holder = await locks.acquire(robot, conn.key, conn.principal.label)
         message = "" if granted else f"{robot} is driven by {holder}"
@@ -52,7 +56,7 @@ async def teleop_lock(call: ServiceCall) -> Json:
         released = await locks.release(robot, conn.key)
         message = "" if released else f"this connection does not hold the lock of {robot}"
         return {"success": released, "holder": "", "message": message}
-    raise ServiceFailed("'action' must be 'acquire' or 'release'")
+    raise ServiceFailed("'action' must be 'acquire', 'release' or 'status'")
 
 
 async def route(call: ServiceCall) -> Json:

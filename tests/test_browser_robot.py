@@ -127,9 +127,10 @@ def test_an_operator_takes_the_lock_and_drives_with_the_keyboard(
     page.keyboard.up("ArrowUp")
     expect(page.locator("#odom-speed")).to_have_text("0.00 m/s", timeout=10_000)
 
-    # Someone else asking for the lock is told who holds it.
+    # Someone else sees who holds the lock, and asking for it is refused with the holder.
     other = open_as(context.browser.new_context(), demo, "admin", f"/robots/{ROBOT}/")  # type: ignore[union-attr]
     expect(other.locator("#conn-state")).to_contain_text("Live")
+    expect(other.locator("#lock-state")).to_have_text("Driven by operator")
     other.click("#lock-acquire")
     expect(other.locator("#lock-state")).to_have_text("Driven by operator")
     expect(other.locator("#lock-message")).to_contain_text("robot_0 is driven by user:operator")

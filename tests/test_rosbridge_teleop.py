@@ -6,7 +6,7 @@ import time
 
 import pytest
 
-from tests.conftest import make_robot, make_user
+from tests.conftest import make_building, make_robot, make_user
 
 pytestmark = pytest.mark.django_db(transaction=True)
 
@@ -123,3 +123,33 @@ async def test_a_robot_drives_itself_without_a_lock(rosbridge, robot_token):
     robot = await robot_listening(rosbridge, robot_token)
     await robot.send(op="publish", topic="cmd_vel", msg=GO)
     assert (await robot.receive())["msg"] == GO
+
+
+async def test_anyone_who_sees_the_robot_is_told_who_holds_the_lock(
+    rosbridge, robot_token, operator, viewer
+):
+    driver, watcher = await rosbridge(user=operator), await rosbridge(user=viewer)
+    assert (await acquire(watcher, "status"))["holder"] == ""
+    await acquire(driver)
+    assert (await acquire(watcher, "status")) == {
+        "success": True,
+        "holder": "user:operator",
+        "message": "",
+    }
+
+
+@pytest.fixture
+def stranger(db):
+    """A viewer of another building."""
+    user = make_user("viewer2", "viewer")
+    make_building(code="other_1", members=[user])
+    return user
+
+
+async def test_a_viewer_of_another_building_is_not_told_who_holds_the_lock(
+    rosbridge, robot_token, stranger
+):
+    response = await (await rosbridge(user=stranger)).call(
+        "/cloudnav/teleop_lock", {"robot": "r1", "action": "status"}
+    )
+    assert response["result"] is False

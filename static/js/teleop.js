@@ -31,7 +31,23 @@ export class Teleop extends EventTarget {
     this.timers = [];
     this.#bind();
     connection.addEventListener("disconnected", () => this.#lost("connection lost"));
+    // Whoever holds the lock is shown to everyone, not only to someone refused it.
+    setInterval(() => this.#watch(), RENEW_MS);
+    this.#watch();
     this.#render();
+  }
+
+  async #watch() {
+    if (this.holding || !this.connection.connected) return;
+    try {
+      const answer = await this.#lock("status");
+      if (!this.holding && answer.holder !== this.holder) {
+        this.holder = answer.holder || "";
+        this.#render();
+      }
+    } catch {
+      // A lost connection is shown by the page's banner; the next tick asks again.
+    }
   }
 
   get limits() {
