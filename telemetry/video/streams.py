@@ -71,6 +71,9 @@ async def webm_body(
     try:
         async with relay.watch(camera.topic, params) as pipeline:
             assert isinstance(pipeline, Vp8Pipeline)
+            # An empty write sends the response headers now (daphne sends them with the
+            # first body bytes), so the viewer's player sets up before the first frame.
+            yield b""
             async for data in _clusters(pipeline, readiness):
                 yield data
     finally:

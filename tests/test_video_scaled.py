@@ -1,0 +1,59 @@
+"""Scaled mode: a robot publishing on one server process is watched through another.
+
+The relay on the viewer's process subscribes to the camera on its own topic bus, which
+joins the topic's channel-layer group, so frames cross processes once per process.
+"""
+
+from __future__ import annotations
+
+import asyncio
+
+import pytest
+
+from benchmarks.video import Camera, camera_frames, open_stream
+from telemetry.domain.multipart import PartReader
+from telemetry.domain.webm import WebmReader
+
+pytestmark = pytest.mark.scaled
+
+TOPIC = "/r1/camera/image/compressed"
+STAMP = 1_750_000_000.0
+
+
+async def test_a_camera_on_one_process_streams_from_another(scaled_servers):
+    cluster = scaled_servers(2)
+    robot_side, viewer_side = cluster.servers
+    cookie = cluster.cookies["viewer"]
+    mjpeg = await open_stream(viewer_side.url, f"/stream?topic={TOPIC}", cookie)
+    vp8 = await open_stream(viewer_side.url, f"/stream?topic={TOPIC}&type=vp8", cookie)
+    assert (mjpeg.status, vp8.status) == (200, 200)
+    camera = await Camera.connect(robot_side.rosbridge_url(cluster.tokens["r1"]))
+    jpegs = camera_frames(160, 120, quality=90, count=5)
+    parts, blocks = PartReader(), WebmReader()
+    got_parts: list[bytes] = []
+    got_blocks: list[object] = []
+
+    async def read_mjpeg() -> None:
+        while len(got_parts) < 3:
+            got_parts.extend(p for _, p in parts.feed(await mjpeg.reader.read(2**16)))
+
+    async def read_vp8() -> None:
+        while len(got_blocks) < 3:
+            got_blocks.extend(blocks.feed(await vp8.reader.read(2**16)))
+
+    async def publish() -> None:
+        # the viewer's process joins the group asynchronously: publish until frames arrive
+        for i in range(200):
+            await camera.send(jpegs[i % len(jpegs)], STAMP + i)
+            await asyncio.sleep(0.05)
+
+    publishing = asyncio.create_task(publish())
+    try:
+        async with asyncio.timeout(20):
+            await asyncio.gather(read_mjpeg(), read_vp8())
+    finally:
+        publishing.cancel()
+    assert set(got_parts) <= set(jpegs)  # the robot's own bytes, across processes
+    for stream in (mjpeg, vp8):
+        stream.close()
+    await camera.close()
