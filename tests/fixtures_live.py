@@ -62,11 +62,11 @@ class RosClient:
         if message["type"] != "websocket.send":
             raise AssertionError(f"expected a frame, got {message}")
         if message.get("text") is not None:
-            return json.loads(message["text"])  # type: ignore[no-any-return]
-        return cbor2.loads(message["bytes"])  # type: ignore[no-any-return]
+            return json.loads(message["text"])
+        return cbor2.loads(message["bytes"])
 
     async def receive_raw(self, wait: float = TIMEOUT) -> dict[str, Any]:
-        return await self.communicator.receive_output(wait)  # type: ignore[no-any-return]
+        return await self.communicator.receive_output(wait)
 
     async def receive_until(
         self, predicate: Callable[[dict[str, Any]], bool], wait: float = TIMEOUT
@@ -80,7 +80,7 @@ class RosClient:
 
     async def nothing_more(self, wait: float = 0.2) -> bool:
         """True if no frame arrives within ``wait`` (for checks that something is dropped)."""
-        return await self.communicator.receive_nothing(wait)  # type: ignore[no-any-return]
+        return await self.communicator.receive_nothing(wait)
 
     async def call(self, service: str, args: Any = None, id: str = "call") -> dict[str, Any]:
         """Call a service and return its ``service_response``."""
@@ -476,7 +476,8 @@ def scaled_servers(
             database_url = stack.enter_context(postgres_database(scaled_postgres_url(), template))
             flush_redis(redis_url)
             servers = start_daphnes(count, tmp_path, database_url, {"REDIS_URL": redis_url})
-            stack.callback(lambda: [server.stop() for server in servers])  # before the drop
+            for server in servers:
+                stack.callback(server.stop)  # before the drop
             return ScaledCluster(servers, seeded["tokens"], seeded["cookies"])
 
         yield start

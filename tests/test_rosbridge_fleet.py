@@ -6,6 +6,7 @@ from __future__ import annotations
 import asyncio
 import math
 import time
+from typing import Any
 
 import pytest
 from channels.db import database_sync_to_async
@@ -74,9 +75,12 @@ async def test_state_is_not_written_once_per_message(rosbridge, robot, settings,
     settings.CLOUDNAV_FLEET_FLUSH_INTERVAL = 0.3
     writes = []
     write_states = fleet.write_states
-    monkeypatch.setattr(
-        fleet, "write_states", lambda batch: writes.append(1) or write_states(batch)
-    )
+
+    def counted(batch: Any) -> Any:
+        writes.append(1)
+        return write_states(batch)
+
+    monkeypatch.setattr(fleet, "write_states", counted)
     record, token = robot
     started = time.monotonic()
     client = await rosbridge(token=token)

@@ -49,7 +49,7 @@ def run(node, daphne_server, building, operator):
             timeout=60,
         )
         assert done.returncode == 0, done.stderr + "\n--- server log ---\n" + daphne_server.log()
-        return json.loads(done.stdout.strip().splitlines()[-1])  # type: ignore[no-any-return]
+        return json.loads(done.stdout.strip().splitlines()[-1])
 
     return run_scenario
 

@@ -37,6 +37,11 @@ def _connect(args: dict[str, Any], who: str) -> Any:
     return ros
 
 
+def collect(into: list[Any], item: Any, done: threading.Event) -> None:
+    into.append(item)
+    done.set()
+
+
 def _wait(event: threading.Event, what: str) -> None:
     if not event.wait(WAIT):
         raise TimeoutError(f"no {what} within {WAIT} s")
@@ -50,7 +55,7 @@ def scenario_pubsub(args: dict[str, Any]) -> dict[str, Any]:
     received: list[Any] = []
     arrived = threading.Event()
     listener = roslibpy.Topic(operator, "/r1/pose", "geometry_msgs/PoseStamped")
-    listener.subscribe(lambda message: (received.append(message), arrived.set()))
+    listener.subscribe(lambda message: collect(received, message, arrived))
     operator.get_time()  # the subscription is in place once this answers
     roslibpy.Topic(robot, "pose", "geometry_msgs/PoseStamped").publish(roslibpy.Message(POSE))
     _wait(arrived, "pose")
@@ -121,9 +126,9 @@ def scenario_action(args: dict[str, Any]) -> dict[str, Any]:
         results: list[Any] = []
         goal_id = client.send_goal(
             roslibpy.Goal({"pose": POSE}),
-            lambda result: (results.append(dict(result)), served.set()),
+            lambda result: collect(results, dict(result), served),
             lambda message: feedback.append(dict(message)),
-            lambda error: (results.append({"error": str(error)}), served.set()),
+            lambda error: collect(results, {"error": str(error)}, served),
         )
         goal = json.loads(server.recv(WAIT))
         for frame in (
@@ -164,7 +169,7 @@ def run(daphne_server, building, operator):
             timeout=60,
         )
         assert done.returncode == 0, done.stderr + "\n--- server log ---\n" + daphne_server.log()
-        return json.loads(done.stdout.strip().splitlines()[-1])  # type: ignore[no-any-return]
+        return json.loads(done.stdout.strip().splitlines()[-1])
 
     return run_scenario
 

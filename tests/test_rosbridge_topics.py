@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from typing import Any
 
 import pytest
 
@@ -223,9 +224,12 @@ async def test_the_publish_path_reads_the_database_once_per_connection_and_topic
 
     lookups = []
     owner_named = services.owner_named
-    monkeypatch.setattr(
-        services, "owner_named", lambda seg: lookups.append(seg) or owner_named(seg)
-    )
+
+    def counted(seg: str) -> Any:
+        lookups.append(seg)
+        return owner_named(seg)
+
+    monkeypatch.setattr(services, "owner_named", counted)
     robot, watcher = await rosbridge(token=token), await rosbridge(user=operator)
     await watcher.send(op="subscribe", topic="/r1/goal")
     await watcher.sync()

@@ -101,6 +101,7 @@ def encode_stream(count: int, gop: int = 10) -> tuple[Vp8Encoder, LiveWebm, list
 
 def decode(data: bytes) -> list[av.VideoFrame]:
     with av.open(io.BytesIO(data), mode="r") as container:
+        assert isinstance(container, av.container.InputContainer)
         return list(container.decode(video=0))
 
 
