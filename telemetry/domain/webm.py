@@ -330,7 +330,8 @@ class WebmReader:
                 timestamp = int.from_bytes(value, "big")
             elif element_id == SIMPLE_BLOCK:
                 track = _vint(value, 0, keep_marker=False)
-                assert track is not None
+                if track is None or len(value) < track[1] + 3:
+                    raise ValueError("a SimpleBlock too short for its header")
                 offset = track[1]
                 relative = int.from_bytes(value[offset : offset + 2], "big", signed=True)
                 keyframe = bool(value[offset + 2] & KEYFRAME_FLAG)

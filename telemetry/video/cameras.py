@@ -33,6 +33,9 @@ from telemetry.domain.video import (
 )
 from telemetry.exceptions import InvalidName
 from telemetry.hub import Hub, fleet_type
+
+# The rosbridge server's own identity rules, so a robot or a person is the same principal
+# over HTTP as over its WebSocket (their scope-based entry point checks a WebSocket origin).
 from telemetry.services import _person_identity, _robot_identity, owner_named
 
 CAMERA = "camera/image/compressed"

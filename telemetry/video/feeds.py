@@ -21,7 +21,6 @@ from telemetry.domain.encoding import Wire
 from telemetry.domain.newest import Newest
 from telemetry.domain.video import COMPRESSED_IMAGE, BadFrame, Frame, frame_from_message
 from telemetry.domain.video_stats import StreamStats
-from telemetry.exceptions import RosbridgeError
 
 logger = logging.getLogger(__name__)
 
@@ -50,14 +49,14 @@ class CameraFeed:
 
     def stop(self) -> None:
         """Unsubscribe; readers waiting for a frame are told it is over."""
-        self.bus.unsubscribe(self, self.topic)
+        self.bus.drop(self)  # as a connection that closes: the bus forgets the peer too
         self.frames.close()
 
     def deliver(self, wire: Wire) -> None:
         """Take one published message (the bus calls this; it never raises)."""
         try:
             frame = frame_from_message(_message(wire))
-        except (BadFrame, RosbridgeError, ValueError, KeyError, TypeError) as error:
+        except (BadFrame, ValueError, KeyError, TypeError) as error:  # CBOR errors are ValueErrors
             self.bad += 1
             if self.bad == 1:
                 logger.warning(

@@ -17,6 +17,7 @@ from __future__ import annotations
 import asyncio
 import logging
 import time
+from abc import ABC, abstractmethod
 from collections.abc import Callable
 from concurrent.futures import Executor
 from dataclasses import dataclass
@@ -56,7 +57,7 @@ class Part:
     data: bytes
 
 
-class Pipeline:
+class Pipeline(ABC):
     """Base of both kinds: a task turning the feed's frames into output, and statistics."""
 
     def __init__(self, feed: CameraFeed, params: StreamParams, executor: Executor) -> None:
@@ -92,11 +93,13 @@ class Pipeline:
         fresh = frames.value is not None and time.time() - frames.value.received < FRESH_FOR
         return frames.version - 1 if fresh else frames.version
 
+    @abstractmethod
     async def _take(self, frame: Frame) -> None:
-        raise NotImplementedError
+        """Turn one frame into output; bad frames are logged and skipped."""
 
+    @abstractmethod
     def _closed(self) -> None:
-        raise NotImplementedError
+        """Tell the readers of the output that there will be no more."""
 
     async def _in_worker(self, work: Callable[[], T]) -> T | None:
         """Run ``work`` in the thread pool and account its CPU; None if the frame was bad."""

@@ -13,8 +13,6 @@ to its HTTP status in ``error_response`` only.
 
 from __future__ import annotations
 
-from typing import Any
-
 from asgiref.sync import sync_to_async
 from channels.db import database_sync_to_async
 from django.contrib.auth.views import redirect_to_login
@@ -49,6 +47,7 @@ from telemetry.domain.video import (
 from telemetry.services import owner_named
 from telemetry.video.cameras import (
     Camera,
+    CameraListing,
     find_camera,
     may_watch,
     principal_of,
@@ -123,10 +122,10 @@ async def stream_viewer(request: HttpRequest) -> HttpResponse:
     Extensions, which Chromium plays live where a plain ``<video>`` lags)."""
     try:
         _, camera, asked = await _requested(request)
-    except NotAuthenticated:
+    except NotAuthenticated as error:
         if token_of(request) is None:
             return redirect_to_login(request.get_full_path())
-        raise
+        return error_response(error)
     except VideoError as error:
         return error_response(error)
     query = request.META.get("QUERY_STRING", "")
@@ -154,7 +153,7 @@ async def camera_topics(request: HttpRequest) -> HttpResponse:
     return await sync_to_async(_render_topics)(request, cameras)
 
 
-def _render_topics(request: HttpRequest, cameras: list[Any]) -> HttpResponse:
+def _render_topics(request: HttpRequest, cameras: list[CameraListing]) -> HttpResponse:
     context = page_context(request, global_role(request.user), page="video", cameras=cameras)
     context["stream_types"] = [MJPEG, VP8]
     return render(request, "telemetry/camera_topics.html", context)
