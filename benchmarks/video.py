@@ -211,13 +211,18 @@ async def open_stream(
     lines += [f"Cookie: {cookie}"] if cookie else []
     lines += [f"Authorization: Token {token}"] if token else []
     writer.write(("\r\n".join(lines) + "\r\n\r\n").encode("latin-1"))
-    head = await reader.readuntil(b"\r\n\r\n")
+    status, headers = _response_head(await reader.readuntil(b"\r\n\r\n"))
+    return Stream(status, headers, reader, writer)
+
+
+def _response_head(head: bytes) -> tuple[int, dict[str, str]]:
+    """Return the status and the headers (lower-case names) of a response's head."""
     status_line, *header_lines = head.decode("latin-1").split("\r\n")
     headers = {}
     for header in filter(None, header_lines):
         name, _, value = header.partition(":")
         headers[name.strip().lower()] = value.strip()
-    return Stream(int(status_line.split()[1]), headers, reader, writer)
+    return int(status_line.split()[1]), headers
 
 
 @dataclass

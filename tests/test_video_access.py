@@ -38,12 +38,8 @@ class Answer:
         return json.loads(self.body)
 
 
-async def get(path: str, query: dict[str, str], headers: dict[str, str] | None = None) -> Answer:
-    """GET through the ASGI application; a stream is read up to its first body bytes and
-    then abandoned, as a client that goes away."""
-    from cloudnav_web.asgi import application
-
-    scope = {
+def http_scope(path: str, query: dict[str, str], headers: dict[str, str]) -> dict[str, Any]:
+    return {
         "type": "http",
         "http_version": "1.1",
         "method": "GET",
@@ -53,16 +49,22 @@ async def get(path: str, query: dict[str, str], headers: dict[str, str] | None =
         "root_path": "",
         "query_string": urlencode(query).encode(),
         "headers": [(b"host", b"testserver")]
-        + [(k.lower().encode(), v.encode()) for k, v in (headers or {}).items()],
+        + [(k.lower().encode(), v.encode()) for k, v in headers.items()],
         "client": ("127.0.0.1", 50000),
         "server": ("testserver", 80),
     }
-    app = ApplicationCommunicator(application, scope)
+
+
+async def get(path: str, query: dict[str, str], headers: dict[str, str] | None = None) -> Answer:
+    """GET through the ASGI application; a stream is read up to its first body bytes and
+    then abandoned, as a client that goes away."""
+    from cloudnav_web.asgi import application
+
+    app = ApplicationCommunicator(application, http_scope(path, query, headers or {}))
     await app.send_input({"type": "http.request", "body": b"", "more_body": False})
     start = await app.receive_output(WAIT)
-    answer = Answer(
-        start["status"], {k.decode().lower(): v.decode() for k, v in start["headers"]}, b""
-    )
+    headers_in = {k.decode().lower(): v.decode() for k, v in start["headers"]}
+    answer = Answer(start["status"], headers_in, b"")
     streaming = "content-length" not in answer.headers and answer.status == 200
     while not streaming:
         message = await app.receive_output(WAIT)

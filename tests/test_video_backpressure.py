@@ -16,7 +16,7 @@ import numpy as np
 import psutil
 import pytest
 
-from benchmarks.video import Camera, open_stream
+from benchmarks.video import Camera, Stream, open_stream
 from telemetry.domain.multipart import PartReader
 from tests.conftest import make_building, make_robot
 
@@ -55,13 +55,18 @@ def token() -> str:
     return make_robot(name="r1", buildings=[make_building()])[1]
 
 
-async def test_a_slow_viewer_skips_frames_without_growing_the_servers_memory(daphne_server, token):
-    server, jpegs = daphne_server, noise_jpegs()
-    query = f"/stream?topic={TOPIC}&type=mjpeg"
-    slow = await open_stream(server.url, query, token=token, receive_buffer=4096)
-    healthy = await open_stream(server.url, query, token=token)
-    camera = await Camera.connect(server.rosbridge_url(token))
-    reader, received = PartReader(), list[float]()
+async def stamps(stream: Stream, reader: PartReader) -> list[float]:
+    """Read once from ``stream``; return the stamps of the parts that completed."""
+    return [float(h["x-timestamp"]) for h, _ in reader.feed(await stream.reader.read(2**20))]
+
+
+async def stream_through(
+    camera: Camera, healthy: Stream, reader: PartReader, jpegs: list[bytes]
+) -> list[float]:
+    """Publish ``FRAMES`` frames, at most ``WINDOW`` ahead of what the healthy viewer read
+    (so any delay comes from the server, not from a backlog the test built); return the
+    stamps the healthy viewer received."""
+    received = list[float]()
     in_flight = asyncio.Semaphore(WINDOW)
 
     async def publish() -> None:
@@ -70,19 +75,30 @@ async def test_a_slow_viewer_skips_frames_without_growing_the_servers_memory(dap
             await camera.send(jpegs[n % len(jpegs)], STAMP + n)
 
     async def read() -> None:
-        async with asyncio.timeout(120):
-            while len(received) < FRAMES:
-                for headers, _ in reader.feed(await healthy.reader.read(2**20)):
-                    received.append(float(headers["x-timestamp"]))
-                    in_flight.release()
+        while len(received) < FRAMES:
+            for stamp in await stamps(healthy, reader):
+                received.append(stamp)
+                in_flight.release()
 
+    async with asyncio.timeout(120):
+        await asyncio.gather(read(), publish())
+    return received
+
+
+async def test_a_slow_viewer_skips_frames_without_growing_the_servers_memory(daphne_server, token):
+    server, jpegs = daphne_server, noise_jpegs()
+    query = f"/stream?topic={TOPIC}&type=mjpeg"
+    slow = await open_stream(server.url, query, token=token, receive_buffer=4096)
+    healthy = await open_stream(server.url, query, token=token)
+    camera = await Camera.connect(server.rosbridge_url(token))
     # one frame first, so the growth measured is not that of the first frame's allocations
     await camera.send(jpegs[0], STAMP - 1)
+    reader = PartReader()
     async with asyncio.timeout(10):
-        while not reader.feed(await healthy.reader.read(2**20)):
+        while not await stamps(healthy, reader):
             pass
     before = rss(server.process.pid)
-    await asyncio.gather(read(), publish())
+    received = await stream_through(camera, healthy, reader, jpegs)
     grown = rss(server.process.pid) - before
 
     assert received == [STAMP + n for n in range(FRAMES)]  # the healthy viewer got every one
@@ -92,9 +108,7 @@ async def test_a_slow_viewer_skips_frames_without_growing_the_servers_memory(dap
     slow_reader, seen = PartReader(), list[float]()
     async with asyncio.timeout(20):
         while not seen or seen[-1] != STAMP + FRAMES - 1:
-            seen += [
-                float(h["x-timestamp"]) for h, _ in slow_reader.feed(await slow.reader.read(2**20))
-            ]
+            seen += await stamps(slow, slow_reader)
     assert len(seen) < FRAMES // 2
     # counted when the slow viewer took the newest frame over the ones it missed
     assert await asyncio.to_thread(skipped, server.url, token) > FRAMES // 2

@@ -89,17 +89,25 @@ def init_segment(width: int, height: int, title: str = "", epoch: float | None =
     ``epoch`` (Unix seconds) is the wall-clock time of stream time 0, written as the
     Segment's DateUTC, so a viewer can tell when each frame reached the server.
     """
-    header = element(
+    tracks = element(TRACKS, _vp8_track(width, height))
+    return _ebml_header() + SEGMENT + UNKNOWN_SIZE + _info(title, epoch) + tracks
+
+
+def _ebml_header() -> bytes:
+    return element(
         EBML,
         uint(EBML_VERSION, 1)
         + uint(EBML_READ_VERSION, 1)
         + uint(EBML_MAX_ID_LENGTH, 4)
         + uint(EBML_MAX_SIZE_LENGTH, 8)
         + text(DOC_TYPE, "webm")
-        + uint(DOC_TYPE_VERSION, 2)
+        + uint(DOC_TYPE_VERSION, 2)  # SimpleBlock needs version 2
         + uint(DOC_TYPE_READ_VERSION, 2),
     )
-    info = element(
+
+
+def _info(title: str, epoch: float | None) -> bytes:
+    return element(
         INFO,
         uint(TIMESTAMP_SCALE, 1_000_000)  # timestamps in milliseconds
         + text(MUXING_APP, APP)
@@ -107,7 +115,10 @@ def init_segment(width: int, height: int, title: str = "", epoch: float | None =
         + (text(TITLE, title) if title else b"")
         + (date(DATE_UTC, epoch) if epoch is not None else b""),
     )
-    track = element(
+
+
+def _vp8_track(width: int, height: int) -> bytes:
+    return element(
         TRACK_ENTRY,
         uint(TRACK_NUMBER, TRACK)
         + uint(TRACK_UID, TRACK)
@@ -116,7 +127,6 @@ def init_segment(width: int, height: int, title: str = "", epoch: float | None =
         + text(CODEC_ID, "V_VP8")
         + element(VIDEO, uint(PIXEL_WIDTH, width) + uint(PIXEL_HEIGHT, height)),
     )
-    return header + SEGMENT + UNKNOWN_SIZE + info + element(TRACKS, track)
 
 
 def cluster(timestamp_ms: int, frame: bytes, keyframe: bool) -> bytes:
