@@ -81,11 +81,18 @@ class Pipeline(ABC):
         try:
             while True:
                 version, frame = await self.feed.frames.newer(version)
-                await self._take(frame)
+                await self._take_safely(frame)
         except Closed:
             pass
         finally:
             self._closed()
+
+    async def _take_safely(self, frame: Frame) -> None:
+        """Take one frame; a failure loses that frame only, never the viewers' stream."""
+        try:
+            await self._take(frame)
+        except Exception:
+            logger.exception("video: %s (%s) dropped a frame", self.feed.topic, self.params.label())
 
     def _first_version(self) -> int:
         """Start from the feed's current frame if it is fresh, else from the next one."""

@@ -28,9 +28,9 @@ WORKERS = 2
 class VideoRelay:
     """Feeds by topic and pipelines by ``(topic, params)`` for this process's viewers."""
 
-    def __init__(self, hub: Hub) -> None:
+    def __init__(self, hub: Hub, executor: ThreadPoolExecutor) -> None:
         self.hub = hub
-        self.executor = ThreadPoolExecutor(WORKERS, thread_name_prefix="video")
+        self.executor = executor
         self.feeds: dict[str, CameraFeed] = {}
         self.pipelines: dict[tuple[str, StreamParams], Pipeline] = {}
 
@@ -99,6 +99,15 @@ def _entry(topic: str, kind: str, params: str, viewers: int) -> dict[str, Any]:
 _relays: weakref.WeakKeyDictionary[asyncio.AbstractEventLoop, VideoRelay] = (
     weakref.WeakKeyDictionary()
 )
+_executor: ThreadPoolExecutor | None = None
+
+
+def _encoding_threads() -> ThreadPoolExecutor:
+    """Return the process's encoding threads (shared by the relays of every event loop)."""
+    global _executor
+    if _executor is None:
+        _executor = ThreadPoolExecutor(WORKERS, thread_name_prefix="video")
+    return _executor
 
 
 async def get_video_relay() -> VideoRelay:
@@ -107,5 +116,5 @@ async def get_video_relay() -> VideoRelay:
     relay = _relays.get(loop)
     if relay is None:
         hub = await get_hub()
-        relay = _relays.setdefault(loop, VideoRelay(hub))
+        relay = _relays.setdefault(loop, VideoRelay(hub, _encoding_threads()))
     return relay
