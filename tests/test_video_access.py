@@ -16,11 +16,11 @@ from urllib.parse import urlencode
 import pytest
 from asgiref.testing import ApplicationCommunicator
 from django.contrib.auth.models import User
-from django.test import Client
 
 from telemetry.domain.video import parse_stream_request
 from telemetry.video.relay import get_video_relay
 from tests.conftest import make_building, make_robot, make_user
+from tests.fixtures_live import session_cookie
 
 pytestmark = pytest.mark.django_db(transaction=True)
 
@@ -88,7 +88,8 @@ def world(admin: User, operator: User, viewer: User, outsider: User) -> World:
     _, own = make_robot(name="r1", buildings=[building])
     _, foreign = make_robot(name="r2", buildings=[other])
     cookies = {
-        u.username: {"Cookie": session_cookie(u)} for u in (admin, operator, viewer, outsider)
+        u.username: {"Cookie": session_cookie(u).decode()}
+        for u in (admin, operator, viewer, outsider)
     }
     return World(
         {
@@ -100,12 +101,6 @@ def world(admin: User, operator: User, viewer: User, outsider: User) -> World:
             "anonymous": {},
         }
     )
-
-
-def session_cookie(user: User) -> str:
-    client = Client()
-    client.force_login(user)
-    return f"sessionid={client.cookies['sessionid'].value}"
 
 
 async def ask(world: World, who: str, path: str, **query: str) -> Answer:
