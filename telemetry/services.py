@@ -67,14 +67,14 @@ async def authenticate(scope: Mapping[str, Any]) -> Identity | None:
     """
     token = token_of(scope)
     if token is not None:
-        return await database_sync_to_async(_robot_identity)(token)
+        return await database_sync_to_async(robot_identity)(token)
     user = scope.get("user")
     if user is None or not user.is_authenticated or not origin_allowed(scope):
         return None
-    return await database_sync_to_async(_person_identity)(user)
+    return await database_sync_to_async(person_identity)(user)
 
 
-def _robot_identity(token: str) -> Identity | None:
+def robot_identity(token: str) -> Identity | None:
     robot = robot_for_token(token)
     if robot is None:
         return None
@@ -83,7 +83,7 @@ def _robot_identity(token: str) -> Identity | None:
     return Identity(principal=principal, robot_pk=robot.pk)
 
 
-def _person_identity(user: Any) -> Identity | None:
+def person_identity(user: Any) -> Identity | None:
     role = global_role(user)
     if role is Role.NONE:
         return None
