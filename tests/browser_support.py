@@ -16,8 +16,6 @@ from __future__ import annotations
 import io
 import json
 import math
-import subprocess
-import sys
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -28,7 +26,7 @@ from django.contrib.auth.models import User
 from django.core.management import call_command
 from playwright.sync_api import Browser, BrowserContext, Page, sync_playwright
 
-from tests.fixtures_live import BASE_DIR, LiveServer, session_cookie
+from tests.fixtures_live import BASE_DIR, LiveServer, agent_process, session_cookie
 
 CHROMIUM = "/usr/bin/chromium"
 CHROMIUM_ARGS = [
@@ -93,20 +91,11 @@ def context(browser: Browser) -> Iterator[BrowserContext]:
 @pytest.fixture
 def agent(demo: Demo, tmp_path: Path) -> Iterator[Path]:
     """The simulated robot ``robot_0`` in its own process; yields its log file."""
-    log = tmp_path / "agent.log"
-    command = [
-        sys.executable, "-m", "robots.agent", "--server", demo.server.url,
-        "--token", demo.tokens[ROBOT], "--time-scale", str(TIME_SCALE), "--camera-rate", "5",
-    ]  # fmt: skip
-    with log.open("wb") as out:
-        process = subprocess.Popen(command, cwd=BASE_DIR, stdout=out, stderr=subprocess.STDOUT)
-    yield log
-    process.terminate()
-    try:
-        process.wait(10)
-    except subprocess.TimeoutExpired:
-        process.kill()
-        process.wait(10)
+    options = ["--time-scale", str(TIME_SCALE), "--camera-rate", "5"]
+    with agent_process(
+        demo.server.url, demo.tokens[ROBOT], tmp_path / "agent.log", *options
+    ) as log:
+        yield log
 
 
 def open_as(context: BrowserContext, demo: Demo, username: str, path: str) -> Page:

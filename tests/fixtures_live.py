@@ -208,6 +208,25 @@ class LiveServer:
                 self.process.wait(10)
 
 
+@contextlib.contextmanager
+def agent_process(server_url: str, token: str, log: Path, *options: str) -> Iterator[Path]:
+    """Run ``python -m robots.agent`` for one robot in its own process, logging to ``log``."""
+    command = [sys.executable, "-m", "robots.agent", "--server", server_url, "--token", token]
+    with log.open("wb") as out:
+        process = subprocess.Popen(
+            [*command, *options], cwd=BASE_DIR, stdout=out, stderr=subprocess.STDOUT
+        )
+    try:
+        yield log
+    finally:
+        process.terminate()
+        try:
+            process.wait(10)
+        except subprocess.TimeoutExpired:
+            process.kill()
+            process.wait(10)
+
+
 def free_port(host: str = "127.0.0.1") -> int:
     with socket.socket() as probe:
         probe.bind((host, 0))

@@ -17,8 +17,6 @@ import io
 import json
 import math
 import re
-import subprocess
-import sys
 import time
 from collections import Counter
 from collections.abc import Iterator
@@ -30,7 +28,7 @@ import websockets
 from django.contrib.auth.models import User
 from django.core.management import call_command
 
-from tests.fixtures_live import BASE_DIR, LiveServer, session_cookie
+from tests.fixtures_live import LiveServer, agent_process, session_cookie
 
 pytestmark = [pytest.mark.django_db(transaction=True), pytest.mark.slow]
 
@@ -62,20 +60,9 @@ def operator_headers(daphne_server: LiveServer, token: str) -> dict[str, str]:
 @pytest.fixture
 def agent(daphne_server: LiveServer, token: str, tmp_path: Path) -> Iterator[Path]:
     """``python -m robots.agent`` in its own process; yields its log file."""
-    log = tmp_path / "agent.log"
-    command = [
-        sys.executable, "-m", "robots.agent", "--server", daphne_server.url, "--token", token,
-        "--time-scale", str(TIME_SCALE), "--camera-rate", "1",
-    ]  # fmt: skip
-    with log.open("wb") as out:
-        process = subprocess.Popen(command, cwd=BASE_DIR, stdout=out, stderr=subprocess.STDOUT)
-    yield log
-    process.terminate()
-    try:
-        process.wait(10)
-    except subprocess.TimeoutExpired:
-        process.kill()
-        process.wait(10)
+    options = ["--time-scale", str(TIME_SCALE), "--camera-rate", "1"]
+    with agent_process(daphne_server.url, token, tmp_path / "agent.log", *options) as log:
+        yield log
 
 
 class Operator:
