@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import io
 import itertools
 import json
 import os
@@ -225,6 +226,52 @@ def agent_process(server_url: str, token: str, log: Path, *options: str) -> Iter
         except subprocess.TimeoutExpired:
             process.kill()
             process.wait(10)
+
+
+def client_scenarios(
+    command: list[str], server: LiveServer, building: Any, operator: User
+) -> Callable[[str], dict[str, Any]]:
+    """Return a runner of ``command NAME ARGS``: a client-library scenario in its own process.
+
+    ARGS (JSON) holds the rosbridge URL, a robot token, the operator's session cookie and the
+    origin; the scenario prints its findings as JSON on its last line.
+    """
+    from tests.conftest import make_robot
+
+    args = {
+        "url": server.rosbridge_url(),
+        "token": make_robot(name="r1", buildings=[building])[1],
+        "cookie": session_cookie(operator).decode(),
+        "origin": server.url,
+    }
+
+    def run_scenario(name: str) -> dict[str, Any]:
+        done = subprocess.run(
+            [*command, name, json.dumps(args)],
+            cwd=BASE_DIR,
+            capture_output=True,
+            text=True,
+            timeout=60,
+        )
+        assert done.returncode == 0, done.stderr + "\n--- server log ---\n" + server.log()
+        result: dict[str, Any] = json.loads(done.stdout.strip().splitlines()[-1])
+        return result
+
+    return run_scenario
+
+
+def seed_demo_token(tokens: Path, robot: str) -> str:
+    """Seed the demo building with one robot and return ``robot``'s token."""
+    from django.core.management import call_command
+
+    call_command("seed_demo", "--robots", "1", "--tokens-file", str(tokens), stdout=io.StringIO())
+    return str(json.loads(tokens.read_text())[robot])
+
+
+def operator_handshake(server: LiveServer) -> dict[str, str]:
+    """Handshake headers of the demo operator's browser session."""
+    cookie = session_cookie(User.objects.get(username="operator")).decode()
+    return {"Cookie": cookie, "Origin": server.url}
 
 
 def free_port(host: str = "127.0.0.1") -> int:

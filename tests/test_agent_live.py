@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import io
 import json
 import math
 import time
@@ -15,13 +14,11 @@ from typing import Any
 
 import pytest
 import websockets
-from django.contrib.auth.models import User
-from django.core.management import call_command
 
 from robots.agent.fleet import FleetOptions, FleetRobot, build_robot, run_fleet
 from robots.agent.robot import RobotConfig
 from robots.agent.sim.world import demo_world
-from tests.fixtures_live import LiveServer, session_cookie
+from tests.fixtures_live import LiveServer, operator_handshake, seed_demo_token
 
 pytestmark = pytest.mark.django_db(transaction=True)
 
@@ -33,15 +30,12 @@ PREEMPTED, ACTIVE = 2, 1
 
 @pytest.fixture
 def token(tmp_path: Path) -> str:
-    tokens = tmp_path / "tokens.json"
-    call_command("seed_demo", "--robots", "1", "--tokens-file", str(tokens), stdout=io.StringIO())
-    return str(json.loads(tokens.read_text())[ROBOT])
+    return seed_demo_token(tmp_path / "tokens.json", ROBOT)
 
 
 @pytest.fixture
 def operator_headers(daphne_server: LiveServer, token: str) -> dict[str, str]:
-    cookie = session_cookie(User.objects.get(username="operator")).decode()
-    return {"Cookie": cookie, "Origin": daphne_server.url}
+    return operator_handshake(daphne_server)
 
 
 @pytest.fixture

@@ -16,6 +16,7 @@ from PIL import Image
 from maps.domain.demo_building import (
     FREE,
     OCCUPIED,
+    PAPER_ROUTE,
     UNKNOWN,
     DemoBuilding,
     DemoSubMap,
@@ -27,16 +28,7 @@ from maps.domain.demo_building import (
 ROBOT_RADIUS = 0.2
 STOP_DISTANCE = 0.4
 HALF_CELL = 0.025
-MAIN_ROUTE = [
-    "CorridorA",
-    "Atrium1",
-    "CorridorB",
-    "CorridorC",
-    "Atrium2",
-    "CorridorD",
-    "Atrium3",
-    "Office7",
-]
+MAIN_ROUTE = list(PAPER_ROUTE)
 GREY_TO_OCCUPANCY = {0: OCCUPIED, 254: FREE, 205: UNKNOWN}
 
 Grid = npt.NDArray[np.int8]

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import io
 import json
 import math
 import re
@@ -25,17 +24,16 @@ from typing import Any
 
 import pytest
 import websockets
-from django.contrib.auth.models import User
-from django.core.management import call_command
 
-from tests.fixtures_live import LiveServer, agent_process, session_cookie
+from maps.domain.demo_building import PAPER_ROUTE
+from tests.fixtures_live import LiveServer, agent_process, operator_handshake, seed_demo_token
 
 pytestmark = [pytest.mark.django_db(transaction=True), pytest.mark.slow]
 
 TIME_SCALE = 8.0
 ROBOT = "robot_0"
 BUILDING = "boccioni_1"
-ROUTE = ["CorridorA", "Atrium1", "CorridorB", "CorridorC", "Atrium2", "CorridorD", "Atrium3"]
+ROUTE = list(PAPER_ROUTE)
 OFFICE_7 = (47.7, 27.5, 0.0)
 CORRIDOR_A = (10.0, 23.2, math.pi)
 LEG_DEADLINE = 100.0  # wall seconds for either trip; each takes about a minute
@@ -45,16 +43,12 @@ BUNDLE = re.compile(r'"GET /api/buildings/([^/]+)/maps/([^/]+)/bundle" (\d{3})')
 
 @pytest.fixture
 def token(tmp_path: Path) -> str:
-    tokens = tmp_path / "tokens.json"
-    call_command("seed_demo", "--robots", "1", "--tokens-file", str(tokens), stdout=io.StringIO())
-    return str(json.loads(tokens.read_text())[ROBOT])
+    return seed_demo_token(tmp_path / "tokens.json", ROBOT)
 
 
 @pytest.fixture
 def operator_headers(daphne_server: LiveServer, token: str) -> dict[str, str]:
-    """Handshake headers of the demo operator's browser session."""
-    cookie = session_cookie(User.objects.get(username="operator")).decode()
-    return {"Cookie": cookie, "Origin": daphne_server.url}
+    return operator_handshake(daphne_server)
 
 
 @pytest.fixture
@@ -158,7 +152,7 @@ async def test_a_robot_with_no_maps_crosses_the_building_and_back(
     assert there is not None
     assert there["header"]["frame_id"] == f"{BUILDING}/Office7"
     assert position_error(there, OFFICE_7) < 0.3
-    assert sorted(code for code, status in outward if status == 200) == sorted([*ROUTE, "Office7"])
+    assert sorted(code for code, status in outward if status == 200) == sorted(ROUTE)
     assert back is not None
     assert back["header"]["frame_id"] == f"{BUILDING}/CorridorA"
     assert position_error(back, CORRIDOR_A) < 0.3

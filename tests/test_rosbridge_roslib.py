@@ -6,16 +6,12 @@ process and prints what it found as JSON. They need ``npm ci`` (roslib, ws) and 
 
 from __future__ import annotations
 
-import json
 import shutil
-import subprocess
 from pathlib import Path
-from typing import Any
 
 import pytest
 
-from tests.conftest import make_robot
-from tests.fixtures_live import session_cookie
+from tests.fixtures_live import client_scenarios
 
 ROOT = Path(__file__).resolve().parent.parent
 SCRIPT = ROOT / "tests" / "js" / "roslib_scenarios.mjs"
@@ -33,25 +29,7 @@ def node() -> str:
 
 @pytest.fixture
 def run(node, daphne_server, building, operator):
-    args = {
-        "url": daphne_server.rosbridge_url(),
-        "token": make_robot(name="r1", buildings=[building])[1],
-        "cookie": session_cookie(operator).decode(),
-        "origin": daphne_server.url,
-    }
-
-    def run_scenario(name: str) -> dict[str, Any]:
-        done = subprocess.run(
-            [node, str(SCRIPT), name, json.dumps(args)],
-            cwd=ROOT,
-            capture_output=True,
-            text=True,
-            timeout=60,
-        )
-        assert done.returncode == 0, done.stderr + "\n--- server log ---\n" + daphne_server.log()
-        return json.loads(done.stdout.strip().splitlines()[-1])
-
-    return run_scenario
+    return client_scenarios([node, str(SCRIPT)], daphne_server, building, operator)
 
 
 def test_roslib_subscribes_in_json_and_cbor_to_what_a_robot_publishes(run):

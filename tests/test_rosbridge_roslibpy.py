@@ -9,7 +9,6 @@ This module imports nothing from Django at the top, so that process stays a plai
 from __future__ import annotations
 
 import json
-import subprocess
 import sys
 import threading
 from pathlib import Path
@@ -150,28 +149,10 @@ def main() -> None:
 
 @pytest.fixture
 def run(daphne_server, building, operator):
-    from tests.conftest import make_robot
-    from tests.fixtures_live import session_cookie
+    from tests.fixtures_live import client_scenarios
 
-    args = {
-        "url": daphne_server.rosbridge_url(),
-        "token": make_robot(name="r1", buildings=[building])[1],
-        "cookie": session_cookie(operator).decode(),
-        "origin": daphne_server.url,
-    }
-
-    def run_scenario(name: str) -> dict[str, Any]:
-        done = subprocess.run(
-            [sys.executable, "-m", "tests.test_rosbridge_roslibpy", name, json.dumps(args)],
-            cwd=ROOT,
-            capture_output=True,
-            text=True,
-            timeout=60,
-        )
-        assert done.returncode == 0, done.stderr + "\n--- server log ---\n" + daphne_server.log()
-        return json.loads(done.stdout.strip().splitlines()[-1])
-
-    return run_scenario
+    command = [sys.executable, "-m", "tests.test_rosbridge_roslibpy"]
+    return client_scenarios(command, daphne_server, building, operator)
 
 
 def test_roslibpy_subscribes_to_what_a_robot_publishes(run):

@@ -10,19 +10,11 @@ import pytest
 from django.contrib.auth import authenticate
 from django.core.management import call_command
 
+from maps.domain import demo_building
 from maps.models import Building, EnvironmentalTag, SubMap, TopologyEdge
 from tests.conftest import client_for
 
-PAPER_ROUTE = [
-    "CorridorA",
-    "Atrium1",
-    "CorridorB",
-    "CorridorC",
-    "Atrium2",
-    "CorridorD",
-    "Atrium3",
-    "Office7",
-]
+PAPER_ROUTE = list(demo_building.PAPER_ROUTE)
 
 
 @pytest.fixture

@@ -50,6 +50,10 @@ overlap by margin + wall + margin = 3.4 m across every shared doorway."""
 TAG_SIZE = 0.06
 TAG_HEIGHT = 0.3
 """Height of a marker's centre above the floor, in view of the robot's camera."""
+PAPER_ROUTE = (
+    "CorridorA", "Atrium1", "CorridorB", "CorridorC", "Atrium2", "CorridorD", "Atrium3", "Office7",
+)  # fmt: skip
+"""The paper's route from Corridor A to Office 7: the cheapest one in this building."""
 START_DISTANCE = 1.2
 """How far in front of the entrance tag a robot with no maps begins."""
 
