@@ -166,8 +166,14 @@ def test_the_camera_shows_frames_from_the_robot(
         "() => Number(document.getElementById('camera-frame').dataset.frames || 0) >= 3",
         timeout=30_000,
     )
-    image = page.locator("#camera-frame img")
-    assert image.evaluate("img => img.naturalWidth") == 640
+    # Each frame replaces the image's source, so wait for one that has finished decoding.
+    page.wait_for_function(
+        """() => {
+            const img = document.querySelector('#camera-frame img');
+            return img && img.complete && img.naturalWidth === 640;
+        }""",
+        timeout=10_000,
+    )
     screenshot(page, "robot-camera")
 
 
