@@ -29,9 +29,10 @@ from skimage.graph import route_through_array
 
 from maps.domain import planning
 from maps.domain.demo_building import DemoBuilding, DemoSubMap, DemoTag, demo_building
-from maps.domain.grid import Point, centre_of
+from maps.domain.grid import centre_of
 from maps.domain.mapfile import MapMetadata, occupancy_from_image, open_map_image
 from maps.domain.topology import Edge, RouteStep, TagLink, route_between
+from robots.domain.se2 import Point
 
 Grid = npt.NDArray[np.int8]
 Cells = list[tuple[int, int]]

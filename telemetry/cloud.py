@@ -10,11 +10,19 @@ from typing import Any
 from channels.db import database_sync_to_async
 
 from maps import services as map_services
-from maps.domain.planning import Costmap, PlanningError, inflate, path_length, plan_on
+from maps.domain.planning import (
+    DEFAULT_ROBOT_RADIUS,
+    Costmap,
+    PlanningError,
+    inflate,
+    path_length,
+    plan_on,
+)
 from maps.domain.tagpayload import parse_payload
 from maps.exceptions import MapStoreError
 from maps.models import Building, SubMap
 from telemetry.domain import names
+from telemetry.domain.messages import Path, path_of
 from telemetry.domain.protocol import Json
 from telemetry.domain.times import now_stamp
 from telemetry.exceptions import NotAllowed, ServiceFailed
@@ -24,8 +32,6 @@ TELEOP_LOCK = f"{names.CLOUDNAV}/teleop_lock"
 ROUTE = f"{names.CLOUDNAV}/route"
 RESOLVE_TAG = f"{names.CLOUDNAV}/resolve_tag"
 PLAN_PATH = f"{names.CLOUDNAV}/plan_path"
-DEFAULT_ROBOT_RADIUS = 0.2
-"""Metres, as ``maps.domain.planning.plan_path``'s default."""
 
 
 def _text(call: ServiceCall, key: str) -> str:
@@ -173,18 +179,10 @@ def _costmap(pk: int, version: str, radius: float) -> Costmap:
     return inflate(map_services.grid_of(submap), radius, submap.resolution, origin=origin)
 
 
-def _path(frame_id: str, points: list[tuple[float, float]]) -> dict[str, Any]:
-    """A ``nav_msgs/Path`` through ``points`` (headings left at identity)."""
-    header = {"stamp": now_stamp(), "frame_id": frame_id}
-    identity = {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}
-    poses = [
-        {
-            "header": header,
-            "pose": {"position": {"x": x, "y": y, "z": 0.0}, "orientation": identity},
-        }
-        for x, y in points
-    ]
-    return {"header": header, "poses": poses}
+def _path(frame_id: str, points: list[tuple[float, float]]) -> Path:
+    """A ``nav_msgs/Path`` through ``points`` (headings left at identity), stamped now in
+    both time spellings."""
+    return path_of(frame_id, [(x, y, 0.0) for x, y in points], now_stamp())
 
 
 def services() -> dict[str, ServerService]:

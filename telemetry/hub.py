@@ -20,7 +20,7 @@ from telemetry.domain import names, protocol
 from telemetry.domain.bus import SubscribeParams, TopicBus
 from telemetry.domain.calls import CallTable, PendingCall
 from telemetry.domain.encoding import Outgoing
-from telemetry.domain.messages import pose_of, string_of, zero_twist
+from telemetry.domain.messages import pose_of, string_of, twist_2d
 from telemetry.domain.protocol import Json
 from telemetry.domain.times import complete_header_stamp
 from telemetry.exceptions import ActionFailed, NotAllowed, RosbridgeError, ServiceFailed
@@ -195,7 +195,8 @@ class Hub:
 
     def stop_robot(self, robot: str) -> None:
         """Send ``robot`` a zero Twist from the server itself."""
-        self.bus.publish(None, names.robot_topic(robot, names.CMD_VEL), zero_twist())
+        stop = dict(twist_2d(0.0, 0.0))  # the bus takes a plain, mutable message
+        self.bus.publish(None, names.robot_topic(robot, names.CMD_VEL), stop)
 
     # ------------------------------------------------------------ services
 

@@ -12,7 +12,7 @@ import pytest
 import websockets
 
 from robots.agent.client import Backoff, NotConnected, RosbridgeClient, ServiceError
-from robots.agent.messages import pose_stamped, string_message
+from telemetry.domain.messages import pose_stamped, string_message
 from tests import fixtures_live
 from tests.conftest import make_robot
 from tests.fixtures_live import LiveServer, LiveServers

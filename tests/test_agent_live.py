@@ -16,8 +16,8 @@ import pytest
 import websockets
 
 from robots.agent.fleet import FleetOptions, FleetRobot, build_robot, run_fleet
-from robots.agent.robot import RobotConfig
 from robots.agent.sim.world import demo_world
+from robots.domain.params import RobotConfig
 from tests.fixtures_live import LiveServer, operator_handshake, seed_demo_token
 
 pytestmark = pytest.mark.django_db(transaction=True)

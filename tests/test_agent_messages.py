@@ -12,7 +12,7 @@ import pytest
 
 from robots.agent.__main__ import arguments, tokens_of
 from robots.agent.fleet import endpoints, parse_pose
-from robots.agent.messages import (
+from telemetry.domain.messages import (
     GoalStatus,
     StatusEntry,
     goal_of,
@@ -20,8 +20,8 @@ from robots.agent.messages import (
     path_message,
     status_array,
     twist_of,
+    yaw_of,
 )
-from telemetry.domain.messages import yaw_of
 
 
 def test_a_path_faces_along_its_segments():

@@ -19,10 +19,11 @@ import numpy as np
 import pytest
 from django.core.management import call_command
 
-from robots.agent.messages import GoalStatus
-from robots.agent.robot import PoseTracker, Robot, RobotConfig, SimHardware, particle_filter
+from robots.agent.robot import PoseTracker, Robot, SimHardware, particle_filter
 from robots.agent.sim.world import Box, Cylinder, World, demo_world
 from robots.agent.supervisor import BundleCache, MapsSupervisor
+from robots.domain.params import RobotConfig
+from telemetry.domain.messages import GoalStatus
 
 pytestmark = pytest.mark.django_db(transaction=True)
 

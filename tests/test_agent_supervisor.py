@@ -19,7 +19,7 @@ from django.core.management import call_command
 
 from maps.domain.demo_building import demo_building
 from maps.models import EnvironmentalTag
-from robots.agent.robot import PoseTracker, Robot, RobotConfig, SimHardware
+from robots.agent.robot import PoseTracker, Robot, SimHardware
 from robots.agent.sim.world import demo_world
 from robots.agent.supervisor import (
     BundleCache,
@@ -29,6 +29,7 @@ from robots.agent.supervisor import (
     approach_pose,
     submap_from_bundle,
 )
+from robots.domain.params import RobotConfig
 from tests.conftest import make_robot
 from tests.fixtures_live import LiveServer
 

@@ -15,11 +15,12 @@ import pytest
 from maps.domain.demo_building import DemoTag, demo_building
 from robots.agent.experiments import localisation as experiment
 from robots.agent.experiments.localisation import Tick, simulate, submap_grid
-from robots.agent.likelihood import BeamModel, Grid, beams_of
+from robots.agent.likelihood import Grid, beams_of
 from robots.agent.localisation import NotLocalisedError, ParticleFilter, kld_count, odometry_delta
 from robots.agent.relocalise import robot_pose_from_tag
 from robots.agent.sim.laser import Laser
 from robots.agent.sim.world import demo_world, world_from_grid
+from robots.domain.params import BeamModel
 
 Pose = tuple[float, float, float]
 RES = 0.05

@@ -14,7 +14,7 @@ from benchmarks.planner import obstacle_course, submap_grid
 from benchmarks.planner import run as run_benchmark
 from maps.domain import planning
 from maps.domain.demo_building import demo_building
-from maps.domain.grid import Point, cell_of, centre_of
+from maps.domain.grid import cell_of, centre_of
 from maps.domain.planning import (
     Costmap,
     InObstacleError,
@@ -25,6 +25,7 @@ from maps.domain.planning import (
     plan_on,
     plan_path,
 )
+from robots.domain.se2 import Point
 
 Grid = npt.NDArray[np.int8]
 RES = 0.05

@@ -35,6 +35,8 @@ from functools import lru_cache
 import numpy as np
 import numpy.typing as npt
 
+from robots.domain.se2 import ahead
+
 BUILDING_CODE = "boccioni_1"
 BUILDING_NAME = "Boccioni building, floor 1"
 ZIP_CODE = "56037"
@@ -460,6 +462,5 @@ def _edge(doorway: _Doorway) -> DemoEdge:
 def _start_pose() -> tuple[float, float, float]:
     """In the porch, ``START_DISTANCE`` in front of the entrance tag, facing it."""
     tag = _entrance_tag()
-    x = tag.x + START_DISTANCE * math.cos(tag.yaw)
-    y = tag.y + START_DISTANCE * math.sin(tag.yaw)
+    x, y = ahead((tag.x, tag.y, tag.yaw), START_DISTANCE)
     return _metres(x), _metres(y), _opposite(tag.yaw)

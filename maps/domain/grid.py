@@ -10,10 +10,10 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
+from robots.domain.se2 import Point
+
 Cell = tuple[int, int]
 """(row, col) of a grid cell; row 0 is the bottom row."""
-Point = tuple[float, float]
-"""(x, y) in metres in the map frame."""
 
 _BOUNDARY_NUDGE = 1e-6
 """In cells: a point on a cell boundary belongs to the cell above or right of it, even

@@ -28,6 +28,7 @@ import yaml
 from PIL import Image
 
 from maps.exceptions import MapFileError
+from telemetry.domain.messages import header, pose_2d
 
 MapMode = Literal["trinary", "scale", "raw"]
 MAP_MODES: tuple[MapMode, ...] = ("trinary", "scale", "raw")
@@ -426,13 +427,13 @@ def occupancy_grid_message(
     height, width = grid.shape
     sec, nanosec = stamp
     return {
-        "header": {"stamp": {"sec": sec, "nanosec": nanosec}, "frame_id": frame_id},
+        "header": header(frame_id, {"sec": sec, "nanosec": nanosec}),
         "info": {
             "map_load_time": {"sec": sec, "nanosec": nanosec},
             "resolution": meta.resolution,
             "width": width,
             "height": height,
-            "origin": _pose(meta.origin),
+            "origin": pose_2d(*meta.origin),
         },
         "data": grid.reshape(-1).tolist(),
     }
@@ -459,14 +460,6 @@ def _raw_pixels(cells: Grid) -> Bytes:
 def _pgm_bytes(pixels: Bytes) -> bytes:
     height, width = pixels.shape
     return f"P5\n{width} {height}\n255\n".encode("ascii") + pixels.tobytes()
-
-
-def _pose(origin: tuple[float, float, float]) -> dict[str, dict[str, float]]:
-    x, y, yaw = origin
-    return {
-        "position": {"x": x, "y": y, "z": 0.0},
-        "orientation": {"x": 0.0, "y": 0.0, "z": math.sin(yaw / 2), "w": math.cos(yaw / 2)},
-    }
 
 
 # Uploads

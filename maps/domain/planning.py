@@ -32,8 +32,13 @@ import numba
 import numpy as np
 import numpy.typing as npt
 
-from maps.domain.grid import Cell, Point, cell_of, centre_of, contains
+from maps.domain.grid import Cell, cell_of, centre_of, contains
+from robots.domain.se2 import Point
 
+DEFAULT_ROBOT_RADIUS = 0.2
+"""Metres: the radius ``plan_path`` (and the cloud's ``/cloudnav/plan_path``) inflates by
+for a caller that gives none. The simulated robot plans with its own
+(``robots.domain.params.RobotConfig.planning_radius``)."""
 OCCUPIED_THRESHOLD = 65
 """Cells at or above this occupancy are obstacles (map_server's default 0.65)."""
 DEFAULT_TOLERANCE = 0.5
@@ -187,7 +192,7 @@ def plan_path(
     goal_xy: Point,
     resolution: float,
     origin: Sequence[float],
-    robot_radius: float = 0.2,
+    robot_radius: float = DEFAULT_ROBOT_RADIUS,
     *,
     tolerance: float = DEFAULT_TOLERANCE,
     unknown_is_obstacle: bool = True,

@@ -30,7 +30,7 @@ import websockets
 from websockets.asyncio.client import ClientConnection
 from websockets.exceptions import ConnectionClosed, InvalidHandshake
 
-from robots.agent.sim.messages import Json
+from telemetry.domain.messages import Json, Message
 
 logger = logging.getLogger(__name__)
 
@@ -65,7 +65,7 @@ class Backoff:
 class _Topic:
     type: str
     latch: bool
-    last: Json | None = None  # the latest message of a latched topic
+    last: Message | None = None  # the latest message of a latched topic
 
 
 @dataclass
@@ -145,7 +145,7 @@ class RosbridgeClient:
         """Return once connected (bound it with ``asyncio.timeout``)."""
         await self._connected.wait()
 
-    async def publish(self, topic: str, msg: Json) -> bool:
+    async def publish(self, topic: str, msg: Message) -> bool:
         """Send ``msg`` on the advertised ``topic`` now; False (and dropped) when not
         connected. A latched topic's message is also kept for the next connection.
 

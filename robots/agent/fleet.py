@@ -19,31 +19,24 @@ import httpx
 from maps.domain.demo_building import demo_building
 from maps.domain.planning import warm_up
 from robots.agent.client import RosbridgeClient
-from robots.agent.robot import (
-    PoseTracker,
-    Robot,
-    RobotConfig,
-    SimHardware,
-    declare,
-    particle_filter,
-)
+from robots.agent.robot import PoseTracker, Robot, SimHardware, declare, particle_filter
 from robots.agent.sim.world import World, demo_world
 from robots.agent.supervisor import BundleCache, MapsSupervisor
+from robots.domain.params import RobotConfig
+from robots.domain.se2 import Pose
 
 logger = logging.getLogger(__name__)
-
-Pose = tuple[float, float, float]
 
 
 @dataclass(frozen=True)
 class FleetOptions:
     """How to build the robots: the server (``http(s)://`` or ``ws(s)://`` base URL),
-    where they start, particles of their filters (0: odometry and tags only), and each
-    robot's config."""
+    where they start, particles of their filters (0: odometry and tags only; None: as
+    ``robot`` says), and each robot's config."""
 
     server: str
     start: Pose | None = None  # default: the demo building's start pose
-    particles: int = 500
+    particles: int | None = None
     seed: int = 0
     robot: RobotConfig = field(default_factory=RobotConfig)
 
@@ -76,9 +69,11 @@ def build_robot(
     http = httpx.AsyncClient(
         base_url=http_base, headers={"Authorization": f"Token {token}"}, timeout=10.0
     )
-    seed = options.seed + 10 * index
-    hardware = SimHardware(world, options.start or demo_building().start_pose, seed=seed)
-    tracker = PoseTracker(particle_filter(options.particles, seed))
+    seed, config = options.seed + 10 * index, options.robot
+    start = options.start or demo_building().start_pose
+    hardware = SimHardware(world, start, seed=seed, limits=config.body)
+    particles = config.localisation.particles if options.particles is None else options.particles
+    tracker = PoseTracker(particle_filter(particles, seed, config.localisation))
     supervisor = MapsSupervisor(BundleCache(http), tracker)
     client = RosbridgeClient(ws_url, token, seed=seed)
     robot = Robot(hardware, supervisor, tracker, client, options.robot)

@@ -24,14 +24,16 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any, Literal, get_args
+from typing import Any
 
 import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from robots.domain.params import BeamModel
+from robots.domain.se2 import transform_each
+
 Floats = NDArray[np.float64]
-LaserModel = Literal["likelihood_field_prob", "likelihood_field"]
 Grid = NDArray[np.int8]
 
 OCCUPIED_AT = 65
@@ -39,25 +41,6 @@ OCCUPIED_AT = 65
 FREE_BELOW = 20
 """Cells from 0 up to this (excluded) are free: map_saver's ``free_thresh`` 0.196. Unknown
 (-1) and uncertain cells are neither; particles are never spread over them."""
-
-
-@dataclass(frozen=True)
-class BeamModel:
-    """AMCL's laser parameters (ROS 1 defaults, except 60 beams as in Nav2)."""
-
-    z_hit: float = 0.95
-    z_rand: float = 0.05
-    sigma_hit: float = 0.2  # m
-    max_distance: float = 2.0  # m, AMCL's laser_likelihood_max_dist
-    max_beams: int = 60
-    laser_model: LaserModel = "likelihood_field_prob"
-    laser_pose: tuple[float, float, float] = (0.0, 0.0, 0.0)  # in the robot frame
-
-    def __post_init__(self) -> None:
-        if self.laser_model not in get_args(LaserModel):
-            raise ValueError(f"unknown laser_model {self.laser_model!r}")
-        if self.max_beams < 1 or self.sigma_hit <= 0:
-            raise ValueError("a beam model needs max_beams >= 1 and sigma_hit > 0")
 
 
 @dataclass(frozen=True)
@@ -163,15 +146,13 @@ class LikelihoodField:
     ) -> tuple[NDArray[np.intp], NDArray[np.bool_]]:
         """For each pose and beam (N x B): the cell under the endpoint, or for an endpoint
         off the map the border cell where the beam leaves it; and whether it is on the map."""
-        cos, sin = np.cos(poses[:, 2:3]), np.sin(poses[:, 2:3])
-        x = poses[:, 0:1] + cos * beams.x - sin * beams.y
-        y = poses[:, 1:2] + sin * beams.x + cos * beams.y
+        x, y = transform_each(poses, beams.x, beams.y)
         cells, inside = self._cells_under(x, y)
         if not inside.all():
             off = ~inside
-            mx, my = beams.origin
-            lx = np.broadcast_to(poses[:, 0:1] + cos * mx - sin * my, x.shape)[off]
-            ly = np.broadcast_to(poses[:, 1:2] + sin * mx + cos * my, y.shape)[off]
+            laser_x, laser_y = transform_each(poses, *beams.origin)
+            lx = np.broadcast_to(laser_x, x.shape)[off]
+            ly = np.broadcast_to(laser_y, y.shape)[off]
             cells[off] = self._exit_cells(lx, ly, x[off], y[off])
         return cells, inside
 

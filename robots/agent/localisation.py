@@ -33,15 +33,16 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass, field, fields
+from dataclasses import fields, replace
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from robots.agent.likelihood import BeamModel, Grid, LikelihoodField, beams_of
+from robots.agent.likelihood import Grid, LikelihoodField, beams_of
+from robots.domain.params import BeamModel, FilterParams
+from robots.domain.se2 import Pose, compose, relative, wrap
 
-Pose = tuple[float, float, float]
 Floats = NDArray[np.float64]
 
 KLD_BIN = (0.5, 0.5, math.radians(10))
@@ -56,51 +57,33 @@ class NotLocalisedError(RuntimeError):
     """The filter holds no particles: a map was swapped without a shared frame."""
 
 
-@dataclass(frozen=True)
-class FilterParams:
-    """Everything ``**model_params`` may set; the names are AMCL's."""
+def params_from(base: FilterParams, overrides: Mapping[str, Any]) -> FilterParams:
+    """``base`` with ``overrides``, keyword arguments of ``FilterParams`` names where laser
+    keys (``z_hit``, ``z_rand``, ``sigma_hit``, ``max_distance``, ``max_beams``,
+    ``laser_model``, ``laser_pose``) go to its ``BeamModel``.
 
-    alpha1: float = 0.2  # rotation noise from rotation
-    alpha2: float = 0.2  # rotation noise from translation
-    alpha3: float = 0.2  # translation noise from translation
-    alpha4: float = 0.2  # translation noise from rotation
-    update_min_d: float = 0.2  # m
-    update_min_a: float = 0.5  # rad
-    kld_err: float = 0.01
-    kld_z: float = 0.99
-    resample_threshold: float = 0.5  # of the particle count, for the effective sample size
-    beams: BeamModel = field(default_factory=BeamModel)
-
-
-def params_from(model_params: Mapping[str, Any]) -> FilterParams:
-    """``FilterParams`` from keyword arguments, where laser keys (``z_hit``, ``z_rand``,
-    ``sigma_hit``, ``max_distance``, ``max_beams``, ``laser_model``, ``laser_pose``) fill
-    its ``BeamModel``.
-
-    Raises TypeError for an unknown name.
+    Raises TypeError for an unknown name, ValueError for values ``FilterParams`` or
+    ``BeamModel`` refuse.
     """
     beam_names = {f.name for f in fields(BeamModel)}
-    beam_args = {k: v for k, v in model_params.items() if k in beam_names}
-    filter_args = {k: v for k, v in model_params.items() if k not in beam_names}
-    return FilterParams(**filter_args, beams=BeamModel(**beam_args))
+    beam_args = {k: v for k, v in overrides.items() if k in beam_names}
+    filter_args = {k: v for k, v in overrides.items() if k not in beam_names}
+    return replace(base, **filter_args, beams=replace(base.beams, **beam_args))
 
 
 def odometry_delta(before: Pose, after: Pose) -> Pose:
     """The motion from odometry pose ``before`` to ``after`` in the robot frame at
     ``before``: ``(forward, left, turn)``, what ``predict`` takes."""
-    dx, dy = after[0] - before[0], after[1] - before[1]
-    c, s = math.cos(before[2]), math.sin(before[2])
-    return c * dx + s * dy, -s * dx + c * dy, _wrap(after[2] - before[2])
+    return relative(before, after)
 
 
 class ParticleFilter:
     """Monte Carlo localisation on ``grid`` (the current sub-map: int8, row 0 = bottom,
     cell (0, 0)'s corner at ``origin``, ``resolution`` m per cell).
 
-    It starts with no particles: call ``reset`` (from a tag) or ``reset_uniform``.
-    ``particles`` is how many a Gaussian reset draws; a uniform reset draws
-    ``max_particles``; resampling keeps the count within ``[min_particles,
-    max_particles]``. ``model_params`` are ``FilterParams`` names (see ``params_from``).
+    It starts with no particles: call ``reset`` (from a tag) or ``reset_uniform``. Its
+    settings are ``params`` (the defaults of ``FilterParams`` without) with ``overrides``
+    (see ``params_from``), which also says what is raised for bad ones.
     """
 
     def __init__(
@@ -108,18 +91,12 @@ class ParticleFilter:
         grid: Grid,
         resolution: float,
         origin: tuple[float, float, float],
+        params: FilterParams | None = None,
         *,
-        particles: int = 500,
-        min_particles: int = 100,
-        max_particles: int = 5000,
         seed: int | None = None,
-        **model_params: Any,
+        **overrides: Any,
     ) -> None:
-        if not 0 < min_particles <= particles <= max_particles:
-            raise ValueError("particle counts must satisfy 0 < min <= particles <= max")
-        self.params = params_from(model_params)
-        self.initial_count = particles
-        self.min_particles, self.max_particles = min_particles, max_particles
+        self.params = params_from(params or FilterParams(), overrides)
         self.rng = np.random.default_rng(seed)
         self.field = LikelihoodField(grid, resolution, origin, self.params.beams)
         self._anchor: Floats = _NO_POSES  # particles at the last update
@@ -129,7 +106,7 @@ class ParticleFilter:
 
     # --- initialisation ----------------------------------------------------------------
 
-    def reset(self, pose: tuple[float, float, float], covariance: NDArray[np.float64]) -> None:
+    def reset(self, pose: Pose, covariance: NDArray[np.float64]) -> None:
         """Draw ``particles`` poses from a Gaussian at ``pose`` with the 3x3 ``covariance``
         (x, y, yaw): an initial pose from a tag or an operator.
 
@@ -139,14 +116,15 @@ class ParticleFilter:
         if covariance.shape != (3, 3):
             raise ValueError("the covariance is 3x3 over x, y, yaw")
         mean = np.asarray(pose, np.float64)
-        drawn = self.rng.multivariate_normal(mean, covariance, self.initial_count, method="eigh")
-        drawn[:, 2] = _wrap_array(drawn[:, 2])
+        count = self.params.particles
+        drawn = self.rng.multivariate_normal(mean, covariance, count, method="eigh")
+        drawn[:, 2] = wrap(drawn[:, 2])
         self._start(drawn)
 
     def reset_uniform(self) -> None:
         """Spread ``max_particles`` poses over the map's free cells with any heading
         (global localisation). Raises ValueError when the map has no free cell."""
-        self._start(self.field.free_poses(self.max_particles, self.rng))
+        self._start(self.field.free_poses(self.params.max_particles, self.rng))
 
     def _start(self, poses: Floats) -> None:
         self._anchor, self._poses = poses, poses.copy()
@@ -155,11 +133,11 @@ class ParticleFilter:
 
     # --- motion ------------------------------------------------------------------------
 
-    def predict(self, odom_delta: tuple[float, float, float]) -> None:
+    def predict(self, odom_delta: Pose) -> None:
         """Move every particle by ``odom_delta`` = ``(forward, left, turn)``, the odometry
         motion in the robot frame at its start (``odometry_delta`` computes it from two
         odometry poses). The noise of the motion model is applied at the next update."""
-        self._travel = _compose(self._travel, odom_delta)
+        self._travel = compose(self._travel, odom_delta)
         if len(self._anchor):
             self._poses = _moved(self._anchor, *_odometry_steps(self._travel))
 
@@ -173,8 +151,8 @@ class ParticleFilter:
         rot1, trans, rot2 = _odometry_steps(self._travel)
         # Backing up is not turning round: measure turns against the nearer of the two
         # directions of travel, as AMCL does.
-        rot1_noise = min(abs(rot1), abs(_wrap(rot1 - math.pi)))
-        rot2_noise = min(abs(rot2), abs(_wrap(rot2 - math.pi)))
+        rot1_noise = min(abs(rot1), abs(wrap(rot1 - math.pi)))
+        rot2_noise = min(abs(rot2), abs(wrap(rot2 - math.pi)))
         p, n = self.params, len(self._anchor)
         sigma_rot1 = math.sqrt(p.alpha1 * rot1_noise**2 + p.alpha2 * trans**2)
         sigma_trans = math.sqrt(p.alpha3 * trans**2 + p.alpha4 * (rot1_noise**2 + rot2_noise**2))
@@ -222,9 +200,9 @@ class ParticleFilter:
     def _resample(self) -> None:
         """KLD-sampling: draw up to ``max_particles`` from the weights and keep the
         shortest prefix that the KLD bound allows."""
-        drawn = self._poses[self._draw(self.max_particles)]
         p = self.params
-        keep = kld_count(drawn, self.min_particles, self.max_particles, p.kld_err, p.kld_z)
+        drawn = self._poses[self._draw(p.max_particles)]
+        keep = kld_count(drawn, p.min_particles, p.max_particles, p.kld_err, p.kld_z)
         self._poses = drawn[:keep]
         self._weights = np.full(keep, 1.0 / keep)
 
@@ -237,7 +215,7 @@ class ParticleFilter:
 
     # --- estimate ----------------------------------------------------------------------
 
-    def pose(self) -> tuple[float, float, float]:
+    def pose(self) -> Pose:
         """Weighted mean pose (circular mean for yaw). Raises NotLocalisedError."""
         poses, w = self._current()
         yaw = math.atan2(float(w @ np.sin(poses[:, 2])), float(w @ np.cos(poses[:, 2])))
@@ -249,7 +227,7 @@ class ParticleFilter:
         poses, w = self._current()
         mean = self.pose()
         deviation = poses - np.asarray(mean)
-        deviation[:, 2] = _wrap_array(deviation[:, 2])
+        deviation[:, 2] = wrap(deviation[:, 2])
         return np.asarray((deviation * w[:, None]).T @ deviation, np.float64)
 
     def particles(self) -> NDArray[np.float64]:
@@ -322,7 +300,7 @@ def _odometry_steps(travel: Pose) -> tuple[float, float, float]:
     forward, left, turn = travel
     trans = math.hypot(forward, left)
     rot1 = math.atan2(left, forward) if trans >= _STILL else 0.0
-    return rot1, trans, _wrap(turn - rot1)
+    return rot1, trans, wrap(turn - rot1)
 
 
 def _moved(
@@ -333,20 +311,5 @@ def _moved(
     moved = np.empty_like(poses)
     moved[:, 0] = poses[:, 0] + trans * np.cos(heading)
     moved[:, 1] = poses[:, 1] + trans * np.sin(heading)
-    moved[:, 2] = _wrap_array(heading + rot2)
+    moved[:, 2] = wrap(heading + rot2)
     return moved
-
-
-def _compose(a: Pose, b: Pose) -> Pose:
-    """Pose ``b`` (relative to ``a``'s frame) after pose ``a``."""
-    c, s = math.cos(a[2]), math.sin(a[2])
-    return a[0] + c * b[0] - s * b[1], a[1] + s * b[0] + c * b[1], _wrap(a[2] + b[2])
-
-
-def _wrap(angle: float) -> float:
-    """``angle`` in [-pi, pi)."""
-    return (angle + math.pi) % (2 * math.pi) - math.pi
-
-
-def _wrap_array(angles: Floats) -> Floats:
-    return np.asarray((angles + math.pi) % (2 * math.pi) - math.pi, np.float64)

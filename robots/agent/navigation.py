@@ -17,6 +17,9 @@
 
 Frames: targets, paths and the pose estimate share the frame of the current sub-map
 (the building's); obstacles and the controller's trajectories are in the robot's frame.
+
+Settings: the body's limits and radius, the planner's margin and the controller's tuning
+all come from the robot's ``RobotConfig`` (``robots.domain.params``).
 """
 
 from __future__ import annotations
@@ -30,22 +33,12 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from maps.domain.planning import OutOfMapError, PlanningError, plan_on
-from robots.agent.messages import GoalStatus, StatusEntry
-from robots.agent.supervisor import (
-    SEARCH_RATE,
-    Destination,
-    Leg,
-    LegKind,
-    MapsSupervisor,
-    SubMap,
-    compose,
-    inverse,
-    wrap,
-)
+from maps.domain.planning import Costmap, OutOfMapError, PlanningError, plan_on
+from robots.agent.supervisor import SEARCH_RATE, Destination, Leg, LegKind, MapsSupervisor, SubMap
+from robots.domain.params import RobotConfig
+from robots.domain.se2 import Point, Pose, compose, inverse, transform, wrap
+from telemetry.domain.messages import GoalStatus, StatusEntry
 
-Pose = tuple[float, float, float]
-Point = tuple[float, float]
 Command = tuple[float, float]
 Floats = NDArray[np.float64]
 
@@ -64,27 +57,6 @@ LOOK_AHEAD = 2.0
 """Metres of path checked against the laser's returns each tick."""
 REPLAN_INTERVAL = 1.0
 """Seconds between plans made because the path ahead runs into something seen."""
-
-
-@dataclass(frozen=True)
-class ControllerConfig:
-    """The robot's limits (a TurtleBot-class base, as the simulated body) and the
-    controller's tuning."""
-
-    max_linear: float = 0.5
-    max_angular: float = 1.5
-    linear_accel: float = 1.0
-    angular_accel: float = 4.0
-    radius: float = 0.18
-    safety: float = 0.04  # metres of clearance a trajectory keeps beyond the radius
-    period: float = 0.1  # seconds between commands
-    horizon: float = 1.6  # seconds each trajectory is simulated for
-    linear_samples: int = 9
-    angular_samples: int = 25
-    lookahead: float = 0.8  # metres along the path to the carrot
-    xy_tolerance: float = 0.08
-    yaw_tolerance: float = 0.08
-    turn_in_place: float = 0.9  # radians off the carrot beyond which the robot turns first
 
 
 # --- goals -----------------------------------------------------------------------------
@@ -207,9 +179,9 @@ class DynamicWindow:
     admissible once it is that near, so it cannot creep closer tick by tick.
     """
 
-    def __init__(self, config: ControllerConfig) -> None:
+    def __init__(self, config: RobotConfig) -> None:
         self.config = config
-        steps = round(config.horizon / config.period)
+        steps = round(config.controller.horizon / config.period)
         self._times = np.arange(1, steps + 1) * config.period
 
     def choose(
@@ -221,7 +193,7 @@ class DynamicWindow:
         along = obstacles.clearance(xs, ys)
         clear = along.min(axis=1)
         here = float(obstacles.clearance(np.zeros(1), np.zeros(1))[0])
-        needed = self.config.radius + self.config.safety
+        needed = self.config.body.radius + self.config.controller.safety
         # Already too near: leave, along arcs that come no nearer (one cell of slack for
         # the grid's steps) and end farther away.
         admissible = (clear >= needed) | (
@@ -236,13 +208,13 @@ class DynamicWindow:
 
     def _samples(self, velocity: Command, speed_cap: float) -> tuple[Floats, Floats]:
         """Linear and angular velocities of every sample (flattened grid)."""
-        cfg, (v0, w0) = self.config, velocity
-        top = min(cfg.max_linear, speed_cap, v0 + cfg.linear_accel * cfg.period)
-        bottom = min(max(0.0, v0 - cfg.linear_accel * cfg.period), top)
-        w_low = max(-cfg.max_angular, w0 - cfg.angular_accel * cfg.period)
-        w_high = min(cfg.max_angular, w0 + cfg.angular_accel * cfg.period)
-        linear = np.linspace(bottom, top, cfg.linear_samples)
-        angular = np.linspace(w_low, w_high, cfg.angular_samples)
+        body, period, (v0, w0) = self.config.body, self.config.period, velocity
+        top = min(body.max_linear, speed_cap, v0 + body.linear_accel * period)
+        bottom = min(max(0.0, v0 - body.linear_accel * period), top)
+        w_low = max(-body.max_angular, w0 - body.angular_accel * period)
+        w_high = min(body.max_angular, w0 + body.angular_accel * period)
+        linear = np.linspace(bottom, top, self.config.controller.linear_samples)
+        angular = np.linspace(w_low, w_high, self.config.controller.angular_samples)
         grid_v, grid_w = np.meshgrid(linear, angular, indexing="ij")
         return grid_v.ravel(), grid_w.ravel()
 
@@ -269,7 +241,7 @@ class DynamicWindow:
 
     def _turn_toward(self, carrot: Point) -> Command:
         bearing = math.atan2(carrot[1], carrot[0])
-        return 0.0, _clamp(1.5 * bearing, self.config.max_angular)
+        return 0.0, _clamp(1.5 * bearing, self.config.body.max_angular)
 
 
 # --- driving one leg -------------------------------------------------------------------
@@ -307,8 +279,9 @@ class Driver:
     path: the controller still keeps clear of what the laser sees.
     """
 
-    def __init__(self, config: ControllerConfig | None = None) -> None:
-        self.config = config or ControllerConfig()
+    def __init__(self, config: RobotConfig | None = None) -> None:
+        self.config = config or RobotConfig()
+        self.tuning = self.config.controller
         self.controller = DynamicWindow(self.config)
         self.path: list[Point] = []
         self.plan_version = 0
@@ -341,9 +314,9 @@ class Driver:
                 return Drive(STOP, DriveState.FAILED, failure)
         distance = math.dist(pose[:2], target[:2])
         # Hysteresis: once there, small drifts while turning do not restart the approach.
-        if distance <= self.config.xy_tolerance:
+        if distance <= self.tuning.xy_tolerance:
             self._aligning = True
-        elif distance > 3 * self.config.xy_tolerance:
+        elif distance > 3 * self.tuning.xy_tolerance:
             self._aligning = False
         if self._aligning:
             return self._align(pose, target)
@@ -378,7 +351,7 @@ class Driver:
         self._progress.since = self._progress.planned_at = seconds
         path = [pose[:2], target[:2]]
         if submap is not None:
-            costmap = submap.costmap if obstacles is None else submap.costmap_with(obstacles)
+            costmap = self._costmap(submap, obstacles)
             try:
                 path = [*plan_on(costmap, pose[:2], target[:2])[:-1], target[:2]]
             except OutOfMapError as error:
@@ -390,6 +363,13 @@ class Driver:
         self.path = path
         self.plan_version += 1
         return ""
+
+    def _costmap(self, submap: SubMap, obstacles: Floats | None) -> Costmap:
+        """``submap`` inflated for this robot, with ``obstacles`` (map-frame points) added."""
+        radius, planner = self.config.planning_radius, self.config.planner
+        if obstacles is None:
+            return submap.costmap(radius, planner)
+        return submap.costmap_with(obstacles, radius, planner)
 
     # --- following -----------------------------------------------------------------------
 
@@ -409,11 +389,11 @@ class Driver:
             carrot = self._carrot(pose)
         local = compose(inverse(pose), (*carrot, 0.0))
         bearing = math.atan2(local[1], local[0])
-        if abs(bearing) > self.config.turn_in_place:
+        if abs(bearing) > self.tuning.turn_in_place:
             command = (0.0, _clamp(1.5 * bearing, 1.0))
         else:
             # Slow enough to stop at the target within the braking limit, with a margin.
-            cap = math.sqrt(2 * self.config.linear_accel * distance) * 0.7
+            cap = math.sqrt(2 * self.config.body.linear_accel * distance) * 0.7
             choice = self.controller.choose(velocity, (local[0], local[1]), obstacles, cap)
             self._note_blocked(choice.blocked, seconds)
             command = choice.command
@@ -454,7 +434,7 @@ class Driver:
         ]
         local = np.array([compose(inverse(pose), (x, y, 0.0))[:2] for x, y in ahead])
         clear = obstacles.clearance(local[:, 0], local[:, 1])
-        return bool((clear < self.config.radius + self.config.safety).any())
+        return bool((clear < self.config.body.radius + self.tuning.safety).any())
 
     def _note_blocked(self, blocked: bool, seconds: float) -> None:
         progress = self._progress
@@ -473,12 +453,12 @@ class Driver:
             if distance < best_distance - 1e-9:
                 best, best_distance = index, distance
         self._index = best
-        return _along(path, best, pose[:2], self.config.lookahead)
+        return _along(path, best, pose[:2], self.tuning.lookahead)
 
     def _align(self, pose: Pose, target: Pose) -> Drive:
         """At the target: turn on the spot to its heading, then report arrival."""
         error = wrap(target[2] - pose[2])
-        if abs(error) <= self.config.yaw_tolerance:
+        if abs(error) <= self.tuning.yaw_tolerance:
             return Drive(STOP, DriveState.ARRIVED)
         return Drive((0.0, _clamp(2.0 * error, 1.0)))
 
@@ -486,9 +466,7 @@ class Driver:
 def _in_map_frame(points: Floats, pose: Pose) -> Floats:
     """Robot-frame ``points`` within ``MARK_RANGE``, in the map frame."""
     near = points[np.hypot(points[:, 0], points[:, 1]) <= MARK_RANGE]
-    c, s = math.cos(pose[2]), math.sin(pose[2])
-    x, y = near[:, 0], near[:, 1]
-    return np.stack([pose[0] + c * x - s * y, pose[1] + s * x + c * y], 1)
+    return transform(pose, near)
 
 
 def _segment_distance(p: Point, a: Point, b: Point) -> float:
@@ -529,7 +507,7 @@ class Navigator:
     """The robot's navigation: goals from ``/r/goal``, legs from the supervisor, commands
     from the driver, statuses on the board."""
 
-    def __init__(self, supervisor: MapsSupervisor, config: ControllerConfig | None = None) -> None:
+    def __init__(self, supervisor: MapsSupervisor, config: RobotConfig | None = None) -> None:
         self.supervisor = supervisor
         self.driver = Driver(config)
         self.board = GoalBoard()

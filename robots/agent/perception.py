@@ -56,6 +56,7 @@ from maps.domain.tagart import DEFAULT_DICTIONARY, DEFAULT_SIZE, QUIET_ZONE, aru
 from maps.domain.tagart import qr_offset as tag_qr_offset
 from maps.domain.tagpayload import TagPayload, parse_payload
 from maps.exceptions import TagPayloadError
+from robots.domain.se2 import Pose, angle_between
 
 Image = NDArray[np.uint8]
 Matrix = NDArray[np.float64]
@@ -138,7 +139,7 @@ class TagDetection:
         to_camera = -self.translation / max(self.distance, 1e-9)
         return float(math.acos(np.clip(self.rotation[:, 2] @ to_camera, -1.0, 1.0)))
 
-    def base_pose(self) -> tuple[float, float, float]:
+    def base_pose(self) -> Pose:
         """The marker's ``(x, y, yaw)`` on the floor plane of the robot base frame."""
         return self.base_x, self.base_y, self.relative_yaw
 
@@ -230,7 +231,7 @@ class TagDetector:
             base_x=float(centre[0]),
             base_y=float(centre[1]),
             relative_yaw=yaw,
-            ambiguity=0.0 if rival is None else _angle_between(yaw, self._relative_yaw(rival[0])),
+            ambiguity=0.0 if rival is None else angle_between(yaw, self._relative_yaw(rival[0])),
         )
 
     def _relative_yaw(self, rotation: Matrix) -> float:
@@ -473,11 +474,6 @@ def _ambiguous(solutions: Sequence[Solution]) -> Solution | None:
     if len(solutions) < 2 or solutions[1][2] > AMBIGUITY_RATIO * max(solutions[0][2], 1e-3):
         return None
     return solutions[1]
-
-
-def _angle_between(first: float, second: float) -> float:
-    """Absolute difference of two angles, radians in [0, pi]."""
-    return abs((first - second + math.pi) % (2 * math.pi) - math.pi)
 
 
 def _upright_solutions(

@@ -28,6 +28,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from robots.agent.perception import TagDetection
+from robots.domain.se2 import Pose, wrap
+from telemetry.domain.messages import covariance_6x6
 
 Covariance = NDArray[np.float64]
 
@@ -84,15 +86,12 @@ class PoseEstimate:
     def ros_covariance(self) -> list[float]:
         """Row-major 6x6 covariance (x, y, z, roll, pitch, yaw) of
         ``geometry_msgs/PoseWithCovariance``; z, roll and pitch are fixed (zero)."""
-        full = np.zeros((6, 6))
-        index = [0, 1, 5]
-        full[np.ix_(index, index)] = self.covariance
-        return [float(v) for v in full.ravel()]
+        return covariance_6x6(self.covariance)
 
 
 def robot_pose_from_tag(
     tag: StoredTagPose,
-    seen: tuple[float, float, float],
+    seen: Pose,
     view_angle: float,
     model: TagNoiseModel | None = None,
     ambiguity: float = 0.0,
@@ -105,7 +104,7 @@ def robot_pose_from_tag(
     """
     model = model or TagNoiseModel()
     bx, by, psi = seen
-    theta = _wrap(tag.yaw - psi)
+    theta = wrap(tag.yaw - psi)
     rotation = _rotation(theta)
     rx, ry = np.array([tag.x, tag.y]) - rotation @ np.array([bx, by])
     covariance = _propagated(model, seen, theta, (view_angle, ambiguity))
@@ -123,7 +122,7 @@ def relocalise(
 
 def _propagated(
     model: TagNoiseModel,
-    seen: tuple[float, float, float],
+    seen: Pose,
     theta: float,
     view: tuple[float, float],
 ) -> Covariance:
@@ -165,8 +164,3 @@ def _rotation(angle: float) -> NDArray[np.float64]:
 def _rotation_derivative(angle: float) -> NDArray[np.float64]:
     c, s = math.cos(angle), math.sin(angle)
     return np.array([[-s, -c], [c, -s]])
-
-
-def _wrap(angle: float) -> float:
-    """``angle`` in [-pi, pi)."""
-    return (angle + math.pi) % (2 * math.pi) - math.pi

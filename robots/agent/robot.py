@@ -33,7 +33,7 @@ import logging
 import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import replace
 from typing import Any, Protocol
 
 import numpy as np
@@ -41,9 +41,19 @@ from numpy.typing import NDArray
 
 from robots.agent.client import RosbridgeClient
 from robots.agent.localisation import ParticleFilter, odometry_delta
-from robots.agent.messages import (
-    CANCEL_SERVICE,
-    CANCEL_SERVICE_TYPE,
+from robots.agent.navigation import LocalObstacles, Navigator
+from robots.agent.perception import CameraModel, TagDetection, TagDetector
+from robots.agent.relocalise import PoseEstimate
+from robots.agent.sim.body import DiffDriveBody
+from robots.agent.sim.camera import Camera, compressed_image_message, encode_jpeg
+from robots.agent.sim.laser import Laser, LaserSpec
+from robots.agent.sim.world import World
+from robots.agent.supervisor import BundleError, MapsSupervisor, SubMap
+from robots.domain.params import BodyLimits, FilterParams, RobotConfig
+from robots.domain.se2 import Pose, compose, inverse
+from telemetry.domain.messages import (
+    Json,
+    Message,
     goal_of,
     initial_pose_of,
     path_message,
@@ -52,48 +62,25 @@ from robots.agent.messages import (
     string_message,
     twist_of,
 )
-from robots.agent.navigation import ControllerConfig, LocalObstacles, Navigator
-from robots.agent.perception import CameraModel, TagDetection, TagDetector
-from robots.agent.relocalise import PoseEstimate
-from robots.agent.sim.body import DiffDriveBody
-from robots.agent.sim.camera import Camera, compressed_image_message, encode_jpeg
-from robots.agent.sim.laser import Laser, LaserSpec
-from robots.agent.sim.messages import Json
-from robots.agent.sim.world import World
-from robots.agent.supervisor import BundleError, MapsSupervisor, SubMap, compose, inverse
-from telemetry.domain.names import ROBOT_TOPIC_TYPES
+from telemetry.domain.names import CANCEL_GOAL, ROBOT_SERVICE_TYPES, ROBOT_TOPIC_TYPES
 
 logger = logging.getLogger(__name__)
 
-Pose = tuple[float, float, float]
-
 TELEOP_HOLD = 0.5
 """Seconds after a ``cmd_vel`` during which navigation leaves the body alone."""
-
-
-@dataclass(frozen=True)
-class RobotConfig:
-    """Rates (Hz, simulated time) and options of one robot."""
-
-    period: float = 0.1  # control period: body, laser, controller
-    pose_rate: float = 10.0
-    odom_rate: float = 10.0
-    scan_rate: float = 5.0
-    camera_rate: float = 5.0  # JPEG frames published
-    detect_rate: float = 5.0  # frames the tag detector looks at
-    status_rate: float = 1.0
-    jpeg_quality: int = 80
-    controller: ControllerConfig = field(default_factory=ControllerConfig)
 
 
 # --- the simulated hardware ------------------------------------------------------------
 
 
 class SimHardware:
-    """The body, laser and camera of one robot in ``world``, starting at ``pose``."""
+    """The body, laser and camera of one robot in ``world``, starting at ``pose``; the
+    body moves within ``limits`` (the default robot's without)."""
 
-    def __init__(self, world: World, pose: Pose, seed: int = 0) -> None:
-        self.body = DiffDriveBody(world, pose, seed=seed)
+    def __init__(
+        self, world: World, pose: Pose, seed: int = 0, limits: BodyLimits | None = None
+    ) -> None:
+        self.body = DiffDriveBody(world, pose, limits=limits, seed=seed)
         self.laser = Laser(world, LaserSpec(), seed=seed + 1)
         self.camera = Camera(world, CameraModel(), seed=seed + 2)
         self.scan_angles = self.laser.spec.angles()
@@ -135,7 +122,7 @@ class Localiser(Protocol):
 
     def reset(self, pose: Pose, covariance: NDArray[np.float64]) -> None: ...
     def predict(self, odom_delta: Pose) -> None: ...
-    def update(self, scan: Json) -> bool: ...
+    def update(self, scan: Message) -> bool: ...
     def pose(self) -> Pose: ...
     def set_map(self, grid: Any, resolution: float, origin: Pose) -> None: ...
 
@@ -143,21 +130,19 @@ class Localiser(Protocol):
 LocaliserFactory = Callable[[SubMap], Localiser]
 
 
-def particle_filter(particles: int, seed: int | None = None) -> LocaliserFactory | None:
-    """A factory of AMCL-like filters of ``particles`` particles (None for 0: odometry
-    and tags only)."""
+def particle_filter(
+    particles: int, seed: int | None = None, params: FilterParams | None = None
+) -> LocaliserFactory | None:
+    """A factory of AMCL-like filters with ``params`` (the default robot's without) but
+    ``particles`` particles (None for 0: odometry and tags only)."""
     if particles <= 0:
         return None
+    base = params or FilterParams()
+    fewest = min(base.min_particles, particles)
+    chosen = replace(base, particles=particles, min_particles=fewest)
 
     def make(submap: SubMap) -> Localiser:
-        return ParticleFilter(
-            submap.grid,
-            submap.resolution,
-            submap.origin,
-            particles=particles,
-            min_particles=min(100, particles),
-            seed=seed,
-        )
+        return ParticleFilter(submap.grid, submap.resolution, submap.origin, chosen, seed=seed)
 
     return make
 
@@ -220,7 +205,10 @@ class PoseTracker:
 
 
 class Publisher(Protocol):
-    async def publish(self, topic: str, msg: Json) -> bool: ...
+    """Where the robot's messages go: the rosbridge client (a recorder, in tests). ``msg``
+    is a message of ``telemetry.domain.messages``."""
+
+    async def publish(self, topic: str, msg: Any) -> bool: ...
 
 
 class Robot:
@@ -240,7 +228,7 @@ class Robot:
         self.tracker = tracker
         self.publisher = publisher
         self.config = config or RobotConfig()
-        self.navigator = Navigator(supervisor, self.config.controller)
+        self.navigator = Navigator(supervisor, self.config)
         self.detector = TagDetector(hardware.camera.model)
         self.epoch = time.time() if epoch is None else epoch
         self.seconds = 0.0
@@ -422,4 +410,4 @@ def declare(robot: Robot, client: RosbridgeClient) -> None:
     client.subscribe("cmd_vel", ROBOT_TOPIC_TYPES["cmd_vel"], robot.on_cmd_vel)
     client.subscribe("goal", ROBOT_TOPIC_TYPES["goal"], robot.on_goal)
     client.subscribe("initialpose", ROBOT_TOPIC_TYPES["initialpose"], robot.on_initial_pose)
-    client.advertise_service(CANCEL_SERVICE, CANCEL_SERVICE_TYPE, robot.on_cancel)
+    client.advertise_service(CANCEL_GOAL, ROBOT_SERVICE_TYPES[CANCEL_GOAL], robot.on_cancel)

@@ -53,7 +53,6 @@ import math
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from enum import Enum
-from functools import cached_property
 from typing import Any, Protocol
 
 import httpx
@@ -66,18 +65,15 @@ from maps.domain.topology import Edge, RouteStep, TagLink, route_between
 from maps.exceptions import MapStoreError
 from robots.agent.perception import TagDetection
 from robots.agent.relocalise import PoseEstimate, relocalise
+from robots.domain.params import PlannerConfig
+from robots.domain.se2 import Pose, ahead, compose, inverse, wrap
 
 logger = logging.getLogger(__name__)
 
-Pose = tuple[float, float, float]
 Grid = NDArray[np.int8]
 
 APPROACH = 0.5
 """Metres in front of a tag where the robot stops to read its QR code."""
-PLANNING_RADIUS = 0.25
-"""Metres: the robot's radius (0.18 m) and a margin, for the global planner."""
-PLANNING_GRADIENT = 0.35
-"""Metres beyond the radius over which paths pay to pass near walls."""
 SIGHTING_MEMORY = 1.5
 """Seconds a marker sighting steers a lost robot's approach after it was made."""
 SIGHTING_RANGE = 2.0
@@ -132,33 +128,41 @@ class SubMap:
     tags: Mapping[int, StoredTag]
     nodes: tuple[str, ...]
     edges: tuple[Edge, ...]
+    _costmaps: dict[tuple[float, PlannerConfig], Costmap] = field(
+        default_factory=dict, init=False, repr=False
+    )
 
     @property
     def map_id(self) -> str:
         return f"{self.building}/{self.code}"
 
-    @cached_property
-    def costmap(self) -> Costmap:
-        """The grid inflated for planning, computed once per bundle version."""
-        return self._inflated(self.grid)
+    def costmap(self, radius: float, planner: PlannerConfig) -> Costmap:
+        """The grid inflated for a robot of ``radius`` (metres) by ``planner``, computed
+        once per bundle version."""
+        key = (radius, planner)
+        if key not in self._costmaps:
+            self._costmaps[key] = self._inflated(self.grid, radius, planner)
+        return self._costmaps[key]
 
-    def costmap_with(self, points: NDArray[np.float64]) -> Costmap:
+    def costmap_with(
+        self, points: NDArray[np.float64], radius: float, planner: PlannerConfig
+    ) -> Costmap:
         """The costmap with obstacles at ``points`` (map frame, shape (n, 2)) added."""
         grid = self.grid.copy()
         cols = np.floor((points[:, 0] - self.origin[0]) / self.resolution).astype(np.intp)
         rows = np.floor((points[:, 1] - self.origin[1]) / self.resolution).astype(np.intp)
         inside = (rows >= 0) & (rows < grid.shape[0]) & (cols >= 0) & (cols < grid.shape[1])
         grid[rows[inside], cols[inside]] = 100
-        return self._inflated(grid)
+        return self._inflated(grid, radius, planner)
 
-    def _inflated(self, grid: Grid) -> Costmap:
+    def _inflated(self, grid: Grid, radius: float, planner: PlannerConfig) -> Costmap:
         return inflate(
             grid,
-            PLANNING_RADIUS,
+            radius,
             self.resolution,
             origin=self.origin,
-            gradient_m=PLANNING_GRADIENT,
-            gradient_weight=2.0,
+            gradient_m=planner.gradient,
+            gradient_weight=planner.gradient_weight,
         )
 
 
@@ -180,9 +184,7 @@ def submap_from_bundle(document: Mapping[str, Any], etag: str) -> SubMap:
             origin=loaded.meta.origin,
             tags={int(t["marker_id"]): _stored_tag(t, code) for t in document["tags"]},
             nodes=tuple(str(node["code"]) for node in topology["nodes"]),
-            edges=tuple(
-                Edge(str(e["a"]), str(e["b"]), float(e["cost"])) for e in topology["edges"]
-            ),
+            edges=tuple(_edge(e) for e in topology["edges"]),
         )
     except (KeyError, TypeError, ValueError, AttributeError, binascii.Error) as error:
         raise BundleError(f"a bundle that cannot be read: {error!r}") from None
@@ -551,7 +553,7 @@ class MapsSupervisor:
         return close and seconds - sighting.seconds <= SIGHTING_MEMORY
 
 
-# --- geometry --------------------------------------------------------------------------
+# --- names and poses --------------------------------------------------------------------
 
 
 def _named(detection: TagDetection) -> str:
@@ -563,28 +565,10 @@ def _named(detection: TagDetection) -> str:
 def approach_pose(tag: Pose) -> Pose:
     """``APPROACH`` metres in front of a tag at ``tag`` (yaw = its outward normal),
     facing it."""
-    x, y, yaw = tag
-    return x + APPROACH * math.cos(yaw), y + APPROACH * math.sin(yaw), wrap(yaw + math.pi)
-
-
-def compose(a: Pose, b: Pose) -> Pose:
-    """Pose ``b`` (given in frame ``a``) in ``a``'s parent frame."""
-    c, s = math.cos(a[2]), math.sin(a[2])
-    return a[0] + c * b[0] - s * b[1], a[1] + s * b[0] + c * b[1], wrap(a[2] + b[2])
-
-
-def inverse(a: Pose) -> Pose:
-    """The pose of the parent frame seen from ``a``."""
-    c, s = math.cos(a[2]), math.sin(a[2])
-    return -c * a[0] - s * a[1], s * a[0] - c * a[1], wrap(-a[2])
+    return (*ahead(tag, APPROACH), wrap(tag[2] + math.pi))
 
 
 def to_frame(in_odom: Pose, pose: Pose, odom: Pose) -> Pose:
     """A pose known in the odometry frame, in the estimate's frame, given the estimate
     ``pose`` and odometry ``odom`` of the same instant."""
     return compose(pose, compose(inverse(odom), in_odom))
-
-
-def wrap(angle: float) -> float:
-    """``angle`` in [-pi, pi)."""
-    return (angle + math.pi) % (2 * math.pi) - math.pi

@@ -1,11 +1,229 @@
-"""The few message contents the server reads or writes itself."""
+"""ROS messages as rosbridge JSON: their schemas, the builders that write them, and the
+readers of the ones received. The server and the robot agent both use this module.
+
+Conventions (rosbridge's JSON): a time is ``{"sec", "nanosec"}`` (``telemetry.domain.times``
+adds ROS 1's ``secs/nsecs`` where the server writes for clients of both generations);
+``uint8[]`` fields are base64 text; NaN and infinity cannot be written in JSON and become
+``null``, so a ``LaserScan`` range with no return (REP 117's ``+inf``) is ``null``.
+
+Builders return the ``TypedDict`` of their message and take a stamp either as seconds
+(since the epoch, or of a simulated clock) or as a ready ``Time``. Readers take whatever
+arrived (an untrusted mapping) and return None for a message they cannot use: a bad
+message from the network must never stop a robot's loop or the server's relay.
+"""
 
 from __future__ import annotations
 
+import base64
 import math
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
+from enum import IntEnum
+from itertools import pairwise
+from typing import Any, NotRequired, TypedDict
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from robots.domain import se2
+
+NANOS = 1_000_000_000
+
+Json = dict[str, Any]
+"""A JSON object as a rosbridge client sends and receives it."""
+Message = Mapping[str, Any]
+"""Any ROS message in rosbridge JSON: what readers take and senders send."""
+
+
+# --- schemas ---------------------------------------------------------------------------
+
+
+class Time(TypedDict):
+    """``builtin_interfaces/Time`` (ROS 1's ``time`` spelled ``secs/nsecs`` too)."""
+
+    sec: int
+    nanosec: int
+    secs: NotRequired[int]
+    nsecs: NotRequired[int]
+
+
+class Header(TypedDict):
+    """``std_msgs/Header``."""
+
+    stamp: Time
+    frame_id: str
+
+
+class Vector3(TypedDict):
+    """``geometry_msgs/Vector3``; ``geometry_msgs/Point`` has the same fields."""
+
+    x: float
+    y: float
+    z: float
+
+
+Point = Vector3
+
+
+class Quaternion(TypedDict):
+    """``geometry_msgs/Quaternion``."""
+
+    x: float
+    y: float
+    z: float
+    w: float
+
+
+class Pose(TypedDict):
+    """``geometry_msgs/Pose``."""
+
+    position: Point
+    orientation: Quaternion
+
+
+class PoseStamped(TypedDict):
+    """``geometry_msgs/PoseStamped``: a robot's ``pose`` and an operator's ``goal``."""
+
+    header: Header
+    pose: Pose
+
+
+class PoseWithCovariance(TypedDict):
+    """``geometry_msgs/PoseWithCovariance``: ``covariance`` is row-major 6x6 over (x, y,
+    z, roll, pitch, yaw)."""
+
+    pose: Pose
+    covariance: list[float]
+
+
+class PoseWithCovarianceStamped(TypedDict):
+    """``geometry_msgs/PoseWithCovarianceStamped``: an operator's ``initialpose``."""
+
+    header: Header
+    pose: PoseWithCovariance
+
+
+class Twist(TypedDict):
+    """``geometry_msgs/Twist``: ``cmd_vel``."""
+
+    linear: Vector3
+    angular: Vector3
+
+
+class TwistWithCovariance(TypedDict):
+    """``geometry_msgs/TwistWithCovariance`` (covariance as ``PoseWithCovariance``'s)."""
+
+    twist: Twist
+    covariance: list[float]
+
+
+class Odometry(TypedDict):
+    """``nav_msgs/Odometry``: ``odom``."""
+
+    header: Header
+    child_frame_id: str
+    pose: PoseWithCovariance
+    twist: TwistWithCovariance
+
+
+class LaserScan(TypedDict):
+    """``sensor_msgs/LaserScan``: ``scan``; a range without a return is ``None``."""
+
+    header: Header
+    angle_min: float
+    angle_max: float
+    angle_increment: float
+    time_increment: float
+    scan_time: float
+    range_min: float
+    range_max: float
+    ranges: list[float | None]
+    intensities: list[float]
+
+
+class Path(TypedDict):
+    """``nav_msgs/Path``: ``plan``, and the cloud's ``plan_path`` answer."""
+
+    header: Header
+    poses: list[PoseStamped]
+
+
+class GoalID(TypedDict):
+    """``actionlib_msgs/GoalID``."""
+
+    stamp: Time
+    id: str
+
+
+class GoalStatusMsg(TypedDict):
+    """``actionlib_msgs/GoalStatus`` (its ``status`` values are ``GoalStatus``)."""
+
+    goal_id: GoalID
+    status: int
+    text: str
+
+
+class GoalStatusArray(TypedDict):
+    """``actionlib_msgs/GoalStatusArray``: ``nav_status``."""
+
+    header: Header
+    status_list: list[GoalStatusMsg]
+
+
+class String(TypedDict):
+    """``std_msgs/String``: ``map_id``."""
+
+    data: str
+
+
+class CompressedImage(TypedDict):
+    """``sensor_msgs/CompressedImage``: ``camera/image/compressed``; ``data`` in base64."""
+
+    header: Header
+    format: str
+    data: str
+
+
+class GoalStatus(IntEnum):
+    """``actionlib_msgs/GoalStatus`` values."""
+
+    PENDING = 0
+    ACTIVE = 1
+    PREEMPTED = 2
+    SUCCEEDED = 3
+    ABORTED = 4
+    REJECTED = 5
+    PREEMPTING = 6
+    RECALLING = 7
+    RECALLED = 8
+    LOST = 9
+
+    @property
+    def terminal(self) -> bool:
+        """Whether a goal in this state is finished for good."""
+        return self in _TERMINAL
+
+
+_TERMINAL = frozenset(
+    {
+        GoalStatus.PREEMPTED,
+        GoalStatus.SUCCEEDED,
+        GoalStatus.ABORTED,
+        GoalStatus.REJECTED,
+        GoalStatus.RECALLED,
+        GoalStatus.LOST,
+    }
+)
+
+
+@dataclass(frozen=True)
+class StatusEntry:
+    """One goal's line in a ``GoalStatusArray``."""
+
+    goal_id: str
+    stamp: float
+    status: GoalStatus
+    text: str = ""
 
 
 @dataclass(frozen=True, slots=True)
@@ -18,13 +236,175 @@ class Pose2D:
     yaw: float
 
 
+Stamp = float | Time
+"""Seconds (since the epoch, or of a simulated clock), or a ready ``Time``."""
+
+
+# --- builders --------------------------------------------------------------------------
+
+
+def ros_time(seconds: float) -> Time:
+    """``builtin_interfaces/Time`` of ``seconds``, to the nearest nanosecond (the whole
+    and fractional parts are taken apart first: an epoch time in nanoseconds is more
+    than a float holds exactly)."""
+    fraction, whole = math.modf(seconds)
+    sec, nanosec = divmod(round(fraction * NANOS), NANOS)
+    return {"sec": int(whole) + sec, "nanosec": nanosec}
+
+
+def header(frame_id: str, stamp: Stamp) -> Header:
+    """``std_msgs/Header``."""
+    return {"stamp": _time(stamp), "frame_id": frame_id}
+
+
+def _time(stamp: Stamp) -> Time:
+    return stamp if isinstance(stamp, dict) else ros_time(stamp)
+
+
+def quaternion_from_yaw(yaw: float) -> Quaternion:
+    """``geometry_msgs/Quaternion`` of a rotation by ``yaw`` about z."""
+    return {"x": 0.0, "y": 0.0, "z": math.sin(yaw / 2), "w": math.cos(yaw / 2)}
+
+
+def pose_2d(x: float, y: float, yaw: float) -> Pose:
+    """``geometry_msgs/Pose`` on the floor plane."""
+    return {"position": {"x": x, "y": y, "z": 0.0}, "orientation": quaternion_from_yaw(yaw)}
+
+
+def pose_stamped(frame_id: str, pose: se2.Pose, stamp: Stamp) -> PoseStamped:
+    """``geometry_msgs/PoseStamped`` of a planar ``pose`` in ``frame_id`` (a Map ID)."""
+    return {"header": header(frame_id, stamp), "pose": pose_2d(*pose)}
+
+
+def covariance_6x6(planar: ArrayLike) -> list[float]:
+    """Row-major 6x6 covariance over (x, y, z, roll, pitch, yaw) of a 3x3 one over (x, y,
+    yaw); z, roll and pitch are fixed (zero)."""
+    full = np.zeros((6, 6))
+    full[np.ix_(_PLANAR, _PLANAR)] = planar
+    return [float(v) for v in full.ravel()]
+
+
+_PLANAR = [0, 1, 5]
+"""Rows and columns of x, y and yaw in a 6x6 covariance."""
+
+
+def twist_2d(linear: float, angular: float) -> Twist:
+    """``geometry_msgs/Twist`` of a planar robot (``twist_2d(0.0, 0.0)`` stops it)."""
+    return {
+        "linear": {"x": linear, "y": 0.0, "z": 0.0},
+        "angular": {"x": 0.0, "y": 0.0, "z": angular},
+    }
+
+
+def odometry(
+    frame_id: str,
+    child_frame_id: str,
+    stamp: Stamp,
+    *,
+    pose: se2.Pose,
+    pose_covariance: ArrayLike,
+    velocity: tuple[float, float],
+    velocity_covariance: ArrayLike,
+) -> Odometry:
+    """``nav_msgs/Odometry``: ``pose`` in ``frame_id`` (``odom``), ``velocity`` ``(linear,
+    angular)`` in ``child_frame_id`` (the robot's base), each with a 3x3 covariance over
+    (x, y, yaw)."""
+    return {
+        "header": header(frame_id, stamp),
+        "child_frame_id": child_frame_id,
+        "pose": {"pose": pose_2d(*pose), "covariance": covariance_6x6(pose_covariance)},
+        "twist": {
+            "twist": twist_2d(*velocity),
+            "covariance": covariance_6x6(velocity_covariance),
+        },
+    }
+
+
+def laser_scan(
+    frame_id: str,
+    ranges: Iterable[float],
+    stamp: Stamp,
+    *,
+    angle_min: float,
+    angle_max: float,
+    angle_increment: float,
+    time_increment: float,
+    scan_time: float,
+    range_min: float,
+    range_max: float,
+) -> LaserScan:
+    """``sensor_msgs/LaserScan`` of ``ranges`` (metres); a range without a return
+    (``inf``, NaN) becomes ``None``."""
+    return {
+        "header": header(frame_id, stamp),
+        "angle_min": angle_min,
+        "angle_max": angle_max,
+        "angle_increment": angle_increment,
+        "time_increment": time_increment,
+        "scan_time": scan_time,
+        "range_min": range_min,
+        "range_max": range_max,
+        "ranges": [float(r) if math.isfinite(r) else None for r in ranges],
+        "intensities": [],
+    }
+
+
+def path_of(frame_id: str, poses: Iterable[se2.Pose], stamp: Stamp) -> Path:
+    """``nav_msgs/Path`` of ``poses``, each stamped as the path."""
+    return {
+        "header": header(frame_id, stamp),
+        "poses": [pose_stamped(frame_id, pose, stamp) for pose in poses],
+    }
+
+
+def path_message(frame_id: str, points: Sequence[se2.Point], stamp: Stamp) -> Path:
+    """``nav_msgs/Path`` through ``points``, each pose facing the next point (the last
+    keeps its predecessor's heading); an empty path clears the plan."""
+    headings = [math.atan2(b[1] - a[1], b[0] - a[0]) for a, b in pairwise(points)]
+    if points:
+        headings.append(headings[-1] if headings else 0.0)
+    return path_of(frame_id, ((*p, yaw) for p, yaw in zip(points, headings, strict=True)), stamp)
+
+
+def status_array(entries: Iterable[StatusEntry], stamp: Stamp) -> GoalStatusArray:
+    """``actionlib_msgs/GoalStatusArray`` of ``entries``."""
+    return {
+        "header": header("", stamp),
+        "status_list": [
+            {
+                "goal_id": {"stamp": ros_time(e.stamp), "id": e.goal_id},
+                "status": int(e.status),
+                "text": e.text,
+            }
+            for e in entries
+        ],
+    }
+
+
+def string_message(data: str) -> String:
+    """``std_msgs/String``."""
+    return {"data": data}
+
+
+def compressed_image(frame_id: str, jpeg: bytes, stamp: Stamp) -> CompressedImage:
+    """``sensor_msgs/CompressedImage`` of ``jpeg`` (format ``jpeg``)."""
+    return {
+        "header": header(frame_id, stamp),
+        "format": "jpeg",
+        "data": base64.b64encode(jpeg).decode("ascii"),
+    }
+
+
+# --- readers ---------------------------------------------------------------------------
+
+
 def yaw_of(q: Mapping[str, Any]) -> float:
     """Return the rotation about z of a quaternion ``{x, y, z, w}``, in radians."""
     x, y, z, w = (float(q.get(k, 0.0) or 0.0) for k in ("x", "y", "z", "w"))
     return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
 
 
-def pose_of(msg: Mapping[str, Any]) -> Pose2D | None:
+def pose_of(msg: Message) -> Pose2D | None:
     """Return the planar pose in a ``geometry_msgs/PoseStamped``, or None if it has none."""
     try:
         pose = msg["pose"]
@@ -39,13 +419,60 @@ def pose_of(msg: Mapping[str, Any]) -> Pose2D | None:
         return None
 
 
-def string_of(msg: Mapping[str, Any]) -> str | None:
+def goal_of(msg: Message) -> Pose2D | None:
+    """The target of a goal ``PoseStamped`` (``map_id`` = its frame), or None if the
+    message has no usable pose or no frame."""
+    pose = pose_of(msg)
+    if pose is None or not pose.map_id or not _finite(pose.x, pose.y, pose.yaw):
+        return None
+    return pose
+
+
+def initial_pose_of(msg: Message) -> tuple[Pose2D, NDArray[np.float64]] | None:
+    """Pose and 3x3 covariance (x, y, yaw) of a ``PoseWithCovarianceStamped``; a missing
+    or unusable covariance becomes a small default. None without a pose and a frame."""
+    try:
+        inner = msg["pose"]
+        pose = goal_of({"header": msg.get("header", {}), "pose": inner["pose"]})
+    except (KeyError, TypeError, AttributeError):
+        return None
+    if pose is None:
+        return None
+    return pose, _planar_covariance(inner.get("covariance"))
+
+
+_DEFAULT_COVARIANCE = np.diag([0.25**2, 0.25**2, math.radians(15) ** 2])
+"""Used when an initial pose comes without a covariance (rviz sends this order too)."""
+
+
+def _planar_covariance(values: Any) -> NDArray[np.float64]:
+    """The (x, y, yaw) block of a row-major 6x6 covariance."""
+    try:
+        full = np.asarray(values, np.float64).reshape(6, 6)
+    except (TypeError, ValueError):
+        return _DEFAULT_COVARIANCE.copy()
+    planar = full[np.ix_(_PLANAR, _PLANAR)]
+    if not np.isfinite(planar).all() or np.any(np.diag(planar) <= 0):
+        return _DEFAULT_COVARIANCE.copy()
+    return planar
+
+
+def twist_of(msg: Message) -> tuple[float, float] | None:
+    """``(linear.x, angular.z)`` of a ``geometry_msgs/Twist``; None unless both are finite
+    numbers (a missing axis counts as 0)."""
+    try:
+        linear = float(msg.get("linear", {}).get("x", 0.0) or 0.0)
+        angular = float(msg.get("angular", {}).get("z", 0.0) or 0.0)
+    except (AttributeError, TypeError, ValueError):
+        return None
+    return (linear, angular) if math.isfinite(linear) and math.isfinite(angular) else None
+
+
+def string_of(msg: Message) -> str | None:
     """Return the ``data`` of a ``std_msgs/String``, or None."""
     data = msg.get("data")
     return data if isinstance(data, str) else None
 
 
-def zero_twist() -> dict[str, dict[str, float]]:
-    """Return a ``geometry_msgs/Twist`` that stops the robot."""
-    zero = {"x": 0.0, "y": 0.0, "z": 0.0}
-    return {"linear": dict(zero), "angular": dict(zero)}
+def _finite(*values: float) -> bool:
+    return all(math.isfinite(v) for v in values)

@@ -34,6 +34,10 @@ ROBOT_TOPIC_TYPES = {
     "goal": "geometry_msgs/PoseStamped",
     "initialpose": "geometry_msgs/PoseWithCovarianceStamped",
 }
+# Services each robot serves, relative to its namespace, with their types: operators may
+# call them (a robot's goal is cancelled by a call, since operators publish only commands).
+CANCEL_GOAL = "cancel_goal"
+ROBOT_SERVICE_TYPES = {CANCEL_GOAL: "std_srvs/Trigger"}
 # What operators may publish to a robot they may drive.
 COMMAND_TOPICS = frozenset({"cmd_vel", "goal", "initialpose"})
 # Topics whose last message every new subscriber receives, whatever the publisher asked.

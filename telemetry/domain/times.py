@@ -6,12 +6,11 @@ both, and every time it writes carries both (roslibpy reads ``secs``, roslib rea
 
 from __future__ import annotations
 
-import math
 import time
 from collections.abc import Mapping
 from typing import Any
 
-NANOS = 1_000_000_000
+from telemetry.domain.messages import NANOS, Time, ros_time
 
 
 def parse_stamp(value: Mapping[str, Any]) -> tuple[int, int]:
@@ -38,15 +37,15 @@ def normalise(sec: int, nanosec: int) -> tuple[int, int]:
     return sec + extra, nanosec
 
 
-def stamp(sec: int, nanosec: int) -> dict[str, int]:
+def stamp(sec: int, nanosec: int) -> Time:
     """Return a time that readers of either spelling understand."""
     return {"sec": sec, "nanosec": nanosec, "secs": sec, "nsecs": nanosec}
 
 
-def now_stamp(clock: Any = time.time) -> dict[str, int]:
+def now_stamp(clock: Any = time.time) -> Time:
     """Return the current wall-clock time in both spellings."""
-    fraction, whole = math.modf(clock())
-    return stamp(int(whole), round(fraction * NANOS) % NANOS)
+    now = ros_time(clock())
+    return stamp(now["sec"], now["nanosec"])
 
 
 def complete_header_stamp(msg: dict[str, Any]) -> None:

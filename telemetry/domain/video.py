@@ -19,7 +19,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from .times import NANOS, parse_stamp
+from .messages import NANOS
+from .times import parse_stamp
 
 MJPEG = "mjpeg"
 VP8 = "vp8"

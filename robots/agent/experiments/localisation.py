@@ -57,8 +57,7 @@ from robots.agent.sim.body import DiffDriveBody
 from robots.agent.sim.camera import Camera
 from robots.agent.sim.laser import Laser
 from robots.agent.sim.world import World, demo_world
-
-Pose = tuple[float, float, float]
+from robots.domain.se2 import Pose, wrap
 
 TRIALS = 15
 QUICK_TRIALS = 3
@@ -204,7 +203,7 @@ class RouteDriver:
             self.index = self.index + 1 if self.index + 1 < len(self.route) else len(self.route) - 2
             target = self.route[self.index]
         heading = math.atan2(target[1] - pose[1], target[0] - pose[0])
-        error = (heading - pose[2] + math.pi) % (2 * math.pi) - math.pi
+        error = wrap(heading - pose[2])
         linear = CRUISE * max(0.0, math.cos(error)) ** 4  # slow down while turning
         return linear, max(-1.0, min(1.0, 2.0 * error))
 

@@ -19,21 +19,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from robots.agent.sim.messages import Json, covariance_6x6, header, pose_2d, twist_2d
 from robots.agent.sim.world import World
-
-Pose = tuple[float, float, float]
-
-
-@dataclass(frozen=True)
-class BodyLimits:
-    """Physical limits of a TurtleBot-class base."""
-
-    max_linear: float = 0.5  # m/s, forwards and backwards
-    max_angular: float = 1.5  # rad/s
-    linear_accel: float = 1.0  # m/s^2, speeding up and braking
-    angular_accel: float = 4.0  # rad/s^2
-    radius: float = 0.18  # m, the footprint's circumscribed circle
+from robots.domain.params import BodyLimits
+from robots.domain.se2 import Pose, wrap
+from telemetry.domain.messages import Odometry, odometry
 
 
 @dataclass(frozen=True)
@@ -131,7 +120,7 @@ class DiffDriveBody:
         if self.bumped:
             new_x, new_y, distance = x, y, 0.0
             self.velocity = (0.0, angular)
-        self.pose = (new_x, new_y, _wrap(yaw + turn))
+        self.pose = (new_x, new_y, wrap(yaw + turn))
         return distance, turn
 
     def _blocked(self, start: tuple[float, float], end: tuple[float, float]) -> bool:
@@ -149,7 +138,7 @@ class DiffDriveBody:
         turn = turn * noise.angular_scale + self._error(math.sqrt(heading_var), 1.0)
         x, y, yaw = self.odom_pose
         x, y = _arc_end(x, y, yaw, distance, turn)
-        self.odom_pose = (x, y, _wrap(yaw + turn))
+        self.odom_pose = (x, y, wrap(yaw + turn))
         position_var, yaw_var = self.odom_variance
         position_var += noise.translation_sigma**2 * travelled
         self.odom_variance = (position_var, yaw_var + heading_var)
@@ -165,24 +154,21 @@ class DiffDriveBody:
         frame_id: str = "odom",
         child_frame_id: str = "base_footprint",
         seconds: float | None = None,
-    ) -> Json:
+    ) -> Odometry:
         """``nav_msgs/Odometry`` of the odometry pose and the reported velocity, stamped
         ``seconds`` (wall-clock time, say), by default the simulated clock."""
         linear, angular = self.velocity
         noise = self.noise
         position_var, yaw_var = self.odom_variance
-        return {
-            "header": header(frame_id, self.time if seconds is None else seconds),
-            "child_frame_id": child_frame_id,
-            "pose": {
-                "pose": pose_2d(*self.odom_pose),
-                "covariance": covariance_6x6(position_var, position_var, yaw_var),
-            },
-            "twist": {
-                "twist": twist_2d(linear * noise.linear_scale, angular * noise.angular_scale),
-                "covariance": covariance_6x6(1e-4, 1e-4, 1e-4),
-            },
-        }
+        return odometry(
+            frame_id,
+            child_frame_id,
+            self.time if seconds is None else seconds,
+            pose=self.odom_pose,
+            pose_covariance=np.diag([position_var, position_var, yaw_var]),
+            velocity=(linear * noise.linear_scale, angular * noise.angular_scale),
+            velocity_covariance=np.diag([1e-4, 1e-4, 1e-4]),
+        )
 
 
 def _arc_end(x: float, y: float, yaw: float, distance: float, turn: float) -> tuple[float, float]:
@@ -202,8 +188,3 @@ def _approach(current: float, target: float, max_change: float) -> float:
 
 def _clamp(value: float, limit: float) -> float:
     return max(-limit, min(limit, value))
-
-
-def _wrap(angle: float) -> float:
-    """``angle`` in [-pi, pi)."""
-    return (angle + math.pi) % (2 * math.pi) - math.pi

@@ -25,12 +25,12 @@ from numpy.typing import NDArray
 
 from maps.domain.tagart import TagFace, face_size, plate_right_axis, tag_face
 from robots.agent.perception import CameraModel
-from robots.agent.sim.messages import Json, base64_bytes, header
 from robots.agent.sim.world import OBSTACLE, SimTag, World
+from robots.domain.se2 import Pose, ahead
+from telemetry.domain.messages import CompressedImage, compressed_image
 
 Image = NDArray[np.uint8]
 Floats = NDArray[np.float64]
-Pose = tuple[float, float, float]
 
 SUPERSAMPLING = 4
 NEAR = 0.05
@@ -55,14 +55,12 @@ class Camera:
         blur_sigma: float = 0.6,
         noise_sigma: float = 2.0,
         max_depth: float = 30.0,
-        rate_hz: float = 5.0,
         seed: int = 0,
     ) -> None:
         self.world = world
         self.model = model or CameraModel()
         self.blur_sigma = blur_sigma
         self.max_depth = max_depth
-        self.rate_hz = rate_hz  # how often a robot publishes frames; rendering is on demand
         self.rng = np.random.default_rng(seed)
         columns = np.arange(self.model.width, dtype=np.float64)
         self._column_angles = np.arctan((columns - self.model.cx) / self.model.fx)
@@ -70,11 +68,9 @@ class Camera:
         self._background = _background(self.model)
         self._noise = _noise_banks(self.model, noise_sigma, self.rng)
 
-    def eye(self, pose: Pose) -> tuple[float, float, float]:
+    def eye(self, pose: Pose) -> Pose:
         """``(x, y, yaw)`` of the camera's optical centre on the floor plan."""
-        x, y, yaw = pose
-        mount = self.model.mount_x
-        return x + mount * math.cos(yaw), y + mount * math.sin(yaw), yaw
+        return (*ahead(pose, self.model.mount_x), pose[2])
 
     def render(self, pose: Pose) -> Image:
         """The grey image seen from a robot at ``pose`` (map frame)."""
@@ -188,9 +184,9 @@ def encode_jpeg(image: Image, quality: int = 80) -> bytes:
 
 def compressed_image_message(
     jpeg: bytes, seconds: float, frame_id: str = "camera_optical_frame"
-) -> Json:
-    """``sensor_msgs/CompressedImage`` (format ``jpeg``) of ``jpeg``, data in base64."""
-    return {"header": header(frame_id, seconds), "format": "jpeg", "data": base64_bytes(jpeg)}
+) -> CompressedImage:
+    """The camera's ``sensor_msgs/CompressedImage`` of ``jpeg``, stamped ``seconds``."""
+    return compressed_image(frame_id, jpeg, seconds)
 
 
 # --- helpers ---------------------------------------------------------------------------

@@ -14,8 +14,9 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from robots.agent.sim.messages import Json, header, json_floats
 from robots.agent.sim.world import World
+from robots.domain.se2 import Pose, ahead
+from telemetry.domain.messages import Json, laser_scan
 
 Ranges = NDArray[np.float32]
 
@@ -54,30 +55,35 @@ class Laser:
         self.rng = np.random.default_rng(seed)
         self._angles = self.spec.angles()
 
-    def scan(self, pose: tuple[float, float, float]) -> Ranges:
+    def scan(self, pose: Pose) -> Ranges:
         """Ranges in metres of one scan from a robot at ``pose`` (map frame).
 
         ``inf`` where there is no return within ``[range_min, range_max]``.
         """
-        spec, (x, y, yaw) = self.spec, pose
-        origin = (x + spec.mount_x * math.cos(yaw), y + spec.mount_x * math.sin(yaw))
-        hits = self.world.cast(*origin, self._angles + yaw, spec.range_max)
+        spec = self.spec
+        origin = ahead(pose, spec.mount_x)
+        hits = self.world.cast(*origin, self._angles + pose[2], spec.range_max)
         ranges = hits.distance + self.rng.normal(0.0, spec.noise_sigma, spec.beams)
         valid = (ranges >= spec.range_min) & (ranges <= spec.range_max)
         return np.where(valid, ranges, np.inf).astype(np.float32)
 
     def message(self, ranges: Ranges, seconds: float, frame_id: str = "base_scan") -> Json:
-        """``sensor_msgs/LaserScan`` of ``ranges`` stamped ``seconds``; no returns are null."""
+        """``sensor_msgs/LaserScan`` of ``ranges`` stamped ``seconds``; no returns are null.
+
+        A plain dict rather than the ``LaserScan`` schema: experiments narrow a scan's
+        field of view by rewriting its fields."""
         spec = self.spec
-        return {
-            "header": header(frame_id, seconds),
-            "angle_min": spec.angle_min,
-            "angle_max": spec.angle_max,
-            "angle_increment": spec.angle_increment,
-            "time_increment": spec.scan_time / spec.beams,
-            "scan_time": spec.scan_time,
-            "range_min": spec.range_min,
-            "range_max": spec.range_max,
-            "ranges": json_floats(ranges.tolist()),
-            "intensities": [],
-        }
+        return dict(
+            laser_scan(
+                frame_id,
+                ranges.tolist(),
+                seconds,
+                angle_min=spec.angle_min,
+                angle_max=spec.angle_max,
+                angle_increment=spec.angle_increment,
+                time_increment=spec.scan_time / spec.beams,
+                scan_time=spec.scan_time,
+                range_min=spec.range_min,
+                range_max=spec.range_max,
+            )
+        )

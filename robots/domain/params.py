@@ -1,0 +1,160 @@
+"""A robot's parameters: its body, its rates, and the settings of its particle filter,
+global planner and local controller. Every default is given, and explained, here only.
+
+``RobotConfig`` holds them all; its parts are frozen dataclasses, so a variant is made
+with keywords (``RobotConfig(camera_rate=0)``) or ``dataclasses.replace``. The defaults
+describe the simulated robot, a TurtleBot-class base with an LDS-01-class laser; the
+README's "Robot parameters" table lists them (a test keeps the two in step).
+
+Rates are in hertz of the robot's own clock (the simulated clock for simulated robots),
+lengths in metres, angles in radians.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Literal, get_args
+
+LaserModel = Literal["likelihood_field_prob", "likelihood_field"]
+"""AMCL's ``laser_model_type`` values that the particle filter implements."""
+
+
+@dataclass(frozen=True)
+class BodyLimits:
+    """What the base can do: the simulated body obeys these, and the controller plans
+    within them."""
+
+    max_linear: float = 0.5
+    """m/s, forwards and backwards."""
+    max_angular: float = 1.5
+    """rad/s."""
+    linear_accel: float = 1.0
+    """m/s^2, speeding up and braking."""
+    angular_accel: float = 4.0
+    """rad/s^2."""
+    radius: float = 0.18
+    """m: the footprint's circumscribed circle."""
+
+
+@dataclass(frozen=True)
+class BeamModel:
+    """AMCL's laser parameters (ROS 1 defaults, except 60 beams as in Nav2).
+
+    Raises ValueError for an unknown ``laser_model``, ``max_beams`` < 1 or a
+    ``sigma_hit`` that is not positive.
+    """
+
+    z_hit: float = 0.95
+    z_rand: float = 0.05
+    sigma_hit: float = 0.2
+    """m."""
+    max_distance: float = 2.0
+    """m: AMCL's ``laser_likelihood_max_dist``."""
+    max_beams: int = 60
+    laser_model: LaserModel = "likelihood_field_prob"
+    laser_pose: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    """The laser's pose in the robot frame."""
+
+    def __post_init__(self) -> None:
+        if self.laser_model not in get_args(LaserModel):
+            raise ValueError(f"unknown laser_model {self.laser_model!r}")
+        if self.max_beams < 1 or self.sigma_hit <= 0:
+            raise ValueError("a beam model needs max_beams >= 1 and sigma_hit > 0")
+
+
+@dataclass(frozen=True)
+class FilterParams:
+    """The particle filter's settings; the names are AMCL's.
+
+    ``particles`` is how many a reset from a pose draws; a uniform (global) reset draws
+    ``max_particles``; resampling keeps the count within ``[min_particles,
+    max_particles]``. Raises ValueError unless ``0 < min_particles <= particles <=
+    max_particles``.
+    """
+
+    particles: int = 500
+    min_particles: int = 100
+    max_particles: int = 5000
+    alpha1: float = 0.2
+    """Rotation noise from rotation."""
+    alpha2: float = 0.2
+    """Rotation noise from translation."""
+    alpha3: float = 0.2
+    """Translation noise from translation."""
+    alpha4: float = 0.2
+    """Translation noise from rotation."""
+    update_min_d: float = 0.2
+    """m of motion before a filter update."""
+    update_min_a: float = 0.5
+    """rad of turn before a filter update."""
+    kld_err: float = 0.01
+    kld_z: float = 0.99
+    resample_threshold: float = 0.5
+    """Resample when the effective sample size falls below this share of the count."""
+    beams: BeamModel = field(default_factory=BeamModel)
+
+    def __post_init__(self) -> None:
+        if not 0 < self.min_particles <= self.particles <= self.max_particles:
+            raise ValueError("particle counts must satisfy 0 < min <= particles <= max")
+
+
+@dataclass(frozen=True)
+class PlannerConfig:
+    """The global planner's costmap (``maps.domain.planning.inflate``): cells nearer an
+    obstacle than the robot's radius plus ``margin`` are blocked, and paths pay to pass
+    within ``gradient`` metres beyond that."""
+
+    margin: float = 0.07
+    """m added to the body's radius, for the planner only."""
+    gradient: float = 0.35
+    """m beyond the inflated radius over which paths pay to pass near walls."""
+    gradient_weight: float = 2.0
+    """Cost per metre of path at the inflated radius (falling to 0 across ``gradient``)."""
+
+
+@dataclass(frozen=True)
+class ControllerConfig:
+    """The local controller's tuning (the dynamic window approach)."""
+
+    safety: float = 0.04
+    """m of clearance a trajectory keeps beyond the body's radius."""
+    horizon: float = 1.6
+    """s each sampled trajectory is simulated for."""
+    linear_samples: int = 9
+    angular_samples: int = 25
+    lookahead: float = 0.8
+    """m along the path to the point the controller steers for."""
+    xy_tolerance: float = 0.08
+    """m from a target that counts as there."""
+    yaw_tolerance: float = 0.08
+    """rad from a target's heading that counts as facing it."""
+    turn_in_place: float = 0.9
+    """rad off the path's direction beyond which the robot turns on the spot first."""
+
+
+@dataclass(frozen=True)
+class RobotConfig:
+    """One robot's parameters: the control period, what it publishes how often, and its
+    body, filter, planner and controller."""
+
+    period: float = 0.1
+    """s: the control period (body, laser, controller); the other rates count in it."""
+    pose_rate: float = 10.0
+    odom_rate: float = 10.0
+    scan_rate: float = 5.0
+    camera_rate: float = 5.0
+    """JPEG frames published per second (0: none)."""
+    detect_rate: float = 5.0
+    """Camera frames per second the tag detector looks at."""
+    status_rate: float = 1.0
+    """``nav_status`` messages per second when nothing changes (each change goes out too)."""
+    jpeg_quality: int = 80
+    body: BodyLimits = field(default_factory=BodyLimits)
+    localisation: FilterParams = field(default_factory=FilterParams)
+    planner: PlannerConfig = field(default_factory=PlannerConfig)
+    controller: ControllerConfig = field(default_factory=ControllerConfig)
+
+    @property
+    def planning_radius(self) -> float:
+        """m: the radius the global planner inflates obstacles by (body and margin)."""
+        return self.body.radius + self.planner.margin
