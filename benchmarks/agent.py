@@ -29,11 +29,10 @@ from pathlib import Path
 from typing import Any
 
 from benchmarks.rosbridge import free_port, wait_for_http
-from robots.agent.fleet import FleetOptions, FleetRobot, build_fleet, run_fleet
+from robots.agent.fleet import FleetOptions, FleetRobot, add_robot_arguments, build_fleet, run_fleet
 from robots.domain.params import RobotConfig
 
 ROOT = Path(__file__).resolve().parent.parent
-DEFAULTS = RobotConfig()
 OFFICE_7 = {
     "header": {"frame_id": "boccioni_1/Office7"},
     "pose": {"position": {"x": 47.7, "y": 27.5, "z": 0.0}, "orientation": {"w": 1.0}},
@@ -44,15 +43,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--robots", type=int, default=4, help="robots in the process")
     parser.add_argument("--duration", type=float, default=30.0, help="wall seconds measured")
     parser.add_argument("--warmup", type=float, default=5.0, help="wall seconds before")
-    parser.add_argument("--time-scale", type=float, default=1.0, help="simulated s per wall s")
-    parser.add_argument(
-        "--camera-rate", type=float, default=DEFAULTS.camera_rate, help="JPEG frames/s published"
-    )
-    parser.add_argument(
-        "--particles",
-        type=int,
-        help=f"0: odometry and tags only (default {DEFAULTS.localisation.particles})",
-    )
+    add_robot_arguments(parser)
     parser.add_argument("--url", help="a running server's http:// base instead of starting one")
     parser.add_argument("--tokens-file", help="with --url: seed_demo's tokens JSON")
 

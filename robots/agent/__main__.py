@@ -25,10 +25,14 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from robots.agent.fleet import FleetOptions, build_fleet, parse_pose, run_fleet
+from robots.agent.fleet import (
+    FleetOptions,
+    add_robot_arguments,
+    build_fleet,
+    parse_pose,
+    run_fleet,
+)
 from robots.domain.params import RobotConfig
-
-DEFAULTS = RobotConfig()
 
 
 def arguments(argv: Sequence[str] | None = None) -> argparse.Namespace:
@@ -39,15 +43,7 @@ def arguments(argv: Sequence[str] | None = None) -> argparse.Namespace:
     credentials.add_argument("--token", help="one robot's token")
     credentials.add_argument("--tokens-file", type=Path, help="JSON {robot name: token}")
     parser.add_argument("--count", type=int, default=1, help="robots from --tokens-file")
-    parser.add_argument("--time-scale", type=float, default=1.0, help="simulated s per wall s")
-    parser.add_argument(
-        "--camera-rate", type=float, default=DEFAULTS.camera_rate, help="JPEG frames/s published"
-    )
-    parser.add_argument(
-        "--particles",
-        type=int,
-        help=f"0: odometry and tags only (default {DEFAULTS.localisation.particles})",
-    )
+    add_robot_arguments(parser)
     parser.add_argument("--start", type=parse_pose, help="x,y,yaw (default: the demo's start)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--log-level", default="INFO")

@@ -7,6 +7,7 @@ extra obstacles, not the other robots.
 
 from __future__ import annotations
 
+import argparse
 import asyncio
 import logging
 import math
@@ -39,6 +40,21 @@ class FleetOptions:
     particles: int | None = None
     seed: int = 0
     robot: RobotConfig = field(default_factory=RobotConfig)
+
+
+def add_robot_arguments(parser: argparse.ArgumentParser) -> None:
+    """The command-line options of how simulated robots run: ``--time-scale``,
+    ``--camera-rate`` and ``--particles`` (defaults: ``RobotConfig``'s)."""
+    defaults = RobotConfig()
+    parser.add_argument("--time-scale", type=float, default=1.0, help="simulated s per wall s")
+    parser.add_argument(
+        "--camera-rate", type=float, default=defaults.camera_rate, help="JPEG frames/s published"
+    )
+    parser.add_argument(
+        "--particles",
+        type=int,
+        help=f"0: odometry and tags only (default {defaults.localisation.particles})",
+    )
 
 
 def endpoints(server: str) -> tuple[str, str]:
