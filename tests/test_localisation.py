@@ -21,8 +21,8 @@ from robots.agent.relocalise import robot_pose_from_tag
 from robots.agent.sim.laser import Laser
 from robots.agent.sim.world import demo_world, world_from_grid
 from robots.domain.params import BeamModel
+from robots.domain.se2 import Pose
 
-Pose = tuple[float, float, float]
 RES = 0.05
 ROOM_ORIGIN = (-0.2, -0.2, 0.0)
 ATRIUM_TAG = 1  # Corridor A's east end, beside the door into Atrium 1, facing west
