@@ -23,7 +23,7 @@ from itertools import pairwise
 from typing import Any, NotRequired, TypedDict
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import NDArray
 
 from robots.domain import se2
 
@@ -238,6 +238,8 @@ class Pose2D:
 
 Stamp = float | Time
 """Seconds (since the epoch, or of a simulated clock), or a ready ``Time``."""
+PlanarCovariance = Sequence[Sequence[float]] | NDArray[np.float64]
+"""A 3x3 covariance over (x, y, yaw)."""
 
 
 # --- builders --------------------------------------------------------------------------
@@ -276,12 +278,14 @@ def pose_stamped(frame_id: str, pose: se2.Pose, stamp: Stamp) -> PoseStamped:
     return {"header": header(frame_id, stamp), "pose": pose_2d(*pose)}
 
 
-def covariance_6x6(planar: ArrayLike) -> list[float]:
+def covariance_6x6(planar: PlanarCovariance) -> list[float]:
     """Row-major 6x6 covariance over (x, y, z, roll, pitch, yaw) of a 3x3 one over (x, y,
     yaw); z, roll and pitch are fixed (zero)."""
-    full = np.zeros((6, 6))
-    full[np.ix_(_PLANAR, _PLANAR)] = planar
-    return [float(v) for v in full.ravel()]
+    values = [0.0] * 36
+    for row, line in zip(_PLANAR, planar, strict=True):
+        for col, value in zip(_PLANAR, line, strict=True):
+            values[6 * row + col] = float(value)
+    return values
 
 
 _PLANAR = [0, 1, 5]
@@ -302,13 +306,12 @@ def odometry(
     stamp: Stamp,
     *,
     pose: se2.Pose,
-    pose_covariance: ArrayLike,
+    pose_covariance: PlanarCovariance,
     velocity: tuple[float, float],
-    velocity_covariance: ArrayLike,
+    velocity_covariance: PlanarCovariance,
 ) -> Odometry:
     """``nav_msgs/Odometry``: ``pose`` in ``frame_id`` (``odom``), ``velocity`` ``(linear,
-    angular)`` in ``child_frame_id`` (the robot's base), each with a 3x3 covariance over
-    (x, y, yaw)."""
+    angular)`` in ``child_frame_id`` (the robot's base), each with its covariance."""
     return {
         "header": header(frame_id, stamp),
         "child_frame_id": child_frame_id,

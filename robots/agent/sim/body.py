@@ -165,9 +165,9 @@ class DiffDriveBody:
             child_frame_id,
             self.time if seconds is None else seconds,
             pose=self.odom_pose,
-            pose_covariance=np.diag([position_var, position_var, yaw_var]),
+            pose_covariance=_variances(position_var, position_var, yaw_var),
             velocity=(linear * noise.linear_scale, angular * noise.angular_scale),
-            velocity_covariance=np.diag([1e-4, 1e-4, 1e-4]),
+            velocity_covariance=_variances(1e-4, 1e-4, 1e-4),
         )
 
 
@@ -180,6 +180,11 @@ def _arc_end(x: float, y: float, yaw: float, distance: float, turn: float) -> tu
         x + radius * (math.sin(yaw + turn) - math.sin(yaw)),
         y - radius * (math.cos(yaw + turn) - math.cos(yaw)),
     )
+
+
+def _variances(x: float, y: float, yaw: float) -> tuple[tuple[float, float, float], ...]:
+    """A 3x3 covariance over (x, y, yaw) with only these variances."""
+    return (x, 0.0, 0.0), (0.0, y, 0.0), (0.0, 0.0, yaw)
 
 
 def _approach(current: float, target: float, max_change: float) -> float:
