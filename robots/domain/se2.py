@@ -6,8 +6,8 @@ parent's; ``inverse(a)`` is the parent seen from ``a``; ``relative(a, b)`` is ``
 from ``a``. Every yaw these return is wrapped into [-pi, pi).
 
 Single poses are tuples of floats worked with ``math``; ``wrap`` also takes arrays, and
-``transform`` and ``transform_each`` move arrays of points, as the planner, the laser and
-the particle filter hold them.
+``transform`` and ``transform_each`` move arrays of points (laser returns, beam endpoints
+under every particle) with numpy.
 """
 
 from __future__ import annotations
