@@ -220,3 +220,20 @@ async def test_statistics_show_only_the_cameras_one_may_watch(world):
     assert (await ask(world, "anonymous", "/api/video/stats")).status == 401
     assert relay.pipelines == {}
     assert relay.feeds == {}
+
+
+async def test_statistics_asked_with_a_streams_query_are_that_streams_only(world):
+    relay = await get_video_relay()
+    mjpeg = parse_stream_request({"topic": CAMERA}).params
+    vp8 = parse_stream_request({"topic": CAMERA, "type": "vp8"}).params
+    small_vp8 = parse_stream_request({"topic": CAMERA, "type": "vp8", "width": "160"}).params
+    async with relay.watch(CAMERA, mjpeg), relay.watch(CAMERA, vp8), relay.watch(CAMERA, small_vp8):
+        playing = (await ask(world, "viewer", "/api/video/stats", topic=CAMERA, type="vp8")).json()
+        source = (
+            await ask(world, "viewer", "/api/video/stats", topic=CAMERA, type="source")
+        ).json()
+        bad = await ask(world, "viewer", "/api/video/stats", topic=CAMERA, type="vp8", gop="x")
+    [stream] = playing["streams"]
+    assert (stream["type"], stream["params"]) == ("vp8", vp8.label())
+    assert [s["type"] for s in source["streams"]] == ["source"]
+    assert bad.status == 400

@@ -1,20 +1,26 @@
 """The relays in Chromium, with the simulated robot ``robot_0`` publishing its camera: the
 MJPEG ``<img>`` changes and the VP8 player's ``currentTime`` advances, on the relay's
-viewer page and in the robot page's camera panel."""
+viewer page and in the robot page's camera panel; the panel's VP8 player shows the robot's
+own 5 frames/s camera at its rate, with the figures of the stream it plays."""
 
 from __future__ import annotations
 
+import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from playwright.sync_api import BrowserContext, expect
+from playwright.sync_api import BrowserContext, Page, expect
 
-from tests.browser_support import Demo, open_as, screenshot
+from tests.browser_support import ROBOT, Demo, open_as, screenshot
+from tests.fixtures_live import agent_process
 
 pytest_plugins = ["tests.browser_support"]
 pytestmark = [pytest.mark.browser, pytest.mark.django_db(transaction=True)]
 
 TOPIC = "/robot_0/camera/image/compressed"
+CAMERA_RATE = 5.0  # the simulated robot's own camera, as `make demo` runs it
+MEASURE_FOR = 8.0  # seconds of playback counted
 
 # A tiny sample of the picture, to tell one frame from the next.
 SAMPLE = """img => {
@@ -87,3 +93,49 @@ def test_the_camera_page_lists_the_robots_camera(
     screenshot(page, "video-cameras")
     row.get_by_role("link", name="VP8", exact=True).click()
     expect(page.locator("video#stream")).to_be_attached()
+
+
+@pytest.fixture
+def real_time_agent(demo: Demo, tmp_path: Path) -> Iterator[Path]:
+    """``robot_0`` in real time with its camera at 5 frames/s, as ``make demo`` runs it."""
+    options = ["--time-scale", "1", "--camera-rate", str(CAMERA_RATE)]
+    with agent_process(
+        demo.server.url, demo.tokens[ROBOT], tmp_path / "agent.log", *options
+    ) as log:
+        yield log
+
+
+def presented_frames(page: Page) -> int:
+    """Frames the panel's <video> presented (``requestVideoFrameCallback``)."""
+    return int(page.get_attribute("#camera-frame", "data-frames") or 0)
+
+
+def vp8_rate(page: Page, demo: Demo) -> float:
+    """Frames per second the relay sent to the panel's VP8 stream, by its statistics."""
+    answer = page.request.get(demo.url("/api/video/stats"))
+    streams = [s for s in answer.json()["streams"] if s["type"] == "vp8" and s["viewers"]]
+    return float(streams[0]["fps"])
+
+
+def test_the_robot_pages_vp8_player_shows_the_robots_5_fps_camera_at_its_rate(
+    context: BrowserContext, demo: Demo, real_time_agent: Path
+) -> None:
+    page = open_as(context, demo, "viewer", f"/robots/{ROBOT}/")
+    page.click("#camera-modes button[data-mode=vp8]")
+    page.wait_for_function(
+        "() => Number(document.getElementById('camera-frame').dataset.frames || 0) >= 5",
+        timeout=30_000,
+    )
+    first, started = presented_frames(page), time.monotonic()
+    page.wait_for_timeout(MEASURE_FOR * 1000)
+    shown = (presented_frames(page) - first) / (time.monotonic() - started)
+    sent = vp8_rate(page, demo)  # what the relay sent over the last seconds (the camera's pace)
+    print(f"VP8 in the robot page: {shown:.2f} frames/s shown, {sent:.2f} sent")
+    assert sent >= 0.4 * CAMERA_RATE  # the robot kept publishing
+    assert shown >= 0.8 * sent
+    # The figures beside it are those of the VP8 stream, not of the MJPEG one shown first.
+    stats = page.locator("#camera-stats")
+    expect(stats).to_have_attribute("data-type", "vp8", timeout=15_000)
+    expect(stats).to_contain_text("vp8 100kbit/s")
+    expect(stats.locator("dt").first).to_have_text("Server sends")
+    screenshot(page, "video-robot-page-vp8-rate")

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import io
 import time
+from itertools import pairwise
 
 import av
 import cv2
@@ -16,7 +17,13 @@ from telemetry.domain import jpeg, multipart
 from telemetry.domain.video import Frame, ImageParams, Vp8Params
 from telemetry.domain.video_stats import StreamStats, percentile
 from telemetry.domain.vp8 import Vp8Encoder
-from telemetry.domain.webm import EncodedFrame, LiveWebm, WebmReader, size_vint
+from telemetry.domain.webm import (
+    EncodedFrame,
+    FrameClock,
+    LiveWebm,
+    WebmReader,
+    size_vint,
+)
 
 WIDTH, HEIGHT = 160, 96
 
@@ -146,6 +153,43 @@ def test_the_reader_finds_each_block_and_the_streams_epoch():
     assert [b.timestamp for b in blocks] == [33 * i for i in range(12)]
     assert [b.keyframe for b in blocks].count(True) == 2
     assert reader.epoch == pytest.approx(100.0)
+
+
+def test_every_frame_declares_a_duration_that_covers_the_gap_to_the_next():
+    # Chromium's Media Source drops every frame that comes more than twice the previous
+    # frame's duration after it until the next keyframe; undeclared, a lone frame's
+    # duration is 63 ms, so a 5 frames/s camera (200 ms apart) showed only keyframes.
+    clock = FrameClock()
+    arrivals = [100.0 + 0.2 * i + (0.03 if i % 3 == 0 else 0.0) for i in range(12)]
+    times = [clock.time_of(at) for at in arrivals]
+    encoder = Vp8Encoder(Vp8Params(gop=100), ImageParams())
+    stream, body = None, b""
+    for i, (timestamp, duration) in enumerate(times):
+        for encoded in encoder.encode(camera_frame(i), timestamp, duration):
+            stream = stream or LiveWebm(*(encoder.size or (0, 0)))
+            body += stream.append(encoded)
+    assert stream is not None
+    blocks = WebmReader().feed(stream.init + body)
+    assert all(b.duration is not None for b in blocks)
+    gaps = [(b.timestamp - a.timestamp, a.duration) for a, b in pairwise(blocks)]
+    assert all(gap <= 2 * (duration or 0) for gap, duration in gaps)
+    assert [b.keyframe for b in blocks].count(True) == 1
+    assert [f.duration for f in decode(stream.init + body)][1:] == [b.duration for b in blocks][1:]
+
+
+def test_a_frame_after_the_camera_paused_is_a_keyframe_a_player_can_start_from():
+    _, stream, _ = encode_stream(5, gop=100)  # 33 ms apart
+    newest = stream.join().frames[-1].timestamp
+    assert stream.continues(newest + 40)
+    assert not stream.continues(newest + 5000)
+
+
+def test_a_frame_clock_counts_from_the_first_arrival_and_never_goes_back():
+    clock = FrameClock()
+    assert clock.time_of(50.0) == (0, 100)  # no rate known yet: the default duration
+    assert clock.time_of(50.2) == (200, 200)
+    assert clock.time_of(50.1) == (201, 200)  # arrivals out of order still move forward
+    assert clock.epoch == 50.0
 
 
 def test_a_stream_must_start_with_a_keyframe():

@@ -1,12 +1,14 @@
 // The camera panel: the robot's camera through the video relays, MJPEG as an <img> or VP8
-// as a live WebM stream played through Media Source Extensions fed by fetch (a plain
-// <video src> on an endless WebM stalls in Chromium), or straight from the rosbridge topic
-// when the relays are not available. Counts the frames it shows.
+// as a live WebM stream played through Media Source Extensions (`liveplayer.js`), or
+// straight from the rosbridge topic when the relays are not available. Counts the frames
+// it shows, and shows the relay's figures of the very stream it plays.
 
-const LIVE_EDGE_S = 0.3;
-const MAX_LAG_S = 1.0;
-const KEEP_S = 10;
+import { LiveWebmPlayer } from "./liveplayer.js";
+import { el, fixed } from "./page.js";
+
 const STATS_MS = 2000;
+// What the relay's statistics call each mode's stream (`topic`: the camera as published).
+const STATS_TYPE = { mjpeg: "mjpeg", vp8: "vp8", topic: "source" };
 
 export function streamUrl(topic, type) {
   return `/stream?topic=${encodeURIComponent(topic)}&type=${type}`;
@@ -36,6 +38,7 @@ export class CameraPanel {
       button.classList.toggle("active", button.dataset.mode === mode);
     }
     this.ui.frame.dataset.mode = mode;
+    this.ui.stats.hidden = true; // until the figures of this mode's stream arrive
     const start = { mjpeg: () => this.#mjpeg(), vp8: () => this.#vp8(), topic: () => this.#viaTopic() };
     this.stopCurrent = start[mode]();
   }
@@ -71,7 +74,8 @@ export class CameraPanel {
 
   #vp8() {
     const video = this.#mount("video", { muted: true, autoplay: true, playsinline: true });
-    const player = new LiveWebm(video, streamUrl(this.topic, "vp8"), (error) => this.#message(error));
+    const player = new LiveWebmPlayer(video, streamUrl(this.topic, "vp8"), (error) => this.#message(error));
+    this.player = player;
     if ("requestVideoFrameCallback" in video) {
       const count = () => {
         this.#frame();
@@ -81,6 +85,7 @@ export class CameraPanel {
     }
     return () => {
       player.stop();
+      this.player = null;
       video.remove();
     };
   }
@@ -111,35 +116,53 @@ export class CameraPanel {
     const now = performance.now();
     const fps = ((this.frames - this.lastCount.frames) * 1000) / (now - this.lastCount.at);
     this.lastCount = { at: now, frames: this.frames };
-    this.ui.fps.textContent = `${Math.max(0, fps).toFixed(1)} fps shown · ${this.frames} frames`;
+    this.ui.fps.dataset.fps = Math.max(0, fps).toFixed(1);
+    this.ui.fps.replaceChildren(...figures([["Shown here", `${Math.max(0, fps).toFixed(1)} fps · ${this.frames} frames`]]));
   }
 
-  /** Poll the relays' statistics, if the server has them, and show this topic's. */
+  /** Poll the relay's statistics of the stream this panel plays, and show them. */
   watchStats(url) {
     const poll = async () => {
-      const response = await fetch(url, { credentials: "same-origin" }).catch(() => null);
-      if (!response?.ok) {
-        this.ui.stats.hidden = true;
-        return;
-      }
-      const entries = statsFor(await response.json(), this.topic);
-      this.ui.stats.hidden = entries.length === 0;
-      this.ui.stats.textContent = entries.map(([key, value]) => `${key}: ${value}`).join(" · ");
+      const query = new URLSearchParams({ topic: this.topic, type: STATS_TYPE[this.mode] || "" });
+      const response = await fetch(`${url}?${query}`, { credentials: "same-origin" }).catch(() => null);
+      if (response?.ok) this.#renderStats((await response.json()).streams[0], STATS_TYPE[this.mode]);
+      else this.ui.stats.hidden = true;
       setTimeout(poll, STATS_MS);
     };
     poll();
   }
+
+  #renderStats(stream, type) {
+    this.ui.stats.hidden = !stream;
+    if (!stream) return;
+    this.ui.stats.dataset.type = type;
+    this.ui.stats.replaceChildren(...figures(streamFigures(stream, type)));
+  }
 }
 
-/** The scalar fields of the statistics about `topic` in whatever shape the relay serves. */
-export function statsFor(data, topic) {
-  const entries = Array.isArray(data) ? data : Object.values(data?.streams || data || {});
-  const matching = entries.find((entry) => JSON.stringify(entry).includes(topic)) ?? (data?.[topic] || null);
-  if (!matching || typeof matching !== "object") return [];
-  return Object.entries(matching)
-    .filter(([, value]) => ["number", "string"].includes(typeof value) && value !== topic)
-    .slice(0, 8)
-    .map(([key, value]) => [key, typeof value === "number" ? Number(value.toFixed(2)) : value]);
+/** The relay's figures of one stream as [label, value] pairs a person reads. */
+export function streamFigures(stream, type) {
+  const ms = (value) => (value === null || value === undefined ? "—" : `${Math.round(value)} ms`);
+  const rate = `${fixed(stream.fps, 1)} fps · ${fixed(stream.kB_per_s, 1)} kB/s`;
+  if (type === "source") {
+    return [
+      ["Camera publishes", rate],
+      ["Delay to the server", `p50 ${ms(stream.delay_p50_ms)} · p99 ${ms(stream.delay_p99_ms)}`],
+    ];
+  }
+  return [
+    ["Server sends", rate],
+    ["Stream", stream.params],
+    ["Delay, stamp to sent", `p50 ${ms(stream.delay_p50_ms)} · p99 ${ms(stream.delay_p99_ms)}`],
+    ["Encoder", `${fixed(stream.encoder_cpu * 100, 1)} % of a core`],
+    ["Viewers", String(stream.viewers)],
+    ["Frames skipped", String(stream.frames_skipped)],
+  ];
+}
+
+/** <dt>/<dd> pairs of a `<dl class="kv">`. */
+function figures(pairs) {
+  return pairs.flatMap(([label, value]) => [el("dt", {}, label), el("dd", {}, value)]);
 }
 
 /** Notices new MJPEG frames by comparing a tiny sample of the picture a few times a second. */
@@ -162,73 +185,4 @@ class FrameWatcher {
   stop() {
     clearInterval(this.timer);
   }
-}
-
-/** A live `video/webm` stream fed to a <video> through Media Source Extensions. */
-class LiveWebm {
-  constructor(video, url, onError) {
-    this.video = video;
-    this.abort = new AbortController();
-    this.onError = onError;
-    const type = 'video/webm; codecs="vp8"';
-    if (!window.MediaSource || !MediaSource.isTypeSupported(type)) {
-      onError("This browser cannot play VP8 through Media Source Extensions.");
-      return;
-    }
-    this.source = new MediaSource();
-    video.src = URL.createObjectURL(this.source);
-    this.source.addEventListener("sourceopen", () => this.#feed(url, type), { once: true });
-  }
-
-  async #feed(url, type) {
-    const buffer = this.source.addSourceBuffer(type);
-    buffer.mode = "sequence";
-    try {
-      const response = await fetch(url, { signal: this.abort.signal, credentials: "same-origin" });
-      if (!response.ok || !response.body) throw new Error(`the VP8 relay answered ${response.status}`);
-      const reader = response.body.getReader();
-      for (;;) {
-        const { value, done } = await reader.read();
-        if (done) break;
-        await append(buffer, value);
-        this.#keepLive(buffer);
-      }
-    } catch (error) {
-      if (error.name !== "AbortError") this.onError(`VP8 stream unavailable: ${error.message}`);
-    }
-  }
-
-  #keepLive(buffer) {
-    const video = this.video;
-    if (!buffer.buffered.length) return;
-    const end = buffer.buffered.end(buffer.buffered.length - 1);
-    if (end - video.currentTime > MAX_LAG_S) video.currentTime = end - LIVE_EDGE_S;
-    if (video.paused) video.play().catch(() => {});
-    const start = buffer.buffered.start(0);
-    if (video.currentTime - start > KEEP_S * 2 && !buffer.updating) buffer.remove(start, video.currentTime - KEEP_S);
-  }
-
-  stop() {
-    this.abort.abort();
-    if (this.source?.readyState === "open") {
-      try {
-        this.source.endOfStream();
-      } catch {
-        // The stream may already be ending; nothing to stop.
-      }
-    }
-    this.video.removeAttribute("src");
-  }
-}
-
-function append(buffer, chunk) {
-  return new Promise((resolve, reject) => {
-    const wait = () => {
-      buffer.addEventListener("updateend", resolve, { once: true });
-      buffer.addEventListener("error", reject, { once: true });
-      buffer.appendBuffer(chunk);
-    };
-    if (buffer.updating) buffer.addEventListener("updateend", wait, { once: true });
-    else wait();
-  });
 }

@@ -26,6 +26,8 @@ MJPEG = "mjpeg"
 VP8 = "vp8"
 ROS_COMPRESSED = "ros_compressed"
 STREAM_TYPES = (MJPEG, VP8, ROS_COMPRESSED)
+SOURCE = "source"
+"""The statistics' name for a camera's frames as published, before any relay."""
 DEFAULT_TYPE = MJPEG
 
 COMPRESSED_IMAGE = "sensor_msgs/CompressedImage"

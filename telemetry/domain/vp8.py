@@ -21,7 +21,7 @@ from av.video.frame import VideoFrame
 
 from . import jpeg
 from .video import BadFrame, Frame, ImageParams, Vp8Params
-from .webm import EncodedFrame
+from .webm import DEFAULT_FRAME_MS, EncodedFrame
 
 CPU_USED = 8
 # Frame rate hint for libvpx's rate control; the stream's timestamps are the real times.
@@ -46,9 +46,11 @@ class Vp8Encoder:
         """Make the next frame a keyframe (when a keyframe interval grew too large)."""
         self._force_key = True
 
-    def encode(self, image: Frame, timestamp_ms: int) -> list[EncodedFrame]:
-        """Encode one camera frame shown at ``timestamp_ms``; return what libvpx gives
-        back: one frame, or none when its rate control drops this one.
+    def encode(
+        self, image: Frame, timestamp_ms: int, duration_ms: int = DEFAULT_FRAME_MS
+    ) -> list[EncodedFrame]:
+        """Encode one camera frame shown at ``timestamp_ms`` for ``duration_ms``; return
+        what libvpx gives back: one frame, or none when its rate control drops this one.
 
         Raises BadFrame if the image cannot be decoded.
         """
@@ -64,6 +66,7 @@ class Vp8Encoder:
                 timestamp_ms,
                 image.origin_time,
                 image.received,
+                duration_ms,
             )
             for packet in self._open(frame).encode(frame)
         ]

@@ -7,7 +7,17 @@ here and each frame leaves the moment it is encoded:
 
 - the init segment: the EBML header, a Segment of unknown size (it never ends), its Info
   (millisecond timestamps) and Tracks (one VP8 video track);
-- per frame, a Cluster of known size holding its Timestamp and one SimpleBlock.
+- per frame, a Cluster of known size holding its Timestamp and one BlockGroup: the
+  frame's Block, its BlockDuration and, unless it is a keyframe, a ReferenceBlock.
+
+Why every frame declares a duration: a frame alone in its Cluster has none a demuxer could
+infer, so Chromium gives it a default of 63 ms, and the Media Source coded frame
+processing algorithm takes a frame that comes more than twice the previous frame's
+duration after it as a discontinuity and drops every frame until the next keyframe. A
+5 frames/s camera (200 ms apart) then showed one picture per keyframe interval. So each
+frame declares the longest recent interval between arrivals (``FrameClock``), and a frame
+that still comes too late for the frame before it (a camera that paused) is encoded as a
+keyframe (``LiveWebm.continues``), so no player has anything to drop.
 
 ``LiveWebm`` keeps the Clusters since the last keyframe. A viewer who joins late (or falls
 a whole keyframe interval behind) gets them in one go, re-timed a millisecond apart and
@@ -18,7 +28,8 @@ plain ``<video>`` both accept this.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections import deque
+from dataclasses import dataclass, field
 
 # Element IDs (Matroska specification), with their marker bits, as written.
 EBML = b"\x1a\x45\xdf\xa3"
@@ -49,12 +60,20 @@ PIXEL_HEIGHT = b"\xba"
 CLUSTER = b"\x1f\x43\xb6\x75"
 TIMESTAMP = b"\xe7"
 SIMPLE_BLOCK = b"\xa3"
+BLOCK_GROUP = b"\xa0"
+BLOCK = b"\xa1"
+BLOCK_DURATION = b"\x9b"
+REFERENCE_BLOCK = b"\xfb"
 
 UNKNOWN_SIZE = b"\x01\xff\xff\xff\xff\xff\xff\xff"
 TRACK = 1
 MATROSKA_EPOCH = 978_307_200  # 2001-01-01T00:00:00 UTC in Unix seconds
 KEYFRAME_FLAG = 0x80
 APP = "CloudNav video relay"
+DEFAULT_FRAME_MS = 100
+"""A frame's declared duration until two frames have shown the camera's rate."""
+RATE_MEMORY = 8
+"""How many of the latest intervals between frames a declared duration covers."""
 
 
 def size_vint(size: int) -> bytes:
@@ -129,22 +148,62 @@ def _vp8_track(width: int, height: int) -> bytes:
     )
 
 
-def cluster(timestamp_ms: int, frame: bytes, keyframe: bool) -> bytes:
-    """Return one frame as a Cluster at ``timestamp_ms`` holding a single SimpleBlock."""
-    block = bytes((0x80 | TRACK, 0, 0, KEYFRAME_FLAG if keyframe else 0)) + frame
-    return element(CLUSTER, uint(TIMESTAMP, timestamp_ms) + element(SIMPLE_BLOCK, block))
+def sint(element_id: bytes, value: int) -> bytes:
+    """A signed integer element, two's complement in the fewest bytes."""
+    length = max(1, (value.bit_length() + 8) // 8)
+    return element(element_id, value.to_bytes(length, "big", signed=True))
+
+
+def cluster(
+    timestamp_ms: int, frame: bytes, keyframe: bool, duration_ms: int, reference_ms: int = 1
+) -> bytes:
+    """Return one frame as a Cluster at ``timestamp_ms`` holding one BlockGroup that
+    declares its duration; a frame that is not a keyframe references the frame
+    ``reference_ms`` before it (Matroska's way of saying it depends on another)."""
+    block = bytes((0x80 | TRACK, 0, 0, 0)) + frame
+    group = element(BLOCK, block) + uint(BLOCK_DURATION, max(1, duration_ms))
+    if not keyframe:
+        group += sint(REFERENCE_BLOCK, -max(1, reference_ms))
+    return element(CLUSTER, uint(TIMESTAMP, timestamp_ms) + element(BLOCK_GROUP, group))
+
+
+@dataclass
+class FrameClock:
+    """Stream times and declared durations of live frames, from when they arrived.
+
+    A frame's time is milliseconds since the first one arrived (strictly increasing); its
+    declared duration is the longest of the last ``RATE_MEMORY`` intervals between
+    arrivals, so the next frame of a steady or jittery camera is never more than twice as
+    far (see the module's docstring). ``epoch`` is the first arrival (Unix seconds).
+    """
+
+    epoch: float | None = None
+    _last: int = -1
+    _intervals: deque[int] = field(default_factory=lambda: deque(maxlen=RATE_MEMORY))
+
+    def time_of(self, received: float) -> tuple[int, int]:
+        """Return ``(timestamp, duration)`` in ms of a frame that arrived at ``received``."""
+        if self.epoch is None:
+            self.epoch = received
+        timestamp = max(self._last + 1, round((received - self.epoch) * 1000))
+        if self._last >= 0:
+            self._intervals.append(timestamp - self._last)
+        self._last = timestamp
+        return timestamp, max(self._intervals, default=DEFAULT_FRAME_MS)
 
 
 @dataclass(frozen=True, slots=True)
 class EncodedFrame:
     """One encoded video frame: its bytes, whether it is a keyframe, its stream time (ms),
-    and the camera frame's stamp and arrival time (seconds) for the delay statistics."""
+    the camera frame's stamp and arrival time (seconds) for the delay statistics, and its
+    declared duration (ms)."""
 
     data: bytes
     keyframe: bool
     timestamp: int
     origin: float
     received: float
+    duration: int = DEFAULT_FRAME_MS
 
 
 @dataclass(frozen=True, slots=True)
@@ -183,17 +242,30 @@ class LiveWebm:
 
         Raises ValueError for a first frame that is not a keyframe: nobody could decode it.
         """
+        previous = self._frames[-1].timestamp if self._frames else frame.timestamp - 1
         if frame.keyframe:
             self._frames, self._clusters = [], []
             self._first, self.nbytes = self.next, 0
         elif not self._frames:
             raise ValueError("a live WebM stream must start with a keyframe")
-        data = cluster(frame.timestamp, frame.data, frame.keyframe)
+        data = cluster(
+            frame.timestamp, frame.data, frame.keyframe, frame.duration, frame.timestamp - previous
+        )
         self._frames.append(frame)
         self._clusters.append(data)
         self.nbytes += len(data)
         self.next += 1
         return data
+
+    def continues(self, timestamp: int) -> bool:
+        """Whether a frame at ``timestamp`` follows the newest one closely enough (within
+        twice its declared duration) for a Media Source player to keep decoding; a frame
+        that does not must be a keyframe, or the player drops it and all that follow it
+        until the next keyframe."""
+        if not self._frames:
+            return False
+        newest = self._frames[-1]
+        return timestamp - newest.timestamp <= 2 * newest.duration
 
     @property
     def started(self) -> bool:
@@ -221,10 +293,10 @@ class LiveWebm:
         frames = tuple(self._frames)
         if not frames:
             return Chunk(b"", (), self.next, 0)
-        newest = frames[-1].timestamp
-        count = len(frames)
+        newest, last = frames[-1].timestamp, len(frames) - 1
         data = b"".join(
-            cluster(newest - (count - 1 - i), f.data, f.keyframe) for i, f in enumerate(frames)
+            cluster(newest - (last - i), f.data, f.keyframe, f.duration if i == last else 1)
+            for i, f in enumerate(frames)
         )
         return Chunk(data, frames, self.next, 0)
 
@@ -234,11 +306,13 @@ class LiveWebm:
 
 @dataclass(frozen=True, slots=True)
 class Block:
-    """One frame as a viewer reads it: Cluster time (ms), keyframe flag and VP8 bytes."""
+    """One frame as a viewer reads it: Cluster time (ms), keyframe flag, VP8 bytes and the
+    declared duration (ms; None for a SimpleBlock, which has none)."""
 
     timestamp: int
     keyframe: bool
     data: bytes
+    duration: int | None = None
 
 
 def _vint(buffer: bytes | bytearray, at: int, keep_marker: bool) -> tuple[int, int] | None:
@@ -339,11 +413,32 @@ class WebmReader:
             if element_id == TIMESTAMP:
                 timestamp = int.from_bytes(value, "big")
             elif element_id == SIMPLE_BLOCK:
-                track = _vint(value, 0, keep_marker=False)
-                if track is None or len(value) < track[1] + 3:
-                    raise ValueError("a SimpleBlock too short for its header")
-                offset = track[1]
-                relative = int.from_bytes(value[offset : offset + 2], "big", signed=True)
-                keyframe = bool(value[offset + 2] & KEYFRAME_FLAG)
-                blocks.append(Block(timestamp + relative, keyframe, value[offset + 3 :]))
+                relative, flags, data = _block(value)
+                blocks.append(Block(timestamp + relative, bool(flags & KEYFRAME_FLAG), data))
+            elif element_id == BLOCK_GROUP:
+                blocks.append(self._read_group(timestamp, value))
         return blocks
+
+    def _read_group(self, timestamp: int, payload: bytes) -> Block:
+        """A BlockGroup: a keyframe unless it references another block."""
+        children = dict(self._children(payload))
+        if BLOCK not in children:
+            raise ValueError("a BlockGroup without a Block")
+        relative, _, data = _block(children[BLOCK])
+        duration = children.get(BLOCK_DURATION)
+        return Block(
+            timestamp + relative,
+            REFERENCE_BLOCK not in children,
+            data,
+            None if duration is None else int.from_bytes(duration, "big"),
+        )
+
+
+def _block(value: bytes) -> tuple[int, int, bytes]:
+    """``(relative timestamp, flags, frame)`` of a Block or SimpleBlock body."""
+    track = _vint(value, 0, keep_marker=False)
+    if track is None or len(value) < track[1] + 3:
+        raise ValueError("a block too short for its header")
+    offset = track[1]
+    relative = int.from_bytes(value[offset : offset + 2], "big", signed=True)
+    return relative, value[offset + 2], value[offset + 3 :]

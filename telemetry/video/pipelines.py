@@ -35,7 +35,7 @@ from telemetry.domain.video import (
 )
 from telemetry.domain.video_stats import StreamStats
 from telemetry.domain.vp8 import Vp8Encoder
-from telemetry.domain.webm import EncodedFrame, LiveWebm
+from telemetry.domain.webm import EncodedFrame, FrameClock, LiveWebm
 from telemetry.video.feeds import CameraFeed
 
 logger = logging.getLogger(__name__)
@@ -172,8 +172,7 @@ class Vp8Pipeline(Pipeline):
         self.encoder = Vp8Encoder(params.vp8, params.image)
         self.stream: LiveWebm | None = None
         self.appended: Newest[int] = Newest()
-        self._epoch: float | None = None  # when the first frame arrived: stream time 0
-        self._last_timestamp = -1
+        self.clock = FrameClock()
 
     @property
     def vp8(self) -> Vp8Params:
@@ -181,23 +180,17 @@ class Vp8Pipeline(Pipeline):
         return self.params.vp8
 
     async def _take(self, frame: Frame) -> None:
-        timestamp = self._timestamp(frame)
-        encoded = await self._in_worker(lambda: self.encoder.encode(frame, timestamp))
+        timestamp, duration = self.clock.time_of(frame.received)
+        if self.stream is not None and not self.stream.continues(timestamp):
+            self.encoder.force_keyframe()  # players would drop it otherwise (see webm.py)
+        encoded = await self._in_worker(lambda: self.encoder.encode(frame, timestamp, duration))
         if encoded:
             self._append(encoded)
-
-    def _timestamp(self, frame: Frame) -> int:
-        """Return the frame's stream time in ms: when it arrived, strictly increasing."""
-        if self._epoch is None:
-            self._epoch = frame.received
-        timestamp = max(self._last_timestamp + 1, round((frame.received - self._epoch) * 1000))
-        self._last_timestamp = timestamp
-        return timestamp
 
     def _append(self, encoded: list[EncodedFrame]) -> None:
         if self.stream is None:
             assert self.encoder.size is not None  # set by the first encode
-            self.stream = LiveWebm(*self.encoder.size, self.feed.topic, self._epoch)
+            self.stream = LiveWebm(*self.encoder.size, self.feed.topic, self.clock.epoch)
         for frame in encoded:
             cluster = self.stream.append(frame)
             self.stats.produced(time.time(), len(cluster))

@@ -16,7 +16,7 @@ from concurrent.futures import ThreadPoolExecutor
 from contextlib import asynccontextmanager
 from typing import Any
 
-from telemetry.domain.video import VP8, StreamParams
+from telemetry.domain.video import SOURCE, VP8, StreamParams
 from telemetry.hub import Hub, get_hub
 from telemetry.video.feeds import CameraFeed
 from telemetry.video.pipelines import ImagePipeline, Pipeline, Vp8Pipeline
@@ -84,7 +84,7 @@ class VideoRelay:
         ]
         streams.sort(key=lambda s: (s["topic"], -s["viewers"], s["type"]))
         sources = [
-            _entry(topic, "source", "as published", 0)
+            _entry(topic, SOURCE, "as published", 0)
             | feed.stats.snapshot(now)
             | {"frames_bad": feed.bad}
             for topic, feed in self.feeds.items()

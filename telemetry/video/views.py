@@ -5,13 +5,18 @@
 - ``/snapshot?topic=T``: one JPEG;
 - ``/stream_viewer?topic=T&type=...``: a page showing one stream;
 - ``/video/``: the cameras the user may watch, with links to all of the above;
-- ``/api/video/stats``: the figures of every stream the user may watch (JSON).
+- ``/api/video/stats``: the figures of every stream the user may watch (JSON); with a
+  stream's own query (``?topic=T&type=vp8...``, or ``type=source`` for the camera as
+  published) only that stream's, so a player shows the figures of what it plays.
 
 Views parse, authorise (``cameras``) and hand over to ``streams``; every video error maps
 to its HTTP status in ``error_response`` only.
 """
 
 from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
 
 from asgiref.sync import sync_to_async
 from channels.db import database_sync_to_async
@@ -33,6 +38,7 @@ from telemetry.domain import multipart, names
 from telemetry.domain.rules import Principal
 from telemetry.domain.video import (
     MJPEG,
+    SOURCE,
     VP8,
     BadFrame,
     BadStreamParam,
@@ -42,6 +48,7 @@ from telemetry.domain.video import (
     StreamRequest,
     UnknownStream,
     VideoError,
+    camera_topic_candidates,
     parse_stream_request,
 )
 from telemetry.services import owner_named
@@ -137,6 +144,7 @@ async def stream_viewer(request: HttpRequest) -> HttpResponse:
         "stream_url": f"{reverse('video-stream')}?{query}",
         "snapshot_url": f"{reverse('video-snapshot')}?{query}",
         "webm": asked.params.type == VP8,
+        "query": request.GET.dict(),  # the stream's figures are asked with its own query
     }
     return await sync_to_async(render)(request, "telemetry/stream_viewer.html", context)
 
@@ -162,15 +170,33 @@ def _render_topics(request: HttpRequest, cameras: list[CameraListing]) -> HttpRe
 @require_GET
 async def video_stats(request: HttpRequest) -> HttpResponse:
     """``{"streams": [...]}``: each stream's figures, then each camera feed's, for the
-    cameras the asker may watch (see ``VideoRelay.stats``)."""
+    cameras the asker may watch (see ``VideoRelay.stats``); only those of the stream a
+    ``/stream`` query names when given one."""
     try:
         principal = await principal_of(request)
-    except NotAuthenticated as error:
+        relay = await get_video_relay()
+        entries = _asked_for(relay.stats(), request.GET)
+    except (NotAuthenticated, BadStreamParam, UnknownStream) as error:
         return error_response(error, as_json=True)
-    relay = await get_video_relay()
-    entries = relay.stats()
     allowed = await database_sync_to_async(_watchable)(principal, {e["topic"] for e in entries})
     return JsonResponse({"streams": [e for e in entries if e["topic"] in allowed]})
+
+
+def _asked_for(entries: list[dict[str, Any]], query: Mapping[str, str]) -> list[dict[str, Any]]:
+    """The entries of the stream ``query`` names as ``/stream`` would read it (all of them
+    without a ``topic``; the camera as published for ``type=source``). Raises
+    UnknownStream or BadStreamParam as ``/stream`` does."""
+    if "topic" not in query:
+        return entries
+    topics = camera_topic_candidates(query["topic"])
+    if query.get("type") == SOURCE:
+        return [e for e in entries if e["topic"] in topics and e["type"] == SOURCE]
+    params = parse_stream_request(query).params
+    return [
+        e
+        for e in entries
+        if e["topic"] in topics and e["type"] == params.type and e["params"] == params.label()
+    ]
 
 
 def _watchable(principal: Principal, topics: set[str]) -> set[str]:
