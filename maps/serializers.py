@@ -210,6 +210,11 @@ class TopologyEdgeSerializer(serializers.Serializer):
 class TopologySerializer(serializers.Serializer):
     nodes = TopologyNodeSerializer(many=True, required=False)
     edges = TopologyEdgeSerializer(many=True)
+    crossings = serializers.ListField(
+        child=serializers.DictField(),
+        read_only=True,
+        help_text="Tags that let a robot cross: {from, to, marker_id}; routes go no other way.",
+    )
 
 
 class RouteStepSerializer(serializers.Serializer):

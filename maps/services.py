@@ -144,11 +144,19 @@ def topology_of(building: Building) -> tuple[list[SubMap], list[Edge]]:
 
 
 def topology_document(building: Building) -> dict[str, Any]:
-    """The topology as served by the API and inside bundles."""
+    """The topology as served by the API and inside bundles, with the ``crossings`` its
+    tags allow (read-only: every tag linking one sub-map to another), so a robot routes
+    only where it can cross, as the server does."""
     nodes, edges = topology_of(building)
+    links = sorted(tag_links(building), key=lambda t: t.marker_id)
     return {
         "nodes": [{"code": n.code, "name": n.name, "x": n.node_x, "y": n.node_y} for n in nodes],
         "edges": [{"a": e.a, "b": e.b, "cost": e.cost} for e in edges],
+        "crossings": [
+            {"from": t.submap, "to": t.links_to, "marker_id": t.marker_id}
+            for t in links
+            if t.submap != t.links_to
+        ],
     }
 
 
@@ -195,8 +203,13 @@ def route_in(building: Building, start: str, goal: str) -> list[RouteStep]:
     return route_between([n.code for n in nodes], edges, tag_links(building), start, goal)
 
 
-def coverage_of(building: Building) -> Coverage:
-    _, edges = topology_of(building)
+def coverage_of(building: Building, edges: list[Edge] | None = None) -> Coverage:
+    """What the building's tags leave uncovered in its graph, or in ``edges`` proposed for
+    it (checked first: raises TopologyError as ``replace_topology`` would; nothing saved)."""
+    if edges is None:
+        edges = topology_of(building)[1]
+    else:
+        validate_topology(building.submaps.values_list("code", flat=True), edges)
     return tag_coverage(edges, tag_links(building))
 
 

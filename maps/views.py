@@ -22,7 +22,7 @@ from . import services
 from .access import Role, buildings_for, may_create_buildings, robot_of, role_in
 from .domain.mapfile import export_map, map_yaml_text, occupancy_grid_message
 from .domain.tagart import render_tag_pdf, render_tag_png
-from .domain.topology import Edge
+from .domain.topology import Coverage, Edge
 from .models import Building, EnvironmentalTag, SubMap
 from .serializers import (
     BuildingSerializer,
@@ -207,30 +207,47 @@ class Topology(APIView):
     def put(self, request: Request, building: str) -> Response:
         """Replace the whole graph; it is validated first and stored whole or not at all."""
         target = building_for(request, building, Role.ADMIN)
-        document = TopologySerializer(data=request.data)
-        document.is_valid(raise_exception=True)
-        positions = {n["code"]: (n["x"], n["y"]) for n in document.validated_data.get("nodes", [])}
-        edges = [Edge(e["a"], e["b"], e["cost"]) for e in document.validated_data["edges"]]
+        positions, edges = _proposed_topology(request)
         services.replace_topology(target, positions, edges)
         return Response(services.topology_document(target))
 
 
+def _proposed_topology(request: Request) -> tuple[dict[str, tuple[float, float]], list[Edge]]:
+    """Node positions and edges of a topology document in the body. Raises ValidationError."""
+    document = TopologySerializer(data=request.data)
+    document.is_valid(raise_exception=True)
+    positions = {n["code"]: (n["x"], n["y"]) for n in document.validated_data.get("nodes", [])}
+    edges = [Edge(e["a"], e["b"], e["cost"]) for e in document.validated_data["edges"]]
+    return positions, edges
+
+
 class TopologyValidation(APIView):
-    """Edges no tag lets a robot cross, and tags that link along no edge."""
+    """Edges no tag lets a robot cross (routes never use them), and tags that link along
+    no edge: of the stored graph (GET), or of a graph an editor is about to save (POST
+    the document PUT takes; nothing is stored)."""
+
+    parser_classes = [JSONParser]
 
     @extend_schema(responses=CoverageSerializer)
     def get(self, request: Request, building: str) -> Response:
-        coverage = services.coverage_of(building_for(request, building))
-        return Response(
-            {
-                "valid": not coverage.uncrossable and not coverage.dangling,
-                "uncrossable_edges": [{"from": a, "to": b} for a, b in coverage.uncrossable],
-                "dangling_tags": [
-                    {"marker_id": t.marker_id, "map": t.submap, "links_to": t.links_to}
-                    for t in coverage.dangling
-                ],
-            }
-        )
+        return Response(_coverage_document(services.coverage_of(building_for(request, building))))
+
+    @extend_schema(request=TopologySerializer, responses=CoverageSerializer)
+    def post(self, request: Request, building: str) -> Response:
+        target = building_for(request, building, Role.ADMIN)
+        _, edges = _proposed_topology(request)
+        return Response(_coverage_document(services.coverage_of(target, edges)))
+
+
+def _coverage_document(coverage: Coverage) -> dict[str, Any]:
+    return {
+        "valid": not coverage.uncrossable and not coverage.dangling,
+        "uncrossable_edges": [{"from": a, "to": b} for a, b in coverage.uncrossable],
+        "dangling_tags": [
+            {"marker_id": t.marker_id, "map": t.submap, "links_to": t.links_to}
+            for t in coverage.dangling
+        ],
+    }
 
 
 class Route(APIView):

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 from django.core.management import call_command
 
-from maps.domain.demo_building import demo_building
+from maps.domain.demo_building import PAPER_ROUTE, demo_building
 from maps.models import EnvironmentalTag
 from robots.agent.robot import PoseTracker, Robot, SimHardware
 from robots.agent.sim.world import demo_world
@@ -126,6 +126,29 @@ async def test_its_routes_agree_with_the_servers_route_endpoint(cloud):
         )
         theirs = [(s["map"], s["tag"] and s["tag"]["marker_id"]) for s in answer.json()["steps"]]
         assert ours == theirs, (start, goal)
+
+
+async def test_it_never_routes_along_an_edge_no_tag_lets_it_cross(cloud):
+    # An admin joins Corridor A straight to Office 7, cheaply, with no tag at either end.
+    from asgiref.sync import sync_to_async
+
+    from maps import services
+    from maps.domain.topology import Edge
+    from maps.models import Building
+
+    demo = demo_building()
+    building = await Building.objects.aget(code="boccioni_1")
+    edges = [Edge(e.a, e.b, e.cost) for e in demo.edges] + [Edge("CorridorA", "Office7", 1.0)]
+    await sync_to_async(services.replace_topology)(building, {}, edges)
+    cache = BundleCache(cloud)
+    supervisor = MapsSupervisor(cache, PoseTracker())
+    supervisor.current = await cache.load(CORRIDOR_A)  # the only bundle it holds
+    route = [step.submap for step in supervisor.route("Office7")]
+    assert route == list(PAPER_ROUTE)
+    answer = await cloud.get(
+        "/api/buildings/boccioni_1/route", params={"from": "CorridorA", "to": "Office7"}
+    )
+    assert [s["map"] for s in answer.json()["steps"]] == route
 
 
 async def test_a_tag_that_does_not_lead_on_is_read_but_not_entered(cloud):

@@ -123,6 +123,7 @@ CASES: list[tuple[str, str, Any, dict[str, int]]] = [
     ("get", f"{B}/topology", None, READ),
     ("put", f"{B}/topology", TOPOLOGY, WRITE),
     ("get", f"{B}/topology/validation", None, READ),
+    ("post", f"{B}/topology/validation", TOPOLOGY, WRITE),
     ("get", f"{B}/route?from=CorridorA&to=Atrium1", None, READ),
     ("get", f"{B}/tags/print.pdf", None, READ),
     ("get", "/api/tags/", None, LIST),

@@ -80,6 +80,50 @@ def test_the_route_follows_the_costs(chain: Building, viewer: User, admin: User)
     assert [s["map"] for s in steps] == ["A", "B", "C"]
 
 
+def test_the_route_never_uses_an_edge_no_tag_lets_a_robot_cross(
+    chain: Building, viewer: User, admin: User
+) -> None:
+    # A -> C is cheap, but no tag in A leads to C: robots go round by B.
+    edges = [
+        {"a": "A", "b": "B", "cost": 1},
+        {"a": "B", "b": "C", "cost": 1},
+        {"a": "A", "b": "C", "cost": 0.5},
+    ]
+    assert put(admin, {"edges": edges}).status_code == 200
+    steps = client_for(viewer).get(f"{B}/route", {"from": "A", "to": "C"}).json()["steps"]
+    assert [s["map"] for s in steps] == ["A", "B", "C"]
+    back = client_for(viewer).get(f"{B}/route", {"from": "C", "to": "A"})
+    assert back.status_code == 404
+    assert "no tag lets a robot cross from C to A" in str(back.json())
+
+
+def test_the_topology_lists_the_crossings_its_tags_allow(chain: Building, viewer: User) -> None:
+    body = client_for(viewer).get(f"{B}/topology").json()
+    assert body["crossings"] == [
+        {"from": "A", "to": "B", "marker_id": 1},
+        {"from": "B", "to": "C", "marker_id": 2},
+        {"from": "B", "to": "A", "marker_id": 3},
+    ]
+
+
+def test_an_editor_asks_what_a_graph_would_leave_uncrossable_before_saving_it(
+    chain: Building, admin: User
+) -> None:
+    proposal = {"edges": [{"a": "A", "b": "B", "cost": 1}, {"a": "A", "b": "C", "cost": 1}]}
+    response = client_for(admin).post(f"{B}/topology/validation", proposal, format="json")
+    assert response.status_code == 200
+    assert response.json()["uncrossable_edges"] == [
+        {"from": "A", "to": "C"},
+        {"from": "C", "to": "A"},
+    ]
+    assert not TopologyEdge.objects.exists()  # nothing was saved
+    bad = client_for(admin).post(
+        f"{B}/topology/validation", {"edges": [{"a": "A", "b": "Z", "cost": 1}]}, format="json"
+    )
+    assert bad.status_code == 400
+    assert "edges" in str(bad.json())
+
+
 def test_a_route_to_an_unreachable_sub_map_is_404(chain: Building, viewer: User) -> None:
     response = client_for(viewer).get(f"{B}/route", {"from": "A", "to": "C"})
     assert response.status_code == 404

@@ -71,7 +71,7 @@ def test_an_admin_edits_the_topology_and_sees_the_route_change(
     page.mouse.move(office["x"] - 40, office["y"] + 60, steps=8)
     page.mouse.up()
     before = {n["code"]: n for n in topology_of(page, demo)["nodes"]}  # type: ignore[attr-defined]
-    save_topology(page)
+    save_uncrossable_edge(page, demo)
     expect(page.locator("#topology-messages .alert.ok")).to_contain_text("saved")
     expect(page.locator("#topology-validation")).to_contain_text("No tag lets a robot cross")
     expect(page.locator('g[data-edge="CorridorA↔Office7"] .topo-edge.invalid')).to_have_count(1)
@@ -82,6 +82,34 @@ def test_an_admin_edits_the_topology_and_sees_the_route_change(
     assert after["Office7"]["y"] < before["Office7"]["y"]
     edges = {(e["a"], e["b"]) for e in topology_of(page, demo)["edges"]}  # type: ignore[attr-defined]
     assert ("CorridorA", "Office7") in edges or ("Office7", "CorridorA") in edges
+
+
+def save_uncrossable_edge(page: Page, demo: Demo) -> None:
+    """Save a graph with the new, untagged edge CorridorA-Office7: warned while editing, asked
+    on saving, saved only when confirmed; routes still never use it."""
+    warning = page.locator("#topology-validation .alert.warn")
+    expect(warning).to_contain_text("Not saved yet")
+    expect(warning).to_contain_text("No tag lets a robot cross CorridorA → Office7.")
+    expect(page.locator('g[data-edge="CorridorA↔Office7"] .topo-edge.invalid')).to_have_count(1)
+
+    save_topology(page)
+    dialog = page.locator("dialog#uncrossable-dialog")
+    expect(dialog).to_be_visible()
+    expect(dialog.locator("li")).to_have_text(["CorridorA → Office7", "Office7 → CorridorA"])
+    screenshot(page, "building-topology-confirm-uncrossable")
+    dialog.get_by_role("button", name="Keep editing").click()
+    expect(page.locator("#topology-messages")).to_contain_text("Not saved")
+    edges = {(e["a"], e["b"]) for e in topology_of(page, demo)["edges"]}  # type: ignore[attr-defined]
+    assert ("CorridorA", "Office7") not in edges
+
+    save_topology(page)
+    page.locator("dialog#uncrossable-dialog").get_by_role("button", name="Save anyway").click()
+    expect(page.locator("#topology-messages .alert.ok")).to_contain_text("saved")
+    page.select_option("#route-from", "CorridorA")
+    page.select_option("#route-to", "Office7")
+    # Routes still go by the tags: round by Room B (Corridor C to Atrium 2 now costs 20).
+    expect(page.locator("#route-steps li")).to_have_count(9)
+    assert route_steps(page)[:2] == ["CorridorA", "Atrium1"]
 
 
 def rgba_map() -> bytes:

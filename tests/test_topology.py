@@ -44,9 +44,20 @@ def test_it_names_the_tag_leading_on_from_each_step() -> None:
     assert [s.tag.marker_id if s.tag else None for s in steps] == [1, 3, 4, None]
 
 
-def test_a_step_with_no_tag_leading_on_has_none() -> None:
-    steps = route_between(NODES, CHAIN, TAGS, "D", "A")
-    assert [s.tag.marker_id if s.tag else None for s in steps] == [None, None, 2, None]
+def test_a_route_never_crosses_a_border_no_tag_leads_across() -> None:
+    # D -> C and C -> B have no tag: a robot sent that way would find nothing to drive to.
+    with pytest.raises(NoRouteError, match="no tag lets a robot cross from D to C"):
+        route_between(NODES, CHAIN, TAGS, "D", "A")
+
+
+def test_a_route_takes_a_dearer_border_a_tag_leads_across_over_a_cheap_one_without() -> None:
+    edges = [*CHAIN, Edge("A", "D", 10.0)]
+    tags = [*TAGS, TagLink(5, "D", "A")]
+    steps = route_between(NODES, edges, tags, "D", "A")
+    assert [(s.submap, s.tag.marker_id if s.tag else None) for s in steps] == [
+        ("D", 5),
+        ("A", None),
+    ]
 
 
 def test_a_route_to_itself_is_one_step() -> None:
@@ -55,8 +66,9 @@ def test_a_route_to_itself_is_one_step() -> None:
 
 def test_equal_cost_routes_are_chosen_the_same_whatever_the_edge_order() -> None:
     square = [Edge("A", "B", 1), Edge("B", "D", 1), Edge("A", "C", 1), Edge("C", "D", 1)]
-    first = route_between(NODES, square, [], "A", "D")
-    second = route_between(reversed(NODES), list(reversed(square)), [], "A", "D")
+    tags = [TagLink(i, e.a, e.b) for i, e in enumerate(square)]
+    first = route_between(NODES, square, tags, "A", "D")
+    second = route_between(reversed(NODES), list(reversed(square)), tags[::-1], "A", "D")
     assert first == second
 
 
@@ -68,7 +80,7 @@ def test_it_refuses_an_unknown_end(start: str, goal: str, field: str) -> None:
 
 
 def test_it_reports_no_route_between_disconnected_sub_maps() -> None:
-    with pytest.raises(NoRouteError):
+    with pytest.raises(NoRouteError, match=r"No route joins A and E\.$"):
         route_between([*NODES, "E"], CHAIN, TAGS, "A", "E")
 
 

@@ -2,14 +2,16 @@
 
 Nodes are sub-map codes; edges are undirected crossings with a positive cost; a tag
 standing in sub-map ``submap`` and linking to ``links_to`` is what lets a robot cross
-that edge in that direction. The robot agent runs the same ``route_between`` on the
-topology it downloads, so the server and the robot agree on every route.
+that edge in that direction, so routes follow an edge only the ways a tag leads: a robot
+sent along an edge with no tag would drive to nothing and give up. The robot agent runs
+the same ``route_between`` on the topology it downloads (whose ``crossings`` list every
+tag of the building), so the server and the robot agree on every route.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from itertools import pairwise
 
@@ -70,6 +72,20 @@ def topology_graph(nodes: Iterable[str], edges: Sequence[Edge]) -> nx.Graph:
     return graph
 
 
+def crossable_graph(
+    nodes: Iterable[str], edges: Sequence[Edge], leading: Mapping[tuple[str, str], TagLink]
+) -> nx.DiGraph:
+    """The directed graph of the crossings a robot can make: each edge, each way a tag
+    leads along it (``leading``: see ``_tags_by_direction``), at the edge's cost."""
+    graph = nx.DiGraph()
+    graph.add_nodes_from(sorted(nodes))
+    for edge in sorted(edges, key=lambda e: (min(e.a, e.b), max(e.a, e.b))):
+        for here, there in ((edge.a, edge.b), (edge.b, edge.a)):
+            if (here, there) in leading:
+                graph.add_edge(here, there, cost=edge.cost)
+    return graph
+
+
 def route_between(
     nodes: Iterable[str],
     edges: Sequence[Edge],
@@ -77,21 +93,41 @@ def route_between(
     start: str,
     goal: str,
 ) -> list[RouteStep]:
-    """Return the cheapest sub-map sequence from ``start`` to ``goal``, with the tag leading on.
+    """Return the cheapest sub-map sequence from ``start`` to ``goal`` that crosses each
+    border where a tag leads, with that tag for every step but the last.
 
-    Raises TopologyError ("from"/"to") for an unknown sub-map, NoRouteError when no path joins them.
+    Raises TopologyError ("from"/"to") for an unknown sub-map, NoRouteError when no such
+    sequence exists (naming the border with no tag when edges alone would join them).
     """
-    graph = topology_graph(nodes, edges)
+    nodes = list(nodes)
+    leading = _tags_by_direction(tags)
+    graph = crossable_graph(nodes, edges, leading)
     for field, code in (("from", start), ("to", goal)):
         if code not in graph:
             raise TopologyError(field, f"'{code}' is not a sub-map of this building.")
     try:
         path = nx.shortest_path(graph, start, goal, weight="cost")
     except nx.NetworkXNoPath:
-        raise NoRouteError("to", f"No route joins {start} and {goal}.") from None
-    leading = _tags_by_direction(tags)
-    steps = [RouteStep(here, leading.get((here, there))) for here, there in pairwise(path)]
+        raise NoRouteError("to", _no_route(nodes, edges, leading, start, goal)) from None
+    steps = [RouteStep(here, leading[(here, there)]) for here, there in pairwise(path)]
     return [*steps, RouteStep(goal, None)]
+
+
+def _no_route(
+    nodes: list[str],
+    edges: Sequence[Edge],
+    leading: Mapping[tuple[str, str], TagLink],
+    start: str,
+    goal: str,
+) -> str:
+    """Why no route joins ``start`` to ``goal``: the first border without a tag on the
+    cheapest way the edges alone offer, or no way at all."""
+    try:
+        path = nx.shortest_path(topology_graph(nodes, edges), start, goal, weight="cost")
+    except nx.NetworkXNoPath:
+        return f"No route joins {start} and {goal}."
+    here, there = next(step for step in pairwise(path) if step not in leading)
+    return f"No route joins {start} and {goal}: no tag lets a robot cross from {here} to {there}."
 
 
 def _tags_by_direction(tags: Iterable[TagLink]) -> dict[tuple[str, str], TagLink]:

@@ -27,7 +27,8 @@ The procedure (the paper's)
    reset the pose from the tag's stored pose and the measured relative pose
    (``relocalise``), make it the current map.
 3. Route from the current sub-map to the goal's with ``route_between`` on the bundle's
-   topology (the server's route endpoint runs the same function on the same data), and
+   topology and its crossings (the server's route endpoint runs the same function on the
+   same data, so neither sends a robot along an edge no tag lets it cross), and
    drive to ``APPROACH`` metres in front of the tag leading on, facing it. Standing
    there a while without reading it (odometry drifted), turn on the spot looking for
    it. Its QR code read, go to 2.
@@ -128,6 +129,7 @@ class SubMap:
     tags: Mapping[int, StoredTag]
     nodes: tuple[str, ...]
     edges: tuple[Edge, ...]
+    crossings: tuple[TagLink, ...] | None = None  # None: a server that did not send them
     _costmaps: dict[tuple[float, PlannerConfig], Costmap] = field(
         default_factory=dict, init=False, repr=False
     )
@@ -185,6 +187,7 @@ def submap_from_bundle(document: Mapping[str, Any], etag: str) -> SubMap:
             tags={int(t["marker_id"]): _stored_tag(t, code) for t in document["tags"]},
             nodes=tuple(str(node["code"]) for node in topology["nodes"]),
             edges=tuple(_edge(e) for e in topology["edges"]),
+            crossings=_crossings(topology.get("crossings")),
         )
     except (KeyError, TypeError, ValueError, AttributeError, binascii.Error) as error:
         raise BundleError(f"a bundle that cannot be read: {error!r}") from None
@@ -194,6 +197,12 @@ def submap_from_bundle(document: Mapping[str, Any], etag: str) -> SubMap:
 
 def _edge(document: Mapping[str, Any]) -> Edge:
     return Edge(str(document["a"]), str(document["b"]), float(document["cost"]))
+
+
+def _crossings(documents: Iterable[Mapping[str, Any]] | None) -> tuple[TagLink, ...] | None:
+    if documents is None:
+        return None
+    return tuple(TagLink(int(c["marker_id"]), str(c["from"]), str(c["to"])) for c in documents)
 
 
 def _stored_tag(document: Mapping[str, Any], submap: str) -> StoredTag:
@@ -475,8 +484,10 @@ class MapsSupervisor:
         Raises TopologyError, NoRouteError (``route_between``) or BundleError (no map)."""
         if self.current is None:
             raise BundleError("no sub-map held yet")
-        links = self.cache.tag_links(self.current.building)
         current = self.current
+        links = current.crossings
+        if links is None:  # an older server: the tags of the bundles held are all it knows
+            links = tuple(self.cache.tag_links(current.building))
         return route_between(current.nodes, current.edges, links, current.code, goal_code)
 
     def _leading_tag(self) -> int | None:

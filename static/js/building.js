@@ -2,10 +2,11 @@
 // validation shown), routes between sub-maps drawn on it, and the robots in it.
 
 import { ApiError, api, splitMapId, urls } from "./api.js";
-import { badge, el, pageConfig } from "./page.js";
+import { askToConfirm, badge, el, pageConfig } from "./page.js";
 import { TopologyView, edgeKey } from "./topology.js";
 
 const ROBOTS_MS = 3000;
+const CHECK_DELAY_MS = 300;
 const $ = (id) => document.getElementById(id);
 const config = pageConfig();
 const building = config.building;
@@ -20,32 +21,53 @@ async function loadTopology() {
   await Promise.all([showValidation(), showRoute()]);
 }
 
-async function showValidation() {
-  const report = await api.get(urls.validation(building));
+/** The tag coverage of the saved graph, or of `proposal` (a graph being edited, not saved). */
+async function showValidation(proposal = null) {
+  const report = proposal ? await api.post(urls.validation(building), proposal) : await api.get(urls.validation(building));
   view.setInvalid(report.uncrossable_edges.map((edge) => edgeKey(edge.from, edge.to)));
   const box = $("topology-validation");
+  box.dataset.state = report.valid ? "valid" : "uncovered";
   if (report.valid) {
     box.replaceChildren(el("div", { class: "alert ok" }, "Every edge has tags both ways, and every tag links along an edge."));
-    return;
+    return report;
   }
   const lines = [
-    ...report.uncrossable_edges.map((edge) => `No tag lets a robot cross ${edge.from} → ${edge.to}.`),
+    ...report.uncrossable_edges.map(uncrossable),
     ...report.dangling_tags.map((tag) => `Tag #${tag.marker_id} in ${tag.map} links to ${tag.links_to} along no edge.`),
   ];
-  box.replaceChildren(el("div", { class: "alert info" }, el("strong", {}, "Coverage"), el("ul", {}, ...lines.map((line) => el("li", {}, line)))));
+  const kind = report.uncrossable_edges.length ? "warn" : "info";
+  const title = proposal ? "Not saved yet — coverage of this graph" : "Coverage";
+  box.replaceChildren(el("div", { class: `alert ${kind}` }, el("strong", {}, title), el("ul", {}, ...lines.map((line) => el("li", {}, line))),
+    report.uncrossable_edges.length ? el("div", {}, "Robots are never routed across these until a tag is placed there.") : null));
+  return report;
 }
 
+function uncrossable(edge) {
+  return `No tag lets a robot cross ${edge.from} → ${edge.to}.`;
+}
+
+let checking = null;
+/** Check the graph being edited, a moment after the last change. */
+function checkSoon() {
+  clearTimeout(checking);
+  checking = setTimeout(() => showValidation(view.document()).catch(() => {}), CHECK_DELAY_MS);
+}
+
+let routeAsked = 0;
 async function showRoute() {
   const from = $("route-from").value;
   const to = $("route-to").value;
   const list = $("route-steps");
   if (!from || !to) return;
+  const asked = ++routeAsked; // answers can come back out of order: show the last asked
   try {
     const route = await api.get(urls.route(building, from, to));
+    if (asked !== routeAsked) return;
     view.setRoute(route.steps.map((step) => step.map));
     list.replaceChildren(...route.steps.map((step) => el("li", { "data-map": step.map },
       step.map, step.tag ? el("span", { class: "muted" }, ` — tag #${step.tag.marker_id}`) : null)));
   } catch (error) {
+    if (asked !== routeAsked) return;
     view.setRoute([]);
     list.replaceChildren(el("li", { class: "muted" }, `No route: ${error.message}`));
   }
@@ -67,9 +89,27 @@ function markDirty(dirty) {
   $("topology-revert").disabled = !dirty;
 }
 
+/** Whether to save a graph whose `uncrossable` edge directions no robot can cross. */
+function confirmUncrossable(edges) {
+  return askToConfirm({
+    id: "uncrossable-dialog",
+    title: "Save edges no robot can cross?",
+    text: "No tag stands where these edges cross, so robots will not be routed along them until tags are placed:",
+    lines: edges.map((edge) => `${edge.from} → ${edge.to}`),
+    confirm: "Save anyway",
+    cancel: "Keep editing",
+  });
+}
+
 async function save() {
+  const proposal = view.document();
   try {
-    saved = await api.put(urls.topology(building), view.document());
+    const report = await showValidation(proposal);
+    if (report.uncrossable_edges.length && !(await confirmUncrossable(report.uncrossable_edges))) {
+      message("info", "Not saved: the graph is as you left it.");
+      return;
+    }
+    saved = await api.put(urls.topology(building), proposal);
     view.load(saved);
     markDirty(false);
     message("ok", "Topology saved.");
@@ -93,6 +133,7 @@ function bindEditor() {
     markDirty(true);
     message("", "");
     showEdgeEditor();
+    checkSoon();
   });
   view.addEventListener("select", showEdgeEditor);
   $("edge-cost").addEventListener("input", (event) => {
@@ -106,6 +147,7 @@ function bindEditor() {
     markDirty(false);
     message("", "");
     showEdgeEditor();
+    showValidation();
     showRoute();
   });
 }

@@ -45,6 +45,30 @@ export function el(tag, attributes = {}, ...children) {
   return node;
 }
 
+/**
+ * Ask a person to confirm something with consequences, in a modal <dialog>: `title`, then
+ * `text` and `lines` (a list), then buttons `cancel` (the default: Escape and the form's
+ * first button) and `confirm`. Resolves to true only when they confirm.
+ */
+export function askToConfirm({ title, text = "", lines = [], confirm = "Continue", cancel = "Cancel", id = "" }) {
+  const dialog = el("dialog", { class: "confirm", id: id || null, "aria-label": title },
+    el("form", { method: "dialog" },
+      el("h2", {}, title),
+      text ? el("p", {}, text) : null,
+      lines.length ? el("ul", {}, ...lines.map((line) => el("li", {}, line))) : null,
+      el("div", { class: "row" },
+        el("button", { class: "btn", value: "cancel", autofocus: true }, cancel),
+        el("button", { class: "btn primary", value: "confirm" }, confirm))));
+  document.body.append(dialog);
+  return new Promise((resolve) => {
+    dialog.addEventListener("close", () => {
+      resolve(dialog.returnValue === "confirm");
+      dialog.remove();
+    }, { once: true });
+    dialog.showModal();
+  });
+}
+
 export function badge(text, kind = "") {
   return el("span", { class: `badge ${kind}` }, text);
 }
