@@ -26,6 +26,7 @@ from django.contrib.auth.models import User
 from django.core.management import call_command
 from playwright.sync_api import Browser, BrowserContext, Page, sync_playwright
 
+from maps.domain.demo_building import demo_building
 from tests.fixtures_live import BASE_DIR, LiveServer, agent_process, session_cookie
 
 CHROMIUM = "/usr/bin/chromium"
@@ -90,8 +91,11 @@ def context(browser: Browser) -> Iterator[BrowserContext]:
 
 @pytest.fixture
 def agent(demo: Demo, tmp_path: Path) -> Iterator[Path]:
-    """The simulated robot ``robot_0`` in its own process; yields its log file."""
-    options = ["--time-scale", str(TIME_SCALE), "--camera-rate", "5"]
+    """The simulated robot ``robot_0`` in its own process, at the paper's start: before the
+    entrance tag but too far to read it, so it is lost until it has a goal or an initial
+    pose (``make demo``'s robots start nearer); yields its log file."""
+    start = ",".join(str(v) for v in demo_building().start_pose)
+    options = ["--time-scale", str(TIME_SCALE), "--camera-rate", "5", "--start", start]
     with agent_process(
         demo.server.url, demo.tokens[ROBOT], tmp_path / "agent.log", *options
     ) as log:

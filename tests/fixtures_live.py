@@ -209,14 +209,26 @@ class LiveServer:
                 self.process.wait(10)
 
 
-@contextlib.contextmanager
-def agent_process(server_url: str, token: str, log: Path, *options: str) -> Iterator[Path]:
+def agent_process(
+    server_url: str, token: str, log: Path, *options: str
+) -> contextlib.AbstractContextManager[Path]:
     """Run ``python -m robots.agent`` for one robot in its own process, logging to ``log``."""
-    command = [sys.executable, "-m", "robots.agent", "--server", server_url, "--token", token]
+    return _agent(server_url, log, "--token", token, *options)
+
+
+def fleet_process(
+    server_url: str, tokens: Path, count: int, log: Path
+) -> contextlib.AbstractContextManager[Path]:
+    """Run the demo's robots as ``make demo`` does: one agent process for ``count`` robots
+    of a ``seed_demo`` tokens file, at their default start and real time."""
+    return _agent(server_url, log, "--tokens-file", str(tokens), "--count", str(count))
+
+
+@contextlib.contextmanager
+def _agent(server_url: str, log: Path, *arguments: str) -> Iterator[Path]:
+    command = [sys.executable, "-m", "robots.agent", "--server", server_url, *arguments]
     with log.open("wb") as out:
-        process = subprocess.Popen(
-            [*command, *options], cwd=BASE_DIR, stdout=out, stderr=subprocess.STDOUT
-        )
+        process = subprocess.Popen(command, cwd=BASE_DIR, stdout=out, stderr=subprocess.STDOUT)
     try:
         yield log
     finally:

@@ -227,6 +227,65 @@ async def test_a_goal_in_a_sub_map_the_building_lacks_is_aborted(cloud):
     assert "Kitchen" in robot.navigator.board.entries[-1].text
 
 
+@pytest.mark.parametrize("frame", [None, "", "   "])
+async def test_a_goal_that_names_no_sub_map_is_rejected_saying_why(cloud, frame):
+    # What a page sent when no sub-map was shown: a frame of null.
+    robot, recorder = make_robot(cloud, (8.0, 23.2, 0.0))
+    await localised(robot, CORRIDOR_A)
+    goal = pose_message(CORRIDOR_A, (16.0, 23.2, 0.0))
+    goal["header"]["frame_id"] = frame
+    robot.on_goal(goal)
+    await run_for(robot, 0.2)
+    assert statuses(robot) == [GoalStatus.REJECTED]
+    last = recorder.on("nav_status")[-1]["status_list"][-1]
+    assert last["status"] == GoalStatus.REJECTED
+    assert "names no sub-map" in last["text"]
+    assert "frame_id" in last["text"]
+    assert robot.hardware.body.velocity == (0.0, 0.0)
+
+
+async def test_a_goal_without_a_usable_pose_is_rejected_saying_why(cloud):
+    robot, _ = make_robot(cloud, (8.0, 23.2, 0.0))
+    robot.on_goal({"header": {"frame_id": CORRIDOR_A}, "pose": {"position": {"x": "far"}}})
+    assert statuses(robot) == [GoalStatus.REJECTED]
+    assert "no usable pose" in robot.navigator.board.entries[-1].text
+
+
+async def test_every_goal_that_ends_badly_says_why(cloud):
+    robot, recorder = make_robot(cloud, (8.0, 23.2, 0.0))
+    await localised(robot, CORRIDOR_A)
+    robot.on_goal(pose_message("Kitchen", (1.0, 1.0, 0.0)))  # a bare code: this building's
+    robot.on_goal(pose_message("boccioni_1/CorridorA", (0.0, 0.0, 0.0)))  # in a wall
+    await run_for(robot, 1.0)
+    ended = [e for m in recorder.on("nav_status") for e in m["status_list"] if e["status"] > 1]
+    assert {e["status"] for e in ended} >= {GoalStatus.ABORTED}
+    assert all(e["text"] for e in ended)
+
+
+async def test_a_robot_says_it_is_lost_until_an_initial_pose_places_it(cloud):
+    robot, recorder = make_robot(cloud, (10.0, 23.2, 0.0))  # mid Corridor A, no tag in reach
+    await run_for(robot, 1.0)
+    [lost] = recorder.on("localisation")[:1]
+    assert (lost["level"], lost["message"]) == (1, "lost, looking for a tag")
+    assert {"key": "state", "value": "lost"} in lost["values"]
+    await localised(robot, CORRIDOR_A)
+    await run_for(robot, 0.2)
+    now = recorder.on("localisation")[-1]
+    assert now["level"] == 0
+    assert now["message"] == f"localised in {CORRIDOR_A} by initial pose"
+
+
+async def test_a_robot_before_a_tag_says_it_read_it_and_is_localised(cloud):
+    from maps.domain.demo_building import demo_building
+
+    robot, recorder = make_robot(cloud, demo_building().robot_starts[0])
+    await run_until(robot, lambda: robot.supervisor.current is not None, 5)
+    await run_for(robot, 0.2)
+    states = [m["message"] for m in recorder.on("localisation")]
+    assert states[-1] == f"localised in {CORRIDOR_A} by tag 0"
+    assert "lost, looking for a tag" not in states[1:]  # never lost again once it read the tag
+
+
 async def test_a_lost_robot_with_no_tag_in_sight_gives_up_after_looking_round(cloud):
     robot, _ = make_robot(cloud, (22.0, 14.0, 0.0))  # mid Corridor B, tags out of range
     robot.on_goal(pose_message(CORRIDOR_A, (6.0, 23.2, 0.0)))

@@ -9,7 +9,8 @@ from pathlib import Path
 import pytest
 from playwright.sync_api import BrowserContext, WebSocketRoute, expect
 
-from tests.browser_support import ROBOT, Demo, open_as, screenshot
+from maps.domain.demo_building import demo_building
+from tests.browser_support import ROBOT, Demo, open_as, press_and_drag, screenshot
 
 pytest_plugins = ["tests.browser_support"]
 pytestmark = [pytest.mark.browser, pytest.mark.django_db(transaction=True)]
@@ -104,3 +105,25 @@ def test_the_page_asks_to_sign_in_again_when_signed_out(
     expect(page).to_have_url(re.compile(r"/accounts/login/"))
     page.goto(demo.url("/buildings/"))
     expect(page).to_have_url(re.compile(r"/accounts/login/\?next=/buildings/"))
+
+
+def test_the_dashboard_says_which_robot_is_lost_and_the_way_out(
+    context: BrowserContext, demo: Demo, agent: Path
+) -> None:
+    # The agent's robot starts too far from the entrance tag to read it: lost.
+    page = open_as(context, demo, "viewer", "/")
+    row = page.locator(f"#fleet-table tr[data-robot={ROBOT}]")
+    cell = row.locator(".localisation")
+    expect(cell.locator(".badge")).to_have_text("lost, looking for a tag", timeout=30_000)
+    expect(cell).to_contain_text("An operator can set its initial pose, or drive it to a tag.")
+    expect(page.locator("#stat-lost")).to_have_text("1")
+    screenshot(page, "fleet-dashboard-robot-lost")
+
+    operator = open_as(context, demo, "operator", f"/robots/{ROBOT}/")
+    expect(operator.locator("#robot-online")).to_have_text("online", timeout=30_000)
+    operator.select_option("#goal-map", "boccioni_1/CorridorA")
+    expect(operator.locator("#map-wrap")).to_have_attribute("data-loaded", "boccioni_1/CorridorA")
+    operator.click("#lost-set-pose")
+    press_and_drag(operator, *demo_building().start_pose)
+    expect(cell.locator(".badge")).to_have_text("localised", timeout=20_000)
+    expect(page.locator("#stat-lost")).to_have_text("0")

@@ -28,6 +28,8 @@ pytestmark = [pytest.mark.browser, pytest.mark.django_db(transaction=True)]
 CORRIDOR_A = f"{BUILDING}/CorridorA"
 START = (2.4, 22.6, 0.0)  # the demo robot's start pose, facing the entrance tag
 GOAL = (8.0, 23.2, 0.0)
+FAR_GOAL = (16.0, 23.2, 0.0)
+BEYOND_THE_WALL = (10.0, 26.4, 0.0)  # 1.8 m north of Corridor A, outside the building
 ATRIUM_1 = (20.0, 23.2, 0.0)  # between the door and the central pillar
 CAMERA_TOPIC = f"/{ROBOT}/camera/image/compressed"
 SOMETHING = re.compile(r".+")
@@ -204,3 +206,93 @@ def test_the_camera_plays_the_video_relays(
     )
     expect(page.locator("#camera-frame")).to_have_attribute("data-mode", mode)
     screenshot(page, f"robot-camera-{mode}")
+
+
+def last_goal_id(page: Page) -> str | None:
+    """The id of the newest goal in the robot's ``nav_status``, as the page received it."""
+    found = page.evaluate(
+        "() => window.cloudnav.robotPage.state.nav?.status_list.at(-1)?.goal_id.id ?? null"
+    )
+    return None if found is None else str(found)
+
+
+def test_a_lost_robot_shows_the_way_out_and_a_goal_with_no_sub_map_is_refused(
+    context: BrowserContext, demo: Demo, agent: Path
+) -> None:
+    page = robot_page(context, demo)
+    banner = page.locator("#lost-banner")
+    expect(banner).to_be_visible(timeout=20_000)
+    expect(banner).to_contain_text("robot_0 is lost, looking for a tag.")
+    expect(banner).to_contain_text("Way out")
+    expect(banner).to_contain_text("drive it until its camera reads a tag")
+    expect(page.locator("#robot-loc")).to_have_text("lost, looking for a tag")
+    screenshot(page, "robot-lost")
+
+    # No sub-map is shown: the Goal tool refuses, and pressing the map sends nothing.
+    page.click("#map-tools button[data-tool=goal]")
+    expect(page.locator("#map-hint")).to_contain_text("no sub-map is shown")
+    expect(page.locator("#map-tools button[data-tool=goal]")).not_to_have_class(
+        re.compile("active")
+    )
+    box = page.locator("#map-canvas").bounding_box()
+    assert box is not None
+    page.mouse.click(box["x"] + box["width"] / 2, box["y"] + box["height"] / 2)
+    expect(page.locator("#goal-state")).to_have_text("idle")  # it never had a goal
+    screenshot(page, "robot-goal-refused-without-a-submap")
+
+    # The way out: choose the sub-map, set the initial pose from the banner.
+    show_corridor_a(page)
+    page.click("#lost-set-pose")
+    press_and_drag(page, *START)
+    expect(banner).to_be_hidden(timeout=20_000)
+    expect(page.locator("#robot-loc")).to_have_text("localised")
+    expect(page.locator("#loc-text")).to_have_text(f"localised in {CORRIDOR_A} by initial pose")
+
+    # The first goal the robot ever got is this one: the refused press sent nothing.
+    page.click("#map-tools button[data-tool=goal]")
+    press_and_drag(page, *GOAL)
+    expect(page.locator("#goal-state")).to_have_text(re.compile("active|succeeded"), timeout=15_000)
+    assert last_goal_id(page) == "goal_1"
+
+
+def test_a_goal_the_robot_cannot_reach_says_why_on_the_page(
+    context: BrowserContext, demo: Demo, agent: Path
+) -> None:
+    page = robot_page(context, demo)
+    localise(page)
+    page.click("#map-tools button[data-tool=goal]")
+    press_and_drag(page, *BEYOND_THE_WALL)
+    expect(page.locator("#goal-state")).to_have_text("aborted", timeout=15_000)
+    reason = page.locator("#goal-reason")
+    expect(reason).to_be_visible()
+    expect(reason).to_contain_text("The robot aborted the goal: ")
+    expect(page.locator("#nav-text")).to_contain_text("aborted: ")
+    screenshot(page, "robot-goal-aborted-with-its-reason")
+
+
+def test_space_stops_and_cancels_only_for_the_operator_holding_the_lock(
+    context: BrowserContext, demo: Demo, agent: Path
+) -> None:
+    page = robot_page(context, demo)
+    localise(page)
+    page.click("#map-tools button[data-tool=goal]")
+    press_and_drag(page, *FAR_GOAL)
+    expect(page.locator("#goal-state")).to_have_text("active", timeout=15_000)
+
+    # A viewer, and an operator without the lock, press Space: the robot drives on.
+    viewer = open_as(context.browser.new_context(), demo, "viewer", f"/robots/{ROBOT}/")  # type: ignore[union-attr]
+    expect(viewer.locator("#conn-state")).to_contain_text("Live")
+    for someone in (viewer, page):
+        someone.locator("body").press("Space")
+        here = drawn_robot(page)
+        assert here is not None
+        wait_until_moved(page, here, 0.5, timeout=15_000)
+        expect(page.locator("#goal-state")).to_have_text("active")
+    viewer.context.close()
+
+    # The operator holding the lock presses Space: it stops and its goal is cancelled.
+    page.click("#lock-acquire")
+    expect(page.locator("#lock-state")).to_have_text("You are driving")
+    page.locator("body").press("Space")
+    expect(page.locator("#goal-state")).to_have_text("preempted", timeout=15_000)
+    expect(page.locator("#odom-speed")).to_have_text("0.00 m/s", timeout=10_000)

@@ -233,6 +233,31 @@ def test_the_entrance_tag_leads_into_corridor_a_from_the_start_pose(
     assert inside(corridor_a, x, y)
 
 
+def test_the_demo_robots_start_where_their_cameras_read_the_entrance_tag(
+    building: DemoBuilding,
+) -> None:
+    # So `make demo`'s robots localise on their own instead of waiting, lost, for a goal.
+    from robots.agent.perception import CameraModel, TagDetector
+    from robots.agent.sim.camera import Camera
+    from robots.agent.sim.world import demo_world
+
+    camera = Camera(demo_world(), CameraModel(), seed=11)
+    detector = TagDetector(camera.model)
+    corridor_a = building.submaps[0]
+    assert len(building.robot_starts) >= 3
+    for start in building.robot_starts:
+        assert inside(corridor_a, *start[:2])
+        cell = world_to_cell(*start[:2], building.world_origin)
+        assert building.world[cell] == FREE, start
+        read = [
+            d.payload.map_code
+            for _ in range(3)
+            for d in detector.detect(camera.render(start))
+            if d.marker_id == 0 and d.payload is not None
+        ]
+        assert read == ["CorridorA"] * 3, start
+
+
 def test_the_cheapest_route_is_the_main_corridor_route(building: DemoBuilding) -> None:
     graph = nx.Graph()
     graph.add_edges_from((e.a, e.b, {"cost": e.cost}) for e in building.edges)

@@ -3,12 +3,14 @@ which controls. Browser behaviour is in ``test_browser_*.py``."""
 
 from __future__ import annotations
 
+import math
+
 import pytest
 from django.contrib.auth.models import User
 from django.test import Client
 
 from maps.models import Building, SubMap
-from tests.conftest import make_robot, make_submap
+from tests.conftest import make_robot, make_submap, make_tag
 
 pytestmark = pytest.mark.django_db
 
@@ -147,3 +149,15 @@ def test_the_page_hands_its_script_the_role_and_subject(operator: User, robot: s
     page = signed_in(operator).get(f"/robots/{robot}/").content.decode()
     assert '"role": "operator"' in page
     assert '"robot": "r1"' in page
+
+
+def test_headings_are_shown_in_degrees_on_every_page(viewer: User, submap: SubMap) -> None:
+    # Radians stay on the wire and in the API; people read degrees, as on the robot page.
+    make_tag(submap, yaw=math.pi / 2)
+    SubMap.objects.filter(pk=submap.pk).update(origin_yaw=-math.pi)
+    client = signed_in(viewer)
+    building_page = client.get("/buildings/boccioni_1/").content.decode()
+    assert "1.00 m, 0.50 m, 90°" in building_page
+    submap_page = client.get("/buildings/boccioni_1/maps/CorridorA/").content.decode()
+    assert "-180°" in submap_page
+    assert "-3.14" not in submap_page

@@ -36,7 +36,7 @@ class FleetOptions:
     ``robot`` says), and each robot's config."""
 
     server: str
-    start: Pose | None = None  # default: the demo building's start pose
+    start: Pose | None = None  # every robot's; default: the demo's places by the entrance tag
     particles: int | None = None
     seed: int = 0
     robot: RobotConfig = field(default_factory=RobotConfig)
@@ -86,7 +86,7 @@ def build_robot(
         base_url=http_base, headers={"Authorization": f"Token {token}"}, timeout=10.0
     )
     seed, config = options.seed + 10 * index, options.robot
-    start = options.start or demo_building().start_pose
+    start = options.start or demo_start(index)
     hardware = SimHardware(world, start, seed=seed, limits=config.body)
     particles = config.localisation.particles if options.particles is None else options.particles
     tracker = PoseTracker(particle_filter(particles, seed, config.localisation))
@@ -95,6 +95,13 @@ def build_robot(
     robot = Robot(hardware, supervisor, tracker, client, options.robot)
     declare(robot, client)
     return FleetRobot(name, robot, client, http)
+
+
+def demo_start(index: int) -> Pose:
+    """Where the demo's robot number ``index`` begins: within reading range of the entrance
+    tag (``ROBOT_STARTS``), so it localises at once."""
+    starts = demo_building().robot_starts
+    return starts[index % len(starts)]
 
 
 def build_fleet(tokens: Iterable[tuple[str, str]], options: FleetOptions) -> list[FleetRobot]:

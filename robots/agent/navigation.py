@@ -514,13 +514,19 @@ class Navigator:
 
     def set_goal(self, map_id: str, pose: Pose, seconds: float) -> None:
         """A new goal (pose in sub-map ``map_id`` of this building); preempts the last."""
-        self.board.start(seconds)
         destination = Destination.parse(map_id, pose)
         if destination is None:
-            self._end(GoalStatus.ABORTED, f"'{map_id}' is not a Map ID (building/map)")
+            self.reject(f"'{map_id}' is not a Map ID (building/map)", seconds)
             return
+        self.board.start(seconds)
         self.supervisor.set_destination(destination)
         self.driver.clear()
+
+    def reject(self, reason: str, seconds: float) -> None:
+        """A goal that cannot be pursued: it preempts the last, then ends REJECTED with
+        ``reason`` (as an actionlib server rejects a goal it cannot accept)."""
+        self.board.start(seconds)
+        self._end(GoalStatus.REJECTED, reason)
 
     def cancel(self) -> bool:
         """Cancel the active goal (PREEMPTED); False if there was none."""

@@ -14,8 +14,10 @@ watchdog, is in simulated seconds. Messages are stamped ``epoch + simulated seco
 Topics (relative names, so the server resolves them to ``/{robot}/...``): publishes
 ``pose`` (10 Hz, only once the robot knows its sub-map: ``frame_id`` is the Map ID),
 ``odom`` (10 Hz), ``scan`` (5 Hz), ``plan`` (when it changes), ``nav_status`` (on every
-change and at 1 Hz), ``map_id`` (latched, on entering a sub-map) and
-``camera/image/compressed`` (``camera_rate``); subscribes ``cmd_vel``, ``goal`` and
+change and at 1 Hz), ``map_id`` (latched, on entering a sub-map), ``localisation``
+(latched, on every change and at 1 Hz: lost, entering a sub-map or localised, see
+``whereabouts``) and ``camera/image/compressed`` (``camera_rate``); subscribes
+``cmd_vel``, ``goal`` and
 ``initialpose``; serves ``cancel_goal`` (``std_srvs/Trigger``), which preempts the
 active goal. (The server lets operators publish only ``cmd_vel``, ``goal`` and
 ``initialpose`` to a robot, so a cancel topic could never be published; the service
@@ -49,6 +51,7 @@ from robots.agent.sim.camera import Camera, compressed_image_message, encode_jpe
 from robots.agent.sim.laser import Laser, LaserSpec
 from robots.agent.sim.world import World
 from robots.agent.supervisor import BundleError, MapsSupervisor, SubMap
+from robots.agent.whereabouts import Whereabouts
 from robots.domain.params import BodyLimits, FilterParams, RobotConfig
 from robots.domain.se2 import Pose, compose, inverse
 from telemetry.domain.messages import (
@@ -231,12 +234,14 @@ class Robot:
         self.navigator = Navigator(supervisor, self.config)
         self.detector = TagDetector(hardware.camera.model)
         self.epoch = time.time() if epoch is None else epoch
+        self._epoch_given = epoch is not None
         self.seconds = 0.0
         self.ticks = 0
         self.detections: list[TagDetection] = []  # the last frame's, for tests and logs
         self._teleop_until = -math.inf
         self._published_plan = 0
         self._published_status = -1
+        self._published_whereabouts: Whereabouts | None = None
         self._map_to_publish: str | None = None
         self._tasks: set[asyncio.Task[None]] = set()
         supervisor.on_map.append(self._entered)
@@ -253,10 +258,12 @@ class Robot:
 
     def on_goal(self, msg: Json) -> None:
         """A goal pose in a sub-map (``frame_id`` = its Map ID; a bare map code means this
-        building)."""
+        building). One it cannot use is rejected on ``nav_status``, saying why."""
         goal = goal_of(msg)
-        if goal is None:
-            logger.warning("a goal without a usable pose or frame was ignored")
+        if goal is None or not goal.map_id.strip():
+            reason = _unusable_goal(msg)
+            logger.warning("goal rejected: %s", reason)
+            self.navigator.reject(reason, self.seconds)
             return
         map_id = goal.map_id
         if "/" not in map_id and self.supervisor.current is not None:
@@ -361,6 +368,7 @@ class Robot:
         if self._due(self.config.scan_rate):
             await self.publisher.publish("scan", scan)
         await self._publish_navigation(current)
+        await self._publish_whereabouts()
         if image is not None and self._due(self.config.camera_rate):
             await self._publish_image(image)
 
@@ -374,6 +382,12 @@ class Robot:
             self._published_status = board.version
             await self.publisher.publish("nav_status", status_array(board.entries, self.stamp))
 
+    async def _publish_whereabouts(self) -> None:
+        now = self.supervisor.whereabouts()
+        if now != self._published_whereabouts or self._due(self.config.status_rate):
+            self._published_whereabouts = now
+            await self.publisher.publish("localisation", now.status())
+
     async def _publish_image(self, image: NDArray[np.uint8]) -> None:
         jpeg = encode_jpeg(image, self.config.jpeg_quality)
         message = compressed_image_message(jpeg, self.stamp)
@@ -384,6 +398,10 @@ class Robot:
     async def run(self, time_scale: float = 1.0) -> None:
         """Tick forever, ``time_scale`` times faster than the wall clock (``inf``: as fast
         as the CPU allows). A robot that falls behind does not rush to catch up."""
+        if not self._epoch_given:
+            # Stamps start from now, not from when the robot was built (the planner's
+            # warm-up came between), so at time scale 1 they follow the wall clock.
+            self.epoch = time.time() - self.seconds
         loop = asyncio.get_running_loop()
         period = self.config.period / time_scale
         next_at = loop.time()
@@ -396,6 +414,18 @@ class Robot:
             await asyncio.sleep(max(delay, 0.0))
 
 
+def _unusable_goal(msg: Json) -> str:
+    """Why ``goal_of`` found no goal in ``msg``, in words for the operator."""
+    header = msg.get("header") if isinstance(msg, dict) else None
+    frame = header.get("frame_id") if isinstance(header, dict) else None
+    if not isinstance(frame, str) or not frame.strip():
+        return (
+            "the goal names no sub-map: its header.frame_id must be the Map ID "
+            "(building/map) of the sub-map it is in"
+        )
+    return "the goal has no usable pose: its position and orientation must be finite numbers"
+
+
 # --- declarations on the network -------------------------------------------------------
 
 PUBLISHED = ("pose", "odom", "scan", "plan", "nav_status", "camera/image/compressed")
@@ -406,7 +436,8 @@ def declare(robot: Robot, client: RosbridgeClient) -> None:
     ``client``."""
     for topic in PUBLISHED:
         client.advertise(topic, ROBOT_TOPIC_TYPES[topic])
-    client.advertise("map_id", ROBOT_TOPIC_TYPES["map_id"], latch=True)
+    for latched in ("map_id", "localisation"):
+        client.advertise(latched, ROBOT_TOPIC_TYPES[latched], latch=True)
     client.subscribe("cmd_vel", ROBOT_TOPIC_TYPES["cmd_vel"], robot.on_cmd_vel)
     client.subscribe("goal", ROBOT_TOPIC_TYPES["goal"], robot.on_goal)
     client.subscribe("initialpose", ROBOT_TOPIC_TYPES["initialpose"], robot.on_initial_pose)

@@ -66,6 +66,7 @@ from maps.domain.topology import Edge, RouteStep, TagLink, route_between
 from maps.exceptions import MapStoreError
 from robots.agent.perception import TagDetection
 from robots.agent.relocalise import PoseEstimate, relocalise
+from robots.agent.whereabouts import Localisation, Whereabouts
 from robots.domain.params import PlannerConfig
 from robots.domain.se2 import Pose, ahead, compose, inverse, wrap
 
@@ -360,6 +361,8 @@ class MapsSupervisor:
         self._last_reset = -math.inf
         self._useless: set[int] = set()  # markers no held bundle can place a lost robot by
         self._entering: asyncio.Task[None] | None = None
+        self._entering_by: Whereabouts | None = None
+        self.placed_by = ""  # what made the current sub-map current: "tag 3", "initial pose"
         self._arrived_at: float | None = None
         self._searched_from: float | None = None  # when the current search began
 
@@ -408,7 +411,17 @@ class MapsSupervisor:
             await self._entering
 
     def _start_entering(self, detection: TagDetection, odom: Pose) -> None:
-        self._entering = asyncio.create_task(self._enter(_named(detection), detection, odom))
+        map_id, source = _named(detection), f"tag {detection.marker_id}"
+        self._entering_by = Whereabouts(Localisation.ENTERING, map_id, source)
+        self._entering = asyncio.create_task(self._enter(map_id, detection, odom))
+
+    def whereabouts(self) -> Whereabouts:
+        """Whether the robot knows where it is, and by what (the ``localisation`` topic)."""
+        if self.entering and self._entering_by is not None:
+            return self._entering_by
+        if self.current is None:
+            return Whereabouts(Localisation.LOST)
+        return Whereabouts(Localisation.LOCALISED, self.current.map_id, self.placed_by)
 
     async def _enter(self, map_id: str, detection: TagDetection, odom: Pose) -> None:
         """Fetch ``map_id``, reset the pose from ``detection``, make it current. On
@@ -424,7 +437,7 @@ class MapsSupervisor:
             )
             self._useless.add(detection.marker_id)
             return
-        self.make_current(submap)
+        self.make_current(submap, f"tag {detection.marker_id}")
 
     def _reset_from(self, detection: TagDetection, odom: Pose, submap: SubMap) -> bool:
         """Reset the pose from a tag held in some bundle; False if none holds it."""
@@ -435,9 +448,11 @@ class MapsSupervisor:
         self.tracker.reset((estimate.x, estimate.y, estimate.yaw), estimate.covariance, odom)
         return True
 
-    def make_current(self, submap: SubMap) -> None:
-        """Localise and plan in ``submap`` from now on."""
+    def make_current(self, submap: SubMap, placed_by: str = "the map it was given") -> None:
+        """Localise and plan in ``submap`` from now on; ``placed_by`` says what put it
+        there."""
         self.current = submap
+        self.placed_by = placed_by
         self.tracker.set_map(submap)
         self._arrived_at = None
         for callback in self.on_map:
@@ -449,7 +464,7 @@ class MapsSupervisor:
         submap = await self.cache.load(map_id)
         pose = (estimate.x, estimate.y, estimate.yaw)
         self.tracker.reset(pose, estimate.covariance, odom)
-        self.make_current(submap)
+        self.make_current(submap, "initial pose")
 
     # --- legs ------------------------------------------------------------------------------
 

@@ -1,11 +1,16 @@
 // The fleet dashboard: every visible robot from /api/fleet/, kept live over rosbridge
-// (pose for the sub-map, odometry for the speed, nav_status for navigation).
+// (pose for the sub-map, odometry for the speed, nav_status for navigation, localisation
+// for whether it knows where it is).
 
 import { api, splitMapId, urls } from "./api.js";
-import { ago, badge, connectFleet, el, fixed, navigationState } from "./page.js";
+import { ago, badge, connectFleet, el, fixed, navigationState, pageConfig, whereabouts } from "./page.js";
 
 const POLL_MS = 3000;
 const LIVE_FOR_MS = 3000;
+// How a lost robot is got out, said to whoever reads the dashboard.
+const WAY_OUT = ["operator", "admin"].includes(pageConfig().role)
+  ? "Open it to set its initial pose, or drive it to a tag."
+  : "An operator can set its initial pose, or drive it to a tag.";
 
 class FleetDashboard {
   constructor(connection) {
@@ -28,7 +33,7 @@ class FleetDashboard {
   #merge(entry) {
     let robot = this.robots.get(entry.robot);
     if (!robot) {
-      robot = { name: entry.robot, speed: null, turn: null, nav: null, heard: 0 };
+      robot = { name: entry.robot, speed: null, turn: null, nav: null, whereabouts: null, heard: 0 };
       this.robots.set(entry.robot, robot);
       this.#listen(robot);
     }
@@ -51,6 +56,10 @@ class FleetDashboard {
       heard();
       robot.nav = msg;
     }, { queue_length: 1 });
+    this.connection.subscribe(`${ns}/localisation`, "diagnostic_msgs/DiagnosticStatus", (msg) => {
+      heard();
+      robot.whereabouts = whereabouts(msg);
+    }, { queue_length: 1 });
   }
 
   online(robot) {
@@ -67,7 +76,7 @@ class FleetDashboard {
   #row(robot) {
     const online = this.online(robot);
     const [building, map] = splitMapId(robot.mapId);
-    const [word, kind] = robot.nav ? navigationState(robot.nav) : ["—", "plain"];
+    const [word, kind, text] = robot.nav ? navigationState(robot.nav) : ["—", "plain", ""];
     const lastSeen = robot.heard ? new Date(robot.heard) : robot.entry?.last_seen;
     const href = `/robots/${encodeURIComponent(robot.name)}/`;
     return el("tr", { class: "clickable", dataset: { robot: robot.name }, onclick: () => { window.location.href = href; } },
@@ -75,20 +84,34 @@ class FleetDashboard {
       el("td", {}, badge(online ? "online" : "offline", online ? "ok" : "idle")),
       el("td", {}, building || robot.entry?.buildings.join(", ") || "—"),
       el("td", { class: "submap" }, map || "—"),
+      el("td", { class: "localisation" }, ...this.#localisation(robot, online)),
       el("td", { class: "num speed" }, online && robot.speed !== null ? `${fixed(robot.speed)} m/s` : "—"),
-      el("td", {}, badge(word, kind)),
+      el("td", { class: "navigation" }, badge(word, kind), kind === "danger" && text ? el("div", { class: "muted small" }, text) : null),
       el("td", { class: "muted" }, ago(lastSeen)),
     );
+  }
+
+  /** Whether the robot knows where it is; a lost one with the way out. */
+  #localisation(robot, online) {
+    const found = robot.whereabouts;
+    if (!online || !found) return ["—"];
+    if (found.state !== "lost") return [Object.assign(badge(found.state, found.kind), { title: found.message })];
+    return [
+      badge("lost, looking for a tag", "warn"),
+      el("div", { class: "muted small way-out" }, WAY_OUT),
+    ];
   }
 
   #stats(robots) {
     const online = robots.filter((robot) => this.online(robot));
     const moving = online.filter((r) => Math.abs(r.speed || 0) > 0.01 || Math.abs(r.turn || 0) > 0.01);
     const navigating = online.filter((r) => r.nav && navigationState(r.nav)[0] === "active");
+    const lost = online.filter((r) => r.whereabouts?.state === "lost");
     document.getElementById("stat-robots").textContent = robots.length;
     document.getElementById("stat-online").textContent = online.length;
     document.getElementById("stat-moving").textContent = moving.length;
     document.getElementById("stat-navigating").textContent = navigating.length;
+    document.getElementById("stat-lost").textContent = lost.length;
   }
 }
 

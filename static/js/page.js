@@ -106,6 +106,17 @@ export function goalStatus(code) {
   return GOAL_STATUS[code] || ["unknown", ""];
 }
 
+/**
+ * A robot's `localisation` (diagnostic_msgs/DiagnosticStatus) as {state, message, mapId,
+ * source, kind}: state is lost, entering or localised; kind a badge kind.
+ */
+export function whereabouts(status) {
+  const values = Object.fromEntries((status?.values || []).map(({ key, value }) => [key, value]));
+  const state = values.state || "unknown";
+  const kind = state === "localised" ? "ok" : state === "lost" ? "warn" : "info";
+  return { state, message: status?.message || state, mapId: values.map_id || "", source: values.source || "", kind };
+}
+
 /** The latest entry of a GoalStatusArray as [word, kind, text], or idle when empty. */
 export function navigationState(statusArray) {
   const list = statusArray?.status_list || [];

@@ -5,7 +5,7 @@ import { api, splitMapId, urls } from "./api.js";
 import { CameraPanel } from "./camera.js";
 import { degrees, planarPose, poseStamped, poseWithCovariance, scanPoints } from "./geometry.js";
 import { MapView } from "./mapview.js";
-import { badge, connectFleet, fixed, navigationState, pageConfig } from "./page.js";
+import { badge, connectFleet, fixed, navigationState, pageConfig, whereabouts } from "./page.js";
 import { TimePlot } from "./plot.js";
 import { RatesPanel } from "./rates.js";
 import { Teleop } from "./teleop.js";
@@ -32,6 +32,7 @@ const state = {
   plan: { frame: null, points: [] },
   goal: null,
   nav: null,
+  whereabouts: null,
 };
 
 const grids = new Map();
@@ -126,18 +127,18 @@ connection.subscribe(`${ns}/map_id`, "std_msgs/String", (msg) => {
 });
 
 const linearPlot = new TimePlot($("plot-linear"), [{ label: "linear.x", color: "#2f6fed" }]);
-const angularPlot = new TimePlot($("plot-angular"), [{ label: "angular.z", color: "#8a4ff0" }]);
+const angularPlot = new TimePlot($("plot-angular"), [{ label: "angular.z (°/s)", color: "#8a4ff0" }]);
 
 connection.subscribe(`${ns}/odom`, "nav_msgs/Odometry", (msg) => {
   heard();
   const { linear, angular } = msg.twist.twist;
   const now = performance.now() / 1000;
   linearPlot.push(now, [linear.x]);
-  angularPlot.push(now, [angular.z]);
+  angularPlot.push(now, [degrees(angular.z)]);
   $("linear-now").textContent = `${fixed(linear.x)} m/s`;
-  $("angular-now").textContent = `${fixed(angular.z)} rad/s`;
+  $("angular-now").textContent = `${fixed(degrees(angular.z), 0)} °/s`;
   $("odom-speed").textContent = `${fixed(linear.x)} m/s`;
-  $("odom-turn").textContent = `${fixed(angular.z)} rad/s`;
+  $("odom-turn").textContent = `${fixed(degrees(angular.z), 0)} °/s`;
 });
 
 connection.subscribe(`${ns}/scan`, "sensor_msgs/LaserScan", (msg) => {
@@ -159,8 +160,33 @@ connection.subscribe(`${ns}/nav_status`, "actionlib_msgs/GoalStatusArray", (msg)
   state.nav = msg;
   const [word, kind, text] = navigationState(msg);
   $("robot-nav").replaceWith(Object.assign(badge(`navigation: ${word}`, kind), { id: "robot-nav", title: text }));
+  $("nav-text").textContent = text ? `${word}: ${text}` : word;
   renderGoalState(word, kind, text);
 });
+
+// Where the robot says it is (its latched `localisation` DiagnosticStatus): a lost robot
+// shows no pose, so the page says so, with the way out.
+connection.subscribe(`${ns}/localisation`, "diagnostic_msgs/DiagnosticStatus", (msg) => {
+  heard();
+  state.whereabouts = whereabouts(msg);
+  renderWhereabouts();
+});
+
+function renderWhereabouts() {
+  const found = state.whereabouts;
+  if (!found) return;
+  const lost = found.state === "lost";
+  $("robot-loc").replaceWith(Object.assign(badge(lost ? "lost, looking for a tag" : found.state, found.kind), { id: "robot-loc", title: found.message }));
+  $("loc-text").textContent = found.message;
+  $("lost-banner").hidden = !lost;
+  $("map-wrap").dataset.localisation = found.state;
+  if (lost && !state.shownMap) {
+    $("map-hint").hidden = false;
+    $("map-hint").textContent = $("goal-map")
+      ? "No sub-map to show: the robot is lost. Choose the sub-map it is in under Goal."
+      : "No sub-map to show: the robot is lost.";
+  }
+}
 
 setInterval(() => {
   const age = Date.now() - state.heard;
@@ -232,8 +258,30 @@ const topology = {
 
 // ------------------------------------------------------------ operators: goals and teleop
 
-async function sendPose(tool, pose) {
+/** Whether a sub-map is shown, loaded, for a pose to be in; else say what to do first. */
+function mapForPose(tool) {
   const mapId = state.shownMap;
+  if (mapId && $("map-wrap").dataset.loaded === mapId) return mapId;
+  const what = tool === "goal" ? "A goal" : "An initial pose";
+  refuse(`${what} is a pose in a sub-map, and no sub-map is shown: choose one under Goal (Sub-map of the goal) first.`);
+  return null;
+}
+
+function refuse(text) {
+  const hint = $("map-hint");
+  hint.hidden = false;
+  hint.textContent = text;
+  hint.dataset.refused = "true";
+  const goal = $("goal-text");
+  if (goal) goal.textContent = text;
+}
+
+async function sendPose(tool, pose) {
+  const mapId = mapForPose(tool);
+  if (!mapId) {
+    selectTool(null, { keepHint: true });
+    return;
+  }
   if (tool === "goal") {
     connection.publish(`${ns}/goal`, "geometry_msgs/PoseStamped", poseStamped(mapId, pose));
     state.goal = { mapId, pose };
@@ -248,13 +296,16 @@ async function sendPose(tool, pose) {
   drawRobotLayers();
 }
 
-function selectTool(tool) {
+function selectTool(tool, { keepHint = false } = {}) {
   const tools = $("map-tools");
   if (!tools) return;
   const next = view.tool === tool ? null : tool;
+  if (next && !mapForPose(next)) return;
   view.setTool(next);
   for (const button of tools.querySelectorAll("button")) button.classList.toggle("active", button.dataset.tool === next);
+  if (keepHint) return;
   const hints = { goal: "Press where the robot should go; drag for its heading.", initialpose: "Press where the robot is; drag for its heading." };
+  delete $("map-hint").dataset.refused;
   $("map-hint").hidden = !next;
   $("map-hint").textContent = hints[next] || "";
 }
@@ -265,6 +316,12 @@ function renderGoalState(word, kind, text) {
   node.className = `badge ${kind}`;
   node.textContent = word;
   node.title = text;
+  // Why a goal ended badly is said where the operator looks, not in a tooltip.
+  const reason = $("goal-reason");
+  const failed = kind === "danger" && Boolean(text);
+  reason.hidden = !failed;
+  reason.className = `alert ${failed ? "error" : ""}`;
+  reason.textContent = failed ? `The robot ${word} the goal: ${text}` : "";
 }
 
 function renderGoalControls() {
@@ -312,6 +369,9 @@ function bindOperatorControls() {
     showMap(state.robotMap);
   });
   $("goal-cancel").addEventListener("click", cancelGoal);
+  $("lost-set-pose").addEventListener("click", () => {
+    if (view.tool !== "initialpose") selectTool("initialpose");
+  });
   const teleop = new Teleop(connection, robot, {
     acquire: $("lock-acquire"),
     release: $("lock-release"),

@@ -2,6 +2,8 @@
 // WASD), an on-screen joystick, speed limits and a stop. Commands go out at 10 Hz while
 // any input is held, then one zero Twist; the lock is renewed while held.
 
+import { degrees } from "./geometry.js";
+
 const LOCK_SERVICE = "/cloudnav/teleop_lock";
 const LOCK_TYPE = "cloudnav/TeleopLock";
 const COMMAND_MS = 100;
@@ -54,7 +56,7 @@ export class Teleop extends EventTarget {
     return { linear: Number(this.ui.maxLinear.value), angular: Number(this.ui.maxAngular.value) };
   }
 
-  /** The command the inputs ask for now: [linear m/s, angular rad/s]. */
+  /** The command the inputs ask for now: [linear m/s, angular rad/s] (radians on the wire). */
   command() {
     const keys = this.pressed;
     const forward = (keys.has("forward") ? 1 : 0) - (keys.has("back") ? 1 : 0);
@@ -165,14 +167,14 @@ export class Teleop extends EventTarget {
   }
 
   #key(event, down) {
-    if (isTyping(event.target)) return;
+    if (isTyping(event.target) || !this.holding) return; // keys drive only for the lock holder
     const direction = KEYS[event.code];
     if (event.code === "Space" && down) {
       event.preventDefault();
       this.dispatchEvent(new CustomEvent("stop"));
       return;
     }
-    if (!direction || !this.holding) return;
+    if (!direction) return;
     event.preventDefault();
     if (down) this.pressed.add(direction);
     else this.pressed.delete(direction);
@@ -236,7 +238,7 @@ export class Teleop extends EventTarget {
 
   #renderLimits() {
     this.ui.maxLinearOut.textContent = `${Number(this.ui.maxLinear.value).toFixed(2)} m/s`;
-    this.ui.maxAngularOut.textContent = `${Number(this.ui.maxAngular.value).toFixed(2)} rad/s`;
+    this.ui.maxAngularOut.textContent = `${degrees(Number(this.ui.maxAngular.value)).toFixed(0)} °/s`;
   }
 }
 

@@ -184,6 +184,24 @@ class CompressedImage(TypedDict):
     data: str
 
 
+class KeyValue(TypedDict):
+    """``diagnostic_msgs/KeyValue``."""
+
+    key: str
+    value: str
+
+
+class DiagnosticStatus(TypedDict):
+    """``diagnostic_msgs/DiagnosticStatus``: ``localisation``. ``level`` 0 OK, 1 WARN,
+    2 ERROR, 3 STALE."""
+
+    level: int
+    name: str
+    message: str
+    hardware_id: str
+    values: list[KeyValue]
+
+
 class GoalStatus(IntEnum):
     """``actionlib_msgs/GoalStatus`` values."""
 
@@ -389,6 +407,19 @@ def string_message(data: str) -> String:
     return {"data": data}
 
 
+def diagnostic_status(
+    level: int, name: str, message: str, values: Mapping[str, str]
+) -> DiagnosticStatus:
+    """``diagnostic_msgs/DiagnosticStatus`` of ``values`` (in their order)."""
+    return {
+        "level": level,
+        "name": name,
+        "message": message,
+        "hardware_id": "",
+        "values": [{"key": key, "value": value} for key, value in values.items()],
+    }
+
+
 def compressed_image(frame_id: str, jpeg: bytes, stamp: Stamp) -> CompressedImage:
     """``sensor_msgs/CompressedImage`` of ``jpeg`` (format ``jpeg``)."""
     return {
@@ -412,8 +443,9 @@ def pose_of(msg: Message) -> Pose2D | None:
     try:
         pose = msg["pose"]
         position = pose["position"]
+        frame = msg.get("header", {}).get("frame_id")
         return Pose2D(
-            map_id=str(msg.get("header", {}).get("frame_id", "")),
+            map_id=frame if isinstance(frame, str) else "",  # a null frame is no frame
             x=float(position["x"]),
             y=float(position["y"]),
             yaw=yaw_of(pose.get("orientation", {})),

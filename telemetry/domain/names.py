@@ -29,6 +29,7 @@ ROBOT_TOPIC_TYPES = {
     "plan": "nav_msgs/Path",
     "nav_status": "actionlib_msgs/GoalStatusArray",
     "map_id": "std_msgs/String",
+    "localisation": "diagnostic_msgs/DiagnosticStatus",
     "camera/image/compressed": "sensor_msgs/CompressedImage",
     "cmd_vel": "geometry_msgs/Twist",
     "goal": "geometry_msgs/PoseStamped",
@@ -41,7 +42,7 @@ ROBOT_SERVICE_TYPES = {CANCEL_GOAL: "std_srvs/Trigger"}
 # What operators may publish to a robot they may drive.
 COMMAND_TOPICS = frozenset({"cmd_vel", "goal", "initialpose"})
 # Topics whose last message every new subscriber receives, whatever the publisher asked.
-LATCHED_TOPICS = frozenset({"map_id"})
+LATCHED_TOPICS = frozenset({"map_id", "localisation"})
 CMD_VEL = "cmd_vel"
 POSE = "pose"
 MAP_ID = "map_id"

@@ -1,0 +1,167 @@
+"""Where the robot says it is, seen by an operator over a real server, the agent in its own
+process: ``make demo``'s robots localise from the entrance tag on their own; a robot
+placed where no tag is in reach says it is lost until an operator sets its initial pose;
+a goal that names no sub-map is rejected, and the robot says why."""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import io
+import json
+import math
+import time
+from pathlib import Path
+from typing import Any
+
+import pytest
+import websockets
+from django.core.management import call_command
+
+from tests.fixtures_live import LiveServer, agent_process, fleet_process, operator_handshake
+
+pytestmark = [pytest.mark.django_db(transaction=True), pytest.mark.slow]
+
+DEMO_ROBOTS = 3  # scripts/demo.sh's default ROBOTS
+LOCALISED_WITHIN = 45.0  # wall seconds from the agent's start, for every demo robot
+CORRIDOR_A = "boccioni_1/CorridorA"
+AWAY_FROM_TAGS = (10.0, 23.2, 0.0)  # mid Corridor A: the nearest tag is 7.8 m ahead
+REJECTED = 5
+
+
+@pytest.fixture
+def tokens(tmp_path: Path) -> Path:
+    path = tmp_path / "tokens.json"
+    call_command(
+        "seed_demo", "--robots", str(DEMO_ROBOTS), "--tokens-file", str(path), stdout=io.StringIO()
+    )
+    return path
+
+
+@pytest.fixture
+def handshake(daphne_server: LiveServer, tokens: Path) -> dict[str, str]:
+    return operator_handshake(daphne_server)
+
+
+class Operator:
+    """An operator's rosbridge session keeping the newest message of each topic."""
+
+    def __init__(self, ws: Any) -> None:
+        self.ws = ws
+        self.latest: dict[str, dict[str, Any]] = {}
+        self.heard: dict[str, list[dict[str, Any]]] = {}
+
+    async def subscribe(self, *topics: str) -> None:
+        for topic in topics:
+            await self.ws.send(json.dumps({"op": "subscribe", "topic": topic}))
+
+    async def publish(self, topic: str, msg: dict[str, Any]) -> None:
+        await self.ws.send(json.dumps({"op": "publish", "topic": topic, "msg": msg}))
+
+    async def until(self, done: Any, deadline: float, log: Path) -> None:
+        """Read frames until ``done()``; fail with the agent's log after ``deadline`` s."""
+        give_up = time.monotonic() + deadline
+        while not done():
+            assert time.monotonic() < give_up, tail(log)
+            with contextlib.suppress(TimeoutError):
+                frame = json.loads(await asyncio.wait_for(self.ws.recv(), 1.0))
+                if frame.get("op") == "publish":
+                    self.latest[frame["topic"]] = frame["msg"]
+                    self.heard.setdefault(frame["topic"], []).append(frame["msg"])
+
+
+def state_of(status: dict[str, Any] | None) -> dict[str, str]:
+    """The ``values`` of a ``DiagnosticStatus`` as a dict."""
+    return {v["key"]: v["value"] for v in (status or {}).get("values", [])}
+
+
+def pose(map_id: str, x: float, y: float, yaw: float) -> dict[str, Any]:
+    return {
+        "header": {"frame_id": map_id},
+        "pose": {
+            "position": {"x": x, "y": y, "z": 0.0},
+            "orientation": {"x": 0.0, "y": 0.0, "z": math.sin(yaw / 2), "w": math.cos(yaw / 2)},
+        },
+    }
+
+
+def tail(log: Path, lines: int = 30) -> str:
+    return "\n".join(log.read_text(errors="replace").splitlines()[-lines:])
+
+
+async def test_every_demo_robot_localises_from_the_entrance_tag_soon_after_make_demo_starts(
+    daphne_server: LiveServer, tokens: Path, handshake: dict[str, str], tmp_path: Path
+) -> None:
+    robots = [f"/robot_{i}/localisation" for i in range(DEMO_ROBOTS)]
+    started = time.monotonic()
+    with fleet_process(daphne_server.url, tokens, DEMO_ROBOTS, tmp_path / "agent.log") as log:
+        url = daphne_server.rosbridge_url()
+        async with websockets.connect(url, additional_headers=handshake) as ws:
+            operator = Operator(ws)
+            await operator.subscribe(*robots)
+
+            def all_localised() -> bool:
+                states = [state_of(operator.latest.get(topic)) for topic in robots]
+                return all(s.get("state") == "localised" for s in states)
+
+            await operator.until(all_localised, LOCALISED_WITHIN, log)
+    print(f"all {DEMO_ROBOTS} demo robots localised {time.monotonic() - started:.1f} s after start")
+    for topic in robots:
+        status = operator.latest[topic]
+        assert status["level"] == 0
+        assert state_of(status) == {"state": "localised", "map_id": CORRIDOR_A, "source": "tag 0"}
+
+
+@pytest.fixture
+def lost_agent(daphne_server: LiveServer, tokens: Path, tmp_path: Path) -> Any:
+    token = json.loads(tokens.read_text())["robot_0"]
+    start = ",".join(str(v) for v in AWAY_FROM_TAGS)
+    with agent_process(daphne_server.url, token, tmp_path / "agent.log", "--start", start) as log:
+        yield log
+
+
+async def test_a_robot_away_from_tags_says_it_is_lost_until_an_operator_sets_its_initial_pose(
+    daphne_server: LiveServer, handshake: dict[str, str], lost_agent: Path
+) -> None:
+    topic = "/robot_0/localisation"
+    async with websockets.connect(
+        daphne_server.rosbridge_url(), additional_headers=handshake
+    ) as ws:
+        operator = Operator(ws)
+        await operator.subscribe(topic)
+        await operator.until(lambda: topic in operator.latest, 30, lost_agent)
+        lost = operator.latest[topic]
+        assert (lost["level"], lost["name"]) == (1, "localisation")
+        assert lost["message"] == "lost, looking for a tag"
+        assert state_of(lost)["state"] == "lost"
+
+        estimate = pose(CORRIDOR_A, *AWAY_FROM_TAGS)
+        estimate["pose"] = {"pose": estimate["pose"], "covariance": [0.0] * 36}
+        await operator.publish("/robot_0/initialpose", estimate)
+        placed = lambda: state_of(operator.latest[topic]).get("state") == "localised"  # noqa: E731
+        await operator.until(placed, 15, lost_agent)
+    assert operator.latest[topic]["message"] == f"localised in {CORRIDOR_A} by initial pose"
+
+
+async def test_a_goal_that_names_no_sub_map_is_rejected_and_the_robot_says_why(
+    daphne_server: LiveServer, handshake: dict[str, str], lost_agent: Path
+) -> None:
+    topic = "/robot_0/nav_status"
+    async with websockets.connect(
+        daphne_server.rosbridge_url(), additional_headers=handshake
+    ) as ws:
+        operator = Operator(ws)
+        await operator.subscribe(topic)
+        await operator.until(lambda: topic in operator.latest, 30, lost_agent)  # it listens
+        goal = pose(CORRIDOR_A, 12.0, 23.2, 0.0)
+        goal["header"]["frame_id"] = None  # what a page sent with no sub-map shown
+        await operator.publish("/robot_0/goal", goal)
+
+        def rejected() -> bool:
+            entries = operator.latest[topic]["status_list"]
+            return bool(entries) and entries[-1]["status"] == REJECTED
+
+        await operator.until(rejected, 15, lost_agent)
+    entry = operator.latest[topic]["status_list"][-1]
+    assert "names no sub-map" in entry["text"]
+    assert "frame_id" in entry["text"]
