@@ -1,5 +1,7 @@
 #!/usr/bin/env bash
 # Seed the demo building and run the server on 127.0.0.1:8000 with simulated robots.
+# Variables (README, "Two commands"): HOST, PORT, ROBOTS, CLOUDNAV_PUBLIC_URL,
+# CLOUDNAV_DEMO_PASSWORD, and the settings' own (DATABASE_URL, REDIS_URL, ...).
 # Ctrl-C stops everything.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -29,5 +31,5 @@ if [ -f robots/agent/__main__.py ]; then
   pids+=($!)
 fi
 
-echo "CloudNav is running at $CLOUDNAV_PUBLIC_URL (sign in as admin / admin-demo). Ctrl-C stops it."
+echo "CloudNav is running at $CLOUDNAV_PUBLIC_URL (sign in as admin / ${CLOUDNAV_DEMO_PASSWORD:-admin-demo}). Ctrl-C stops it."
 wait -n "${pids[@]}"

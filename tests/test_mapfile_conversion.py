@@ -1,4 +1,4 @@
-"""Image to occupancy grid, by the rule DESIGN.md states (Nav2's current map_io).
+"""Image to occupancy grid, by the rule docs/design.md states (Nav2's current map_io).
 
 Boundary tests put a threshold exactly on a pixel's float32 occupancy p, or one float32
 step either side of it, since that is where implementations disagree.

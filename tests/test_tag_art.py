@@ -41,7 +41,7 @@ PAYLOAD = "http://127.0.0.1:8000, 56037, boccioni_1, CorridorA"
 DICTIONARY = "DICT_APRILTAG_36h11"
 POINTS_PER_MM = 72 / 25.4
 
-# The simulated camera of DESIGN.md, drawn at 4x and reduced with INTER_AREA (FACTS.md).
+# The simulated camera of docs/design.md, drawn at 4x and reduced with INTER_AREA (FACTS.md).
 CAMERA_SIZE = (640, 480)
 FOCAL = 525.0
 OVERSAMPLE = 4

@@ -1,6 +1,6 @@
 """ROS map_server map files: YAML metadata, images, occupancy grids, uploads and exports.
 
-Conversion follows the rule DESIGN.md states, which is Nav2's map_io on its main branch:
+Conversion follows the rule docs/design.md states, which is Nav2's map_io on its main branch:
 grey bytes, 32-bit float occupancy, thresholds compared as 32-bit floats, alpha marking
 cells unknown in trinary and scale modes, raw bytes in raw mode, bottom row first.
 Every failure on uploaded data raises ``MapFileError`` naming the field at fault.

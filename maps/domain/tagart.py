@@ -19,7 +19,7 @@ white band ``QUIET_ZONE * size`` wide (0.25 size), so the plate face is::
         |                     0.25 size                         |   v
         +-------------------------------------------------------+  ---
 
-- ``*`` is the marker centre, the tag's stored pose ``(x, y, yaw)`` (DESIGN.md); yaw is
+- ``*`` is the marker centre, the tag's stored pose ``(x, y, yaw)`` (docs/design.md); yaw is
   the outward normal. On the face it is ``0.75 size`` from the left edge and from the top
   edge; the face is centred on it vertically.
 - ``+`` is the QR centre: the marker centre plus ``qr_offset(size) = 1.25 size`` along the
@@ -60,7 +60,7 @@ from maps.exceptions import TagPayloadError
 
 DEFAULT_DICTIONARY = "DICT_APRILTAG_36h11"
 DEFAULT_SIZE = 0.06
-"""Side of each code in metres (DESIGN.md: the tag's physical size)."""
+"""Side of each code in metres (docs/design.md: the tag's physical size)."""
 
 QUIET_ZONE = 0.25
 """White band around and between the two codes, as a fraction of ``size``."""

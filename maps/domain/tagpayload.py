@@ -46,7 +46,7 @@ class TagPayload:
 
     @property
     def map_id(self) -> str:
-        """The Map ID ``building/map`` (DESIGN.md, data model)."""
+        """The Map ID ``building/map`` (docs/design.md, data model)."""
         return f"{self.building_code}/{self.map_code}"
 
 

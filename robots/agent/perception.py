@@ -7,7 +7,7 @@ Frames
 
 - Camera optical frame (OpenCV): x right, y down, z forward along the optical axis.
 - Marker frame (ArUco): origin at the marker centre, x to the marker's right, y up,
-  z out of the printed face (the tag's outward normal, DESIGN.md's yaw direction).
+  z out of the printed face (the tag's outward normal, docs/design.md's yaw direction).
 - Robot base frame (REP 103): x forward, y left, z up, origin on the floor under the
   robot's centre. The camera looks straight ahead along base x, level, its optical centre
   ``mount_x`` ahead of the origin and ``mount_height`` above the floor.

@@ -21,7 +21,7 @@ CLOUDNAV = "/cloudnav"
 # Called by relative name from any connection, and advertised by none: the server's own.
 GLOBAL_NAMESPACES = frozenset({ROSAPI.strip("/"), CLOUDNAV.strip("/")})
 
-# Topics of each robot, relative to its namespace, with their message types (DESIGN.md).
+# Topics of each robot, relative to its namespace, with their message types (docs/design.md).
 ROBOT_TOPIC_TYPES = {
     "pose": "geometry_msgs/PoseStamped",
     "odom": "nav_msgs/Odometry",
