@@ -401,7 +401,7 @@ class Robot:
         if not self._epoch_given:
             # Stamps start from now, not from when the robot was built (the planner's
             # warm-up came between), so at time scale 1 they follow the wall clock.
-            self.epoch = time.time() - self.seconds
+            self.epoch = time.time() - self.seconds - self.config.period  # the next tick's
         loop = asyncio.get_running_loop()
         period = self.config.period / time_scale
         next_at = loop.time()
