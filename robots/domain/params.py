@@ -147,7 +147,8 @@ class RobotConfig:
     detect_rate: float = 5.0
     """Camera frames per second the tag detector looks at."""
     status_rate: float = 1.0
-    """``nav_status`` messages per second when nothing changes (each change goes out too)."""
+    """``nav_status`` and ``localisation`` messages per second when nothing changes (each
+    change goes out too)."""
     jpeg_quality: int = 80
     body: BodyLimits = field(default_factory=BodyLimits)
     localisation: FilterParams = field(default_factory=FilterParams)
