@@ -20,6 +20,7 @@ from telemetry.domain import names, protocol
 from telemetry.domain.bus import SubscribeParams, TopicBus
 from telemetry.domain.calls import CallTable, PendingCall
 from telemetry.domain.encoding import Outgoing
+from telemetry.domain.limits import ByteBudget, Holdings
 from telemetry.domain.messages import pose_of, string_of, twist_2d
 from telemetry.domain.protocol import Json
 from telemetry.domain.times import complete_header_stamp
@@ -55,16 +56,20 @@ class Hub:
     def __init__(self, config: RosbridgeConfig, services: dict[str, ServerService]) -> None:
         loop = asyncio.get_running_loop()
         self.config = config
+        limits = config.per_connection
         self.bus = TopicBus(
             scheduler=loop.call_later,
             clock=loop.time,
             type_hint=fleet_type,
             latch_hint=fleet_latched,
+            limits=limits,
         )
-        self.services = CallTable("service_request")
-        self.actions = CallTable("action_goal")
+        self.services = CallTable("service_request", limits)
+        self.actions = CallTable("action_goal", limits)
         self.server_services = services
         self.params: ParamStore = MemoryParams()
+        self.params_held = Holdings("parameters", limits.params, limits.param_bytes)
+        self.fragment_budget = ByteBudget(config.fragments_total_bytes)
         self.clients: dict[str, Client] = {}
         self.relay: Relay | None = None
         self.teleop = TeleopLocks(
@@ -119,12 +124,23 @@ class Hub:
         for call in self.actions.drop(conn):
             self._fail_goal(call, f"Action {call.name} was unadvertised")
         await self.teleop.drop(conn.key)
+        held = self.params_held.drop(conn.key)
+        owner = self.param_owner(conn)
+        if held and owner is not None:
+            await self.params.release(owner, held)
         self._remote_goals = {k: v for k, v in self._remote_goals.items() if k[0] != conn.key}
         robot = conn.principal.robot
         if client is not None and client.robot_pk is not None and robot is not None:
             self._robot_left(robot, client.robot_pk)
         self._publish_directory("services", self.services)
         self._publish_directory("actions", self.actions)
+
+    def param_owner(self, conn: Connection) -> str | None:
+        """Return who owns the parameters ``conn`` sets: the connection itself, named
+        uniquely across server processes, or None for an admin's, which persist."""
+        if conn.principal.admin:
+            return None
+        return f"{self.relay.channel}/{conn.key}" if self.relay is not None else conn.key
 
     def _robot_left(self, robot: str, robot_pk: int) -> None:
         self.fleet.disconnected(robot_pk)
