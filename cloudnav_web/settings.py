@@ -39,6 +39,12 @@ CLOUDNAV_PUBLIC_URL = os.environ.get("CLOUDNAV_PUBLIC_URL", "http://127.0.0.1:80
 CLOUDNAV_MAX_MAP_PIXELS = int(os.environ.get("CLOUDNAV_MAX_MAP_PIXELS", str(4096 * 4096)))
 CLOUDNAV_MAX_UPLOAD_BYTES = int(os.environ.get("CLOUDNAV_MAX_UPLOAD_BYTES", str(32 * 1024 * 1024)))
 DATA_UPLOAD_MAX_MEMORY_SIZE = CLOUDNAV_MAX_UPLOAD_BYTES
+# Heavy answers (tag sheets and prints, map grids, video encoders) share a budget: at most
+# this many at once, this much memory (estimated) among them, this many per client; beyond
+# it they are answered 503 (or 429 for the client's own share) with Retry-After.
+CLOUDNAV_HEAVY_SLOTS = int(os.environ.get("CLOUDNAV_HEAVY_SLOTS", "4"))
+CLOUDNAV_HEAVY_MEMORY_BYTES = int(os.environ.get("CLOUDNAV_HEAVY_MEMORY_BYTES", str(2**30)))
+CLOUDNAV_HEAVY_PER_CLIENT = int(os.environ.get("CLOUDNAV_HEAVY_PER_CLIENT", "2"))
 FILE_UPLOAD_MAX_MEMORY_SIZE = CLOUDNAV_MAX_UPLOAD_BYTES
 
 INSTALLED_APPS = [

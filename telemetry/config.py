@@ -38,6 +38,7 @@ class RosbridgeConfig:
     per_connection: ConnectionLimits
     fragments_total_bytes: int
     fragment_timeout: float
+    max_send_bytes: int
     send_queue_frames: int
     send_queue_bytes: int
     teleop_lock_ttl: float
@@ -67,6 +68,7 @@ class RosbridgeConfig:
             ),
             fragments_total_bytes=setting("CLOUDNAV_ROSBRIDGE_FRAGMENT_BYTES_TOTAL", 32 * MIB, int),
             fragment_timeout=setting("CLOUDNAV_ROSBRIDGE_FRAGMENT_TIMEOUT", 10.0, float),
+            max_send_bytes=setting("CLOUDNAV_ROSBRIDGE_MAX_SEND_BYTES", 2 * max_frame_bytes, int),
             send_queue_frames=setting("CLOUDNAV_ROSBRIDGE_SEND_QUEUE_FRAMES", 256, int),
             send_queue_bytes=setting("CLOUDNAV_ROSBRIDGE_SEND_QUEUE_BYTES", 8 * MIB, int),
             teleop_lock_ttl=setting("CLOUDNAV_TELEOP_LOCK_TTL", 5.0, float),

@@ -90,6 +90,7 @@ class RosbridgeConsumer(AsyncWebsocketConsumer):
             config.send_queue_frames,
             config.send_queue_bytes,
             config.max_frame_bytes,
+            config.max_send_bytes,
         )
         await self.accept()
         self.conn.start()
