@@ -18,13 +18,14 @@ request that alone needs more than the whole budget is answered 503 without Retr
 from __future__ import annotations
 
 import threading
+import weakref
 from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
 from django.conf import settings
-from django.http import HttpResponse
+from django.http import HttpResponse, HttpResponseBase
 from rest_framework import status
 from rest_framework.exceptions import APIException
 
@@ -55,6 +56,11 @@ class Ticket:
 
     def release(self) -> None:
         self.budget.give_back(self)
+
+    def handover(self) -> Ticket | None:
+        """Return a ticket for the same share to a new holder (this one then releases
+        nothing), or None if this one was released already."""
+        return self.budget.hand_over(self)
 
 
 @dataclass
@@ -91,6 +97,13 @@ class HeavyBudget:
             self.used_memory += need
         return Ticket(self, client, need)
 
+    def hand_over(self, ticket: Ticket) -> Ticket | None:
+        with self._lock:
+            if ticket.released:
+                return None
+            ticket.released = True
+            return Ticket(self, ticket.client, ticket.need)
+
     def give_back(self, ticket: Ticket) -> None:
         with self._lock:
             if ticket.released:
@@ -106,21 +119,30 @@ class HeavyBudget:
         return sum(self._clients.values())
 
 
-_budget: HeavyBudget | None = None
-_budget_lock = threading.Lock()
+_budgets: dict[str, HeavyBudget] = {}
+_budgets_lock = threading.Lock()
 
 
 def heavy_budget() -> HeavyBudget:
-    """Return this process's budget, made from the settings on first use."""
-    global _budget
-    with _budget_lock:
-        if _budget is None:
-            _budget = HeavyBudget(
-                slots=settings.CLOUDNAV_HEAVY_SLOTS,
-                memory=settings.CLOUDNAV_HEAVY_MEMORY_BYTES,
-                per_client=settings.CLOUDNAV_HEAVY_PER_CLIENT,
+    """Return this process's budget of heavy answers, made from the settings on first use."""
+    return _budget("CLOUDNAV_HEAVY")
+
+
+def video_budget() -> HeavyBudget:
+    """Return this process's budget of video encoders (each held while it is watched)."""
+    return _budget("CLOUDNAV_VIDEO_ENCODER")
+
+
+def _budget(prefix: str) -> HeavyBudget:
+    with _budgets_lock:
+        budget = _budgets.get(prefix)
+        if budget is None:
+            budget = _budgets[prefix] = HeavyBudget(
+                slots=getattr(settings, f"{prefix}_SLOTS"),
+                memory=getattr(settings, f"{prefix}_MEMORY_BYTES"),
+                per_client=getattr(settings, f"{prefix}_PER_CLIENT"),
             )
-        return _budget
+        return budget
 
 
 def client_of(request: Any) -> str:
@@ -131,17 +153,15 @@ def client_of(request: Any) -> str:
     return f"addr:{request.META.get('REMOTE_ADDR', '')}"
 
 
-class _ReleasingResponse(HttpResponse):
-    """An answer that gives its ticket back once the server has sent it (``close``)."""
+def release_with(response: HttpResponseBase, ticket: Ticket) -> None:
+    """Give ``ticket`` back once ``response`` is done: sent and closed, or dropped.
 
-    ticket: Ticket | None = None
-
-    def close(self) -> None:
-        try:
-            super().close()
-        finally:
-            if self.ticket is not None:
-                self.ticket.release()
+    Django closes a response it has sent, but not one whose client went away meanwhile
+    (the task sending it is cancelled); the response is then dropped, which releases too.
+    """
+    # Django calls these on close (the list is how it closes a FileResponse's file too).
+    response._resource_closers.append(ticket.release)  # type: ignore[attr-defined]
+    weakref.finalize(response, ticket.release)
 
 
 def heavy_response(
@@ -154,9 +174,9 @@ def heavy_response(
     """
     ticket = heavy_budget().take(client_of(request), need)
     try:
-        response = _ReleasingResponse(build(), content_type=content_type)
+        response = HttpResponse(build(), content_type=content_type)
     except BaseException:
         ticket.release()
         raise
-    response.ticket = ticket
+    release_with(response, ticket)
     return response

@@ -45,6 +45,13 @@ DATA_UPLOAD_MAX_MEMORY_SIZE = CLOUDNAV_MAX_UPLOAD_BYTES
 CLOUDNAV_HEAVY_SLOTS = int(os.environ.get("CLOUDNAV_HEAVY_SLOTS", "4"))
 CLOUDNAV_HEAVY_MEMORY_BYTES = int(os.environ.get("CLOUDNAV_HEAVY_MEMORY_BYTES", str(2**30)))
 CLOUDNAV_HEAVY_PER_CLIENT = int(os.environ.get("CLOUDNAV_HEAVY_PER_CLIENT", "2"))
+# Video encoders (VP8, and MJPEG re-encoded to another size or quality) have their own
+# budget, held for as long as someone watches; viewers asking the same share one encoder.
+CLOUDNAV_VIDEO_ENCODER_SLOTS = int(os.environ.get("CLOUDNAV_VIDEO_ENCODER_SLOTS", "8"))
+CLOUDNAV_VIDEO_ENCODER_MEMORY_BYTES = int(
+    os.environ.get("CLOUDNAV_VIDEO_ENCODER_MEMORY_BYTES", str(2**30))
+)
+CLOUDNAV_VIDEO_ENCODER_PER_CLIENT = int(os.environ.get("CLOUDNAV_VIDEO_ENCODER_PER_CLIENT", "4"))
 FILE_UPLOAD_MAX_MEMORY_SIZE = CLOUDNAV_MAX_UPLOAD_BYTES
 
 INSTALLED_APPS = [
