@@ -39,6 +39,13 @@ CLOUDNAV_PUBLIC_URL = os.environ.get("CLOUDNAV_PUBLIC_URL", "http://127.0.0.1:80
 CLOUDNAV_MAX_MAP_PIXELS = int(os.environ.get("CLOUDNAV_MAX_MAP_PIXELS", str(4096 * 4096)))
 CLOUDNAV_MAX_UPLOAD_BYTES = int(os.environ.get("CLOUDNAV_MAX_UPLOAD_BYTES", str(32 * 1024 * 1024)))
 DATA_UPLOAD_MAX_MEMORY_SIZE = CLOUDNAV_MAX_UPLOAD_BYTES
+FILE_UPLOAD_MAX_MEMORY_SIZE = CLOUDNAV_MAX_UPLOAD_BYTES
+# Request bodies (cloudnav_web.bodies): past this size only clients with credentials that
+# hold may send one, and none may pass the second limit (an upload's two files and more).
+CLOUDNAV_ANONYMOUS_BODY_BYTES = int(os.environ.get("CLOUDNAV_ANONYMOUS_BODY_BYTES", "65536"))
+CLOUDNAV_MAX_BODY_BYTES = int(
+    os.environ.get("CLOUDNAV_MAX_BODY_BYTES", str(2 * CLOUDNAV_MAX_UPLOAD_BYTES + 2**20))
+)
 # Heavy answers (tag sheets and prints, map grids, video encoders) share a budget: at most
 # this many at once, this much memory (estimated) among them, this many per client; beyond
 # it they are answered 503 (or 429 for the client's own share) with Retry-After.
@@ -52,7 +59,6 @@ CLOUDNAV_VIDEO_ENCODER_MEMORY_BYTES = int(
     os.environ.get("CLOUDNAV_VIDEO_ENCODER_MEMORY_BYTES", str(2**30))
 )
 CLOUDNAV_VIDEO_ENCODER_PER_CLIENT = int(os.environ.get("CLOUDNAV_VIDEO_ENCODER_PER_CLIENT", "4"))
-FILE_UPLOAD_MAX_MEMORY_SIZE = CLOUDNAV_MAX_UPLOAD_BYTES
 
 INSTALLED_APPS = [
     "daphne",
