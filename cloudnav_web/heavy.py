@@ -119,7 +119,7 @@ class HeavyBudget:
         return sum(self._clients.values())
 
 
-_budgets: dict[str, HeavyBudget] = {}
+_budgets: dict[tuple[str, int, int, int], HeavyBudget] = {}
 _budgets_lock = threading.Lock()
 
 
@@ -134,14 +134,17 @@ def video_budget() -> HeavyBudget:
 
 
 def _budget(prefix: str) -> HeavyBudget:
+    # Keyed by the settings too, so a test that changes them gets a budget of its own.
+    key = (
+        prefix,
+        getattr(settings, f"{prefix}_SLOTS"),
+        getattr(settings, f"{prefix}_MEMORY_BYTES"),
+        getattr(settings, f"{prefix}_PER_CLIENT"),
+    )
     with _budgets_lock:
-        budget = _budgets.get(prefix)
+        budget = _budgets.get(key)
         if budget is None:
-            budget = _budgets[prefix] = HeavyBudget(
-                slots=getattr(settings, f"{prefix}_SLOTS"),
-                memory=getattr(settings, f"{prefix}_MEMORY_BYTES"),
-                per_client=getattr(settings, f"{prefix}_PER_CLIENT"),
-            )
+            budget = _budgets[key] = HeavyBudget(slots=key[1], memory=key[2], per_client=key[3])
         return budget
 
 
