@@ -5,7 +5,10 @@ Some answers cost far more than others: a building's tag sheet (A4 pages at 300 
 size, a video encoder at the largest parameters. Each such request first takes a ticket
 for the memory it will need (an estimate from what it was asked) from the process-wide
 ``HeavyBudget``; the ticket is given back once the answer has been sent, since the body
-stays in memory until then. A request the budget cannot take at once is answered at once:
+stays in memory until then. Under daphne the answer is written at the pace its client reads
+(``telemetry.video.readiness``), since daphne would otherwise take it all at once and hold
+it in Twisted's buffer out of the budget's sight. A request the budget cannot take at once
+is answered at once:
 
 - 429 Too Many Requests when the same client already has ``per_client`` heavy requests
   in progress (its own share is spent);
@@ -20,16 +23,19 @@ from __future__ import annotations
 import threading
 import weakref
 from collections import Counter
-from collections.abc import Callable
+from collections.abc import AsyncIterator, Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
 from django.conf import settings
-from django.http import HttpResponse, HttpResponseBase
+from django.http import HttpResponse, HttpResponseBase, StreamingHttpResponse
 from rest_framework import status
 from rest_framework.exceptions import APIException
 
+from telemetry.video.readiness import readiness_for
+
 RETRY_AFTER = 2  # seconds: heavy answers take about that long
+CHUNK = 256 * 2**10  # bytes written at a time when pacing an answer to its client
 
 
 class Overloaded(APIException):
@@ -169,17 +175,37 @@ def release_with(response: HttpResponseBase, ticket: Ticket) -> None:
 
 def heavy_response(
     request: Any, need: int, build: Callable[[], bytes], content_type: str
-) -> HttpResponse:
+) -> HttpResponseBase:
     """Answer with the body ``build`` makes, within the heavy-work budget.
 
-    ``need`` estimates the bytes the work and its answer hold. Raises Overloaded when the
-    budget cannot take it now (DRF answers 429 or 503 with Retry-After).
+    ``need`` estimates the bytes the work and its answer hold; the ticket is held until
+    the answer has left (under daphne, until the client has taken it). Raises Overloaded
+    when the budget cannot take it now (DRF answers 429 or 503 with Retry-After).
     """
     ticket = heavy_budget().take(client_of(request), need)
     try:
-        response = HttpResponse(build(), content_type=content_type)
+        body = build()
     except BaseException:
         ticket.release()
         raise
+    scope = getattr(getattr(request, "_request", request), "scope", None)
+    response: HttpResponseBase
+    if scope is None:  # not served over ASGI: the server's own write paces it
+        response = HttpResponse(body, content_type=content_type)
+    else:
+        response = StreamingHttpResponse(_paced(body, scope, ticket), content_type=content_type)
+        response["Content-Length"] = str(len(body))
     release_with(response, ticket)
     return response
+
+
+async def _paced(body: bytes, scope: Mapping[str, Any], ticket: Ticket) -> AsyncIterator[bytes]:
+    """Yield ``body`` a chunk at a time, each once the client took the one before."""
+    readiness = readiness_for(scope)  # here, on the event loop, where Twisted runs
+    try:
+        for start in range(0, len(body), CHUNK):
+            await readiness.wait()
+            yield body[start : start + CHUNK]
+    finally:
+        readiness.close()
+        ticket.release()

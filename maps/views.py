@@ -7,7 +7,7 @@ import zipfile
 from typing import Any
 
 from django.db.models import QuerySet
-from django.http import HttpResponse
+from django.http import HttpResponse, HttpResponseBase
 from django.utils.http import quote_etag
 from drf_spectacular.types import OpenApiTypes
 from drf_spectacular.utils import OpenApiParameter, extend_schema
@@ -157,7 +157,7 @@ class SubMapGrid(APIView):
     """The sub-map as a ``nav_msgs/OccupancyGrid`` in rosbridge JSON (heavy work)."""
 
     @extend_schema(responses={200: OpenApiTypes.OBJECT})
-    def get(self, request: Request, building: str, map: str) -> HttpResponse:
+    def get(self, request: Request, building: str, map: str) -> HttpResponseBase:
         submap = submap_for(request, building, map)
 
         def build() -> bytes:
@@ -324,7 +324,7 @@ class TagPrint(APIView):
             (200, "application/pdf"): OpenApiTypes.BINARY,
         }
     )
-    def get(self, request: Request, pk: int, extension: str) -> HttpResponse:
+    def get(self, request: Request, pk: int, extension: str) -> HttpResponseBase:
         tag = tag_for(request, pk)
         art = services.tag_art(tag)
         response = heavy_response(
@@ -343,7 +343,7 @@ class BuildingTagSheet(APIView):
     """Every tag of a building, packed on A4 pages at true physical size."""
 
     @extend_schema(responses={(200, "application/pdf"): OpenApiTypes.BINARY})
-    def get(self, request: Request, building: str) -> HttpResponse:
+    def get(self, request: Request, building: str) -> HttpResponseBase:
         target = building_for(request, building)
         tags = target.tags.select_related("building", "submap__building", "links_to__building")
         if not tags:
