@@ -17,11 +17,13 @@ from contextlib import contextmanager
 
 import psutil
 import pytest
+from asgiref.testing import ApplicationCommunicator
 
 from cloudnav_web.heavy import HeavyBudget, Overloaded
 from maps.domain.tagart import MAX_SIZE
-from tests.conftest import client_for, make_submap, make_tag, map_pgm
-from tests.fixtures_live import LiveServer
+from tests.conftest import client_for, make_robot, make_submap, make_tag, map_pgm
+from tests.fixtures_live import LiveServer, session_cookie
+from tests.test_video_access import get, http_scope
 
 pytestmark = pytest.mark.django_db(transaction=True)
 
@@ -243,3 +245,52 @@ def test_a_tag_stored_too_large_is_not_printed(building, viewer):
     for extension in ("png", "pdf"):
         answer = client_for(viewer).get(f"/api/tags/{tag.pk}/print.{extension}")
         assert answer.status_code == 400
+
+
+# ---------------------------------------------------------------- video encoders
+
+
+CAMERA = "/r1/camera/image/compressed"
+
+
+@pytest.fixture
+def watcher(building, viewer):
+    make_robot(name="r1", buildings=[building])
+    return {"Cookie": session_cookie(viewer).decode()}
+
+
+async def test_vp8_at_the_largest_size_is_refused_past_the_video_budget(watcher, settings):
+    settings.CLOUDNAV_VIDEO_ENCODER_MEMORY_BYTES = 64 * 2**20
+    huge = await get(
+        "/stream", {"topic": CAMERA, "type": "vp8", "width": "4096", "height": "4096"}, watcher
+    )
+    assert huge.status == 503
+    assert "retry-after" not in huge.headers
+    usual = await get("/stream", {"topic": CAMERA, "type": "vp8"}, watcher)
+    assert usual.status == 200
+
+
+async def test_encoders_past_a_clients_share_are_429_and_a_shared_one_costs_nothing(
+    watcher, settings
+):
+    settings.CLOUDNAV_VIDEO_ENCODER_PER_CLIENT = 1
+    query = {"topic": CAMERA, "type": "vp8", "bitrate": "200000"}
+    first = ApplicationCommunicator(application(), http_scope("/stream", query, watcher))
+    await first.send_input({"type": "http.request", "body": b"", "more_body": False})
+    assert (await first.receive_output(5))["status"] == 200
+    await first.receive_output(5)  # the first body bytes: the encoder is running
+    other = await get("/stream", {**query, "bitrate": "300000"}, watcher)
+    assert other.status == 429
+    assert other.headers["retry-after"]
+    same = await get("/stream", query, watcher)
+    assert same.status == 200
+    await first.send_input({"type": "http.disconnect"})
+    await first.wait(5)
+    again = await get("/stream", {**query, "bitrate": "300000"}, watcher)
+    assert again.status == 200
+
+
+def application():
+    from cloudnav_web.asgi import application
+
+    return application
