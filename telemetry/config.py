@@ -65,6 +65,7 @@ class RosbridgeConfig:
                 param_bytes=setting("CLOUDNAV_ROSBRIDGE_MAX_PARAM_BYTES", 4 * MIB, int),
                 fragment_bytes=setting("CLOUDNAV_ROSBRIDGE_FRAGMENT_BYTES", 4 * MIB, int),
                 min_fragment_size=setting("CLOUDNAV_ROSBRIDGE_MIN_FRAGMENT_SIZE", 1024, int),
+                latched_bytes=setting("CLOUDNAV_ROSBRIDGE_MAX_LATCHED_BYTES", 16 * MIB, int),
             ),
             fragments_total_bytes=setting("CLOUDNAV_ROSBRIDGE_FRAGMENT_BYTES_TOTAL", 32 * MIB, int),
             fragment_timeout=setting("CLOUDNAV_ROSBRIDGE_FRAGMENT_TIMEOUT", 10.0, float),

@@ -43,6 +43,7 @@ class RosbridgeConsumer(AsyncWebsocketConsumer):
     conn: Connection | None = None
     access: Access
     fragments: Reassembler
+    _frame_size = 0  # of the frame being handled
 
     async def __call__(self, scope: Any, receive: Any, send: Any) -> None:
         """Take each message straight from ``receive`` and dispatch it.
@@ -114,6 +115,7 @@ class RosbridgeConsumer(AsyncWebsocketConsumer):
         """Carry out one frame; any RosbridgeError is answered and the frame dropped."""
         conn = self._conn
         frame = None
+        self._frame_size = len(data)
         try:
             frame = decode_frame(data, self.hub.config.frame)
             op = parse_op(frame)
@@ -135,7 +137,7 @@ class RosbridgeConsumer(AsyncWebsocketConsumer):
         conn = self._conn
         if conn.principal.robot is None and name.endswith(_CMD_VEL_SUFFIX):
             self.hub.check_command(conn, name, op.msg)
-        self.hub.publish(conn, name, op.msg, op.latch)
+        self.hub.publish(conn, name, op.msg, op.latch, self._frame_size)
 
     async def on_subscribe(self, op: protocol.Subscribe) -> None:
         name = self.access.resolve(op.topic)

@@ -30,6 +30,10 @@ class ParamStore(Protocol):
     async def release(self, owner: str, names: list[str]) -> None:
         """Remove those of ``names`` that ``owner`` still owns (its connection closed)."""
 
+    async def release_all(self, prefix: str) -> None:
+        """Remove every parameter whose owner starts with ``prefix`` (a server process
+        that stopped without closing its connections)."""
+
 
 class MemoryParams:
     def __init__(self) -> None:
@@ -56,6 +60,11 @@ class MemoryParams:
     async def release(self, owner: str, names: list[str]) -> None:
         for name in names:
             if self._owners.get(name) == owner:
+                await self.delete(name)
+
+    async def release_all(self, prefix: str) -> None:
+        for name, owner in list(self._owners.items()):
+            if owner.startswith(prefix):
                 await self.delete(name)
 
 
@@ -92,6 +101,11 @@ class RedisParams:
         for name in names:
             if _text(await self.redis.hget(self.OWNERS, name)) == owner:
                 await self.delete(name)
+
+    async def release_all(self, prefix: str) -> None:
+        for name, owner in (await self.redis.hgetall(self.OWNERS)).items():
+            if (_text(owner) or "").startswith(prefix):
+                await self.delete(_text(name) or "")
 
 
 def _text(value: Any) -> str | None:

@@ -202,6 +202,20 @@ def test_advertisements_and_topics_published_count_together():
     topics.publish(peer, "/c", {"data": "x"})
 
 
+def test_latched_messages_a_connection_leaves_behind_are_bounded_in_bytes():
+    topics = bus(latched_bytes=1000)
+    peer = Peer("c1")
+    topics.advertise(peer, "/a", "std_msgs/String", latch=True)
+    topics.advertise(peer, "/b", "std_msgs/String", latch=True)
+    topics.publish(peer, "/a", {"data": "x"}, size=600)
+    topics.publish(peer, "/a", {"data": "y"}, size=900)  # replaces its own
+    with pytest.raises(LimitReached):
+        topics.publish(peer, "/b", {"data": "z"}, size=200)
+    topics.publish(peer, "/b", {"data": "z"}, size=100)
+    topics.unadvertise(peer, "/a")
+    topics.publish(peer, "/b", {"data": "w"}, size=1000)
+
+
 def test_a_dropped_peer_gets_its_whole_allowance_back():
     topics = bus(subscriptions=1, advertisements=1)
     peer = Peer("c1")

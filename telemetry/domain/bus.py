@@ -7,8 +7,8 @@ asked for it) and each ``id`` can be unsubscribed alone; publishing registers th
 every new subscriber; a publisher subscribed to its own topic receives its own messages.
 
 Each peer holds at most ``limits.subscriptions`` subscription requests and
-``limits.advertisements`` advertisements (publishing on a topic counts as one); both are
-counted when a request arrives, never per message.
+``limits.advertisements`` advertisements (publishing on a topic counts as one), counted
+when a request arrives, and the messages it latched, at most ``limits.latched_bytes``.
 
 Fan-out encodes each message once per variant (see ``encoding``) and hands the result to
 each peer's ``deliver``, which must not block: peers queue or drop, the bus never waits.
@@ -25,7 +25,7 @@ from typing import Protocol
 from telemetry.exceptions import LimitReached, TypeConflict, UnknownTopic
 
 from .encoding import Outgoing, Wire
-from .limits import ConnectionLimits, check_room
+from .limits import ConnectionLimits, Holdings, check_room
 from .names import canonical_type
 from .protocol import Json, PublishFrame
 
@@ -223,6 +223,9 @@ class TopicBus:
         # per peer key: subscription requests and advertisements it holds
         self._subscriptions: dict[str, int] = {}
         self._advertisements: dict[str, int] = {}
+        self._latched = Holdings(
+            "latched messages", self.limits.advertisements, self.limits.latched_bytes
+        )
 
     def get(self, name: str) -> Topic | None:
         return self._topics.get(name)
@@ -287,21 +290,31 @@ class TopicBus:
             ids.discard(aid)
         self._advertisements[peer.key] -= before - len(ids)
         if not ids:
+            self._latched.release(peer.key, name)
             del topic.publishers[peer.key]
             self._after_publisher_left(topic)
 
     def publish(
-        self, peer: Peer | None, name: str, msg: dict[str, Json], latch: bool = False
+        self,
+        peer: Peer | None,
+        name: str,
+        msg: dict[str, Json],
+        latch: bool = False,
+        size: int = 0,
     ) -> Outgoing:
         """Publish ``msg`` from ``peer`` (None: the server itself) and fan it out.
 
-        Registers the publisher if needed. Raises UnknownTopic if no one established the
-        topic's type and the server does not know it.
+        Registers the publisher if needed. ``size`` is the bytes of the frame that carried
+        ``msg``: on a latched topic the message is kept, and counts against the peer's
+        ``limits.latched_bytes``. Raises UnknownTopic if no one established the topic's
+        type and the server does not know it, LimitReached past the peer's limits.
         """
         topic = self._topic(name, None, need_type=True)
         if peer is not None and peer.key not in topic.publishers:
             self._add_publisher(topic, peer, None)
         topic.latched = topic.latched or latch
+        if topic.latched and peer is not None:
+            self._latched.take(peer.key, name, size)
         out = Outgoing(PublishFrame(op="publish", topic=name, msg=msg))
         self.fan_out(topic, out)
         if self.listener is not None:
@@ -378,6 +391,7 @@ class TopicBus:
         """Forget everything ``peer`` published or subscribed (it disconnected)."""
         self._subscriptions.pop(peer.key, None)
         self._advertisements.pop(peer.key, None)
+        self._latched.drop(peer.key)
         for name in self._peer_topics.pop(peer.key, ()):
             topic = self._topics.get(name)
             if topic is None:

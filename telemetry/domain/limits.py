@@ -2,7 +2,8 @@
 
 Counts are per connection, so one client cannot crowd out the others: subscription
 requests, advertised topics, advertised services and actions, calls waiting for an answer,
-parameters it set and their bytes, and the bytes of its fragmented messages in progress.
+parameters it set and their bytes, the bytes of the latched messages it published, and
+the bytes of its fragmented messages in progress.
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ class ConnectionLimits:
     param_bytes: int = 4 * 2**20
     fragment_bytes: int = 4 * 2**20
     min_fragment_size: int = 1024
+    latched_bytes: int = 16 * 2**20
 
 
 def check_room(what: str, held: int, limit: int) -> None:
