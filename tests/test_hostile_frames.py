@@ -100,9 +100,10 @@ async def test_fragments_never_completed_are_bounded_per_connection_and_in_total
     before = server_memory(server)
     for client in (greedy, first, second):
         await client.send({"op": "set_level", "level": "error"})
-    for num in range(64):  # 16 MiB in one message, were nothing refused
+    for num in range(8):  # just over 2 MiB: the last piece is refused, the message dropped
         await greedy.send(fragment("huge", num, 1000, piece))
     assert "this connection" in (await refused(greedy) or "")
+    assert await greedy.answers()
     for num in range(7):  # 1.75 MiB: within this connection's share
         await first.send(fragment("m", num, 1000, piece))
     assert await refused(first, wait=0.5) is None
