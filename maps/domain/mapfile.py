@@ -449,9 +449,10 @@ def occupancy_grid_json(
 ) -> bytes:
     """Return ``occupancy_grid_message`` as compact JSON, ``data`` written by numpy.
 
-    The same text ``json.dumps`` gives with compact separators, about twenty times
-    faster and with a fifth of the memory on a large map: every cell of ``data`` is looked
-    up in a table of its text, and the padding of the table is dropped.
+    The same text ``json.dumps`` gives with compact separators, several times faster on a
+    large map (4096 x 4096: 2.2 s against 15 s, on a loaded machine) and with no more
+    memory: every cell of ``data`` is looked up in a table of its text, and the padding
+    of the table is dropped.
     """
     fields = json.dumps(_grid_fields(grid.shape, meta, frame_id, stamp), separators=(",", ":"))
     return fields.encode()[:-1] + b',"data":[' + _cells_json(grid) + b"]}"
