@@ -2,7 +2,9 @@
 
 Browsers authenticate with their Django session (``AuthMiddlewareStack``); the rosbridge
 consumer checks their origin and robot tokens itself. ``TransportProbe`` sits outermost so
-the consumer can reach daphne's own ``send`` (see ``telemetry.transport``).
+the consumer can reach daphne's own ``send`` (see ``telemetry.transport``). Under daphne,
+``bodies.install`` refuses request bodies that are too large, or come without credentials
+that hold, before daphne keeps them.
 """
 
 from __future__ import annotations
@@ -17,9 +19,11 @@ django_asgi_app = get_asgi_application()
 from channels.auth import AuthMiddlewareStack  # noqa: E402
 from channels.routing import ProtocolTypeRouter, URLRouter  # noqa: E402
 
+from cloudnav_web import bodies  # noqa: E402
 from telemetry.routing import websocket_urlpatterns  # noqa: E402
 from telemetry.transport import TransportProbe  # noqa: E402
 
+bodies.install()
 application = ProtocolTypeRouter(
     {
         "http": django_asgi_app,

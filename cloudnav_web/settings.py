@@ -40,6 +40,25 @@ CLOUDNAV_MAX_MAP_PIXELS = int(os.environ.get("CLOUDNAV_MAX_MAP_PIXELS", str(4096
 CLOUDNAV_MAX_UPLOAD_BYTES = int(os.environ.get("CLOUDNAV_MAX_UPLOAD_BYTES", str(32 * 1024 * 1024)))
 DATA_UPLOAD_MAX_MEMORY_SIZE = CLOUDNAV_MAX_UPLOAD_BYTES
 FILE_UPLOAD_MAX_MEMORY_SIZE = CLOUDNAV_MAX_UPLOAD_BYTES
+# Request bodies (cloudnav_web.bodies): past this size only clients with credentials that
+# hold may send one, and none may pass the second limit (an upload's two files and more).
+CLOUDNAV_ANONYMOUS_BODY_BYTES = int(os.environ.get("CLOUDNAV_ANONYMOUS_BODY_BYTES", "65536"))
+CLOUDNAV_MAX_BODY_BYTES = int(
+    os.environ.get("CLOUDNAV_MAX_BODY_BYTES", str(2 * CLOUDNAV_MAX_UPLOAD_BYTES + 2**20))
+)
+# Heavy answers (tag sheets and prints, map grids, video encoders) share a budget: at most
+# this many at once, this much memory (estimated) among them, this many per client; beyond
+# it they are answered 503 (or 429 for the client's own share) with Retry-After.
+CLOUDNAV_HEAVY_SLOTS = int(os.environ.get("CLOUDNAV_HEAVY_SLOTS", "4"))
+CLOUDNAV_HEAVY_MEMORY_BYTES = int(os.environ.get("CLOUDNAV_HEAVY_MEMORY_BYTES", str(2**30)))
+CLOUDNAV_HEAVY_PER_CLIENT = int(os.environ.get("CLOUDNAV_HEAVY_PER_CLIENT", "2"))
+# Video encoders (VP8, and MJPEG re-encoded to another size or quality) have their own
+# budget, held for as long as someone watches; viewers asking the same share one encoder.
+CLOUDNAV_VIDEO_ENCODER_SLOTS = int(os.environ.get("CLOUDNAV_VIDEO_ENCODER_SLOTS", "8"))
+CLOUDNAV_VIDEO_ENCODER_MEMORY_BYTES = int(
+    os.environ.get("CLOUDNAV_VIDEO_ENCODER_MEMORY_BYTES", str(2**30))
+)
+CLOUDNAV_VIDEO_ENCODER_PER_CLIENT = int(os.environ.get("CLOUDNAV_VIDEO_ENCODER_PER_CLIENT", "4"))
 
 INSTALLED_APPS = [
     "daphne",

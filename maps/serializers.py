@@ -10,6 +10,7 @@ from django.urls import reverse
 from rest_framework import serializers
 
 from . import services
+from .domain import tagart
 from .domain.mapfile import LoadedMap, load_map_archive, load_map_upload
 from .domain.tagart import marker_id_limit
 from .exceptions import TagPayloadError
@@ -142,6 +143,7 @@ class TagSerializer(serializers.ModelSerializer):
         ]
         # Marker uniqueness is checked in validate(), so the error names the marker_id field.
         validators: list[Any] = []
+        extra_kwargs = {"size": {"min_value": tagart.MIN_SIZE, "max_value": tagart.MAX_SIZE}}
 
     def get_payload(self, tag: EnvironmentalTag) -> str:
         return services.tag_art(tag).payload

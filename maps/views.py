@@ -7,7 +7,7 @@ import zipfile
 from typing import Any
 
 from django.db.models import QuerySet
-from django.http import HttpResponse
+from django.http import HttpResponse, HttpResponseBase
 from django.utils.http import quote_etag
 from drf_spectacular.types import OpenApiTypes
 from drf_spectacular.utils import OpenApiParameter, extend_schema
@@ -18,10 +18,12 @@ from rest_framework.request import Request
 from rest_framework.response import Response
 from rest_framework.views import APIView
 
+from cloudnav_web.heavy import heavy_response
+
 from . import services
 from .access import Role, buildings_for, may_create_buildings, robot_of, role_in
-from .domain.mapfile import export_map, map_yaml_text, occupancy_grid_message
-from .domain.tagart import render_tag_pdf, render_tag_png
+from .domain.mapfile import export_map, map_yaml_text, occupancy_grid_json
+from .domain.tagart import print_memory, render_tag_pdf, render_tag_png
 from .domain.topology import Coverage, Edge
 from .models import Building, EnvironmentalTag, SubMap
 from .serializers import (
@@ -147,15 +149,23 @@ class SubMapImage(APIView):
         return response
 
 
+# Bytes a map cell costs while its grid is converted and written as JSON (heavy work).
+GRID_BYTES_PER_CELL = 16
+
+
 class SubMapGrid(APIView):
-    """The sub-map as a ``nav_msgs/OccupancyGrid`` in rosbridge JSON."""
+    """The sub-map as a ``nav_msgs/OccupancyGrid`` in rosbridge JSON (heavy work)."""
 
     @extend_schema(responses={200: OpenApiTypes.OBJECT})
-    def get(self, request: Request, building: str, map: str) -> Response:
+    def get(self, request: Request, building: str, map: str) -> HttpResponseBase:
         submap = submap_for(request, building, map)
-        meta = services.metadata_of(submap)
-        grid = services.grid_of(submap)
-        return Response(occupancy_grid_message(grid, meta, frame_id=submap.map_id))
+
+        def build() -> bytes:
+            meta = services.metadata_of(submap)
+            return occupancy_grid_json(services.grid_of(submap), meta, frame_id=submap.map_id)
+
+        need = submap.width * submap.height * GRID_BYTES_PER_CELL
+        return heavy_response(request, need, build, "application/json")
 
 
 class SubMapExport(APIView):
@@ -331,15 +341,15 @@ class TagPrint(APIView):
             (200, "application/pdf"): OpenApiTypes.BINARY,
         }
     )
-    def get(self, request: Request, pk: int, extension: str) -> HttpResponse:
+    def get(self, request: Request, pk: int, extension: str) -> HttpResponseBase:
         tag = tag_for(request, pk)
         art = services.tag_art(tag)
-        body, content_type = (
-            (render_tag_png(art), "image/png")
-            if extension == "png"
-            else (render_tag_pdf([art]), "application/pdf")
+        response = heavy_response(
+            request,
+            print_memory([art.size]),
+            lambda: render_tag_png(art) if extension == "png" else render_tag_pdf([art]),
+            "image/png" if extension == "png" else "application/pdf",
         )
-        response = HttpResponse(body, content_type=content_type)
         response["Content-Disposition"] = (
             f'inline; filename="tag_{tag.building.code}_{tag.marker_id}.{extension}"'
         )
@@ -350,13 +360,13 @@ class BuildingTagSheet(APIView):
     """Every tag of a building, packed on A4 pages at true physical size."""
 
     @extend_schema(responses={(200, "application/pdf"): OpenApiTypes.BINARY})
-    def get(self, request: Request, building: str) -> HttpResponse:
+    def get(self, request: Request, building: str) -> HttpResponseBase:
         target = building_for(request, building)
         tags = target.tags.select_related("building", "submap__building", "links_to__building")
         if not tags:
             raise NotFound("This building has no tags.")
-        response = HttpResponse(
-            render_tag_pdf([services.tag_art(t) for t in tags]), content_type="application/pdf"
-        )
+        arts = [services.tag_art(t) for t in tags]
+        need = print_memory([art.size for art in arts])
+        response = heavy_response(request, need, lambda: render_tag_pdf(arts), "application/pdf")
         response["Content-Disposition"] = f'inline; filename="tags_{target.code}.pdf"'
         return response

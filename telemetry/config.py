@@ -1,5 +1,9 @@
 """The rosbridge server's tunables: a Django setting if defined, else the environment, else
-the default, so a deployment (or a test's live server) can set them either way."""
+the default, so a deployment (or a test's live server) can set them either way.
+
+The limits bound what one connection can make the server hold or do, and what all of
+them together can; the README's configuration table lists each with its meaning.
+"""
 
 from __future__ import annotations
 
@@ -9,6 +13,9 @@ from dataclasses import dataclass
 from typing import TypeVar
 
 from django.conf import settings
+
+from telemetry.domain.decoding import FrameLimits
+from telemetry.domain.limits import ConnectionLimits
 
 T = TypeVar("T")
 
@@ -21,9 +28,17 @@ def setting(name: str, default: T, cast: Callable[[str], T]) -> T:
     return default if raw is None or raw == "" else cast(raw)
 
 
+MIB = 2**20
+
+
 @dataclass(frozen=True)
 class RosbridgeConfig:
     max_frame_bytes: int
+    frame: FrameLimits
+    per_connection: ConnectionLimits
+    fragments_total_bytes: int
+    fragment_timeout: float
+    max_send_bytes: int
     send_queue_frames: int
     send_queue_bytes: int
     teleop_lock_ttl: float
@@ -33,10 +48,30 @@ class RosbridgeConfig:
 
     @classmethod
     def load(cls) -> RosbridgeConfig:
+        max_frame_bytes = setting("CLOUDNAV_ROSBRIDGE_MAX_FRAME_BYTES", 16 * MIB, int)
         return cls(
-            max_frame_bytes=setting("CLOUDNAV_ROSBRIDGE_MAX_FRAME_BYTES", 16 * 2**20, int),
+            max_frame_bytes=max_frame_bytes,
+            frame=FrameLimits(
+                max_bytes=max_frame_bytes,
+                max_nodes=setting("CLOUDNAV_ROSBRIDGE_MAX_FRAME_VALUES", 2**20, int),
+                max_depth=setting("CLOUDNAV_ROSBRIDGE_MAX_FRAME_DEPTH", 64, int),
+            ),
+            per_connection=ConnectionLimits(
+                subscriptions=setting("CLOUDNAV_ROSBRIDGE_MAX_SUBSCRIPTIONS", 1024, int),
+                advertisements=setting("CLOUDNAV_ROSBRIDGE_MAX_ADVERTISEMENTS", 256, int),
+                services=setting("CLOUDNAV_ROSBRIDGE_MAX_SERVICES", 256, int),
+                pending_calls=setting("CLOUDNAV_ROSBRIDGE_MAX_PENDING_CALLS", 1024, int),
+                params=setting("CLOUDNAV_ROSBRIDGE_MAX_PARAMS", 256, int),
+                param_bytes=setting("CLOUDNAV_ROSBRIDGE_MAX_PARAM_BYTES", 4 * MIB, int),
+                fragment_bytes=setting("CLOUDNAV_ROSBRIDGE_FRAGMENT_BYTES", 4 * MIB, int),
+                min_fragment_size=setting("CLOUDNAV_ROSBRIDGE_MIN_FRAGMENT_SIZE", 1024, int),
+                latched_bytes=setting("CLOUDNAV_ROSBRIDGE_MAX_LATCHED_BYTES", 16 * MIB, int),
+            ),
+            fragments_total_bytes=setting("CLOUDNAV_ROSBRIDGE_FRAGMENT_BYTES_TOTAL", 32 * MIB, int),
+            fragment_timeout=setting("CLOUDNAV_ROSBRIDGE_FRAGMENT_TIMEOUT", 10.0, float),
+            max_send_bytes=setting("CLOUDNAV_ROSBRIDGE_MAX_SEND_BYTES", 2 * max_frame_bytes, int),
             send_queue_frames=setting("CLOUDNAV_ROSBRIDGE_SEND_QUEUE_FRAMES", 256, int),
-            send_queue_bytes=setting("CLOUDNAV_ROSBRIDGE_SEND_QUEUE_BYTES", 8 * 2**20, int),
+            send_queue_bytes=setting("CLOUDNAV_ROSBRIDGE_SEND_QUEUE_BYTES", 8 * MIB, int),
             teleop_lock_ttl=setting("CLOUDNAV_TELEOP_LOCK_TTL", 5.0, float),
             teleop_silence=setting("CLOUDNAV_TELEOP_SILENCE", 0.5, float),
             fleet_flush_interval=setting("CLOUDNAV_FLEET_FLUSH_INTERVAL", 1.0, float),

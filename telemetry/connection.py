@@ -3,13 +3,15 @@
 ``deliver`` never blocks and never raises. When the socket can take a frame at once (the
 daphne sink, not paused, nothing queued) the frame is written synchronously, so fan-out to
 a healthy subscriber costs one buffer append; otherwise it waits in the outbox, which drops
-its oldest frames past its bounds, and is written when the socket drains.
+its oldest frames past its bounds, and is written when the socket drains. A message whose
+encoding is over ``max_send_bytes`` is never sent (nor queued): it is counted and logged.
 """
 
 from __future__ import annotations
 
 import asyncio
 import itertools
+import logging
 from typing import Any
 
 from telemetry.domain.encoding import Outgoing, Wire
@@ -19,6 +21,7 @@ from telemetry.domain.rules import Principal
 from telemetry.transport import AsgiSend, DaphneSink, cap_incoming, daphne_protocol, send_via_asgi
 
 _keys = itertools.count(1)
+logger = logging.getLogger(__name__)
 
 
 class Connection:
@@ -32,11 +35,14 @@ class Connection:
         max_frames: int,
         max_bytes: int,
         max_frame_bytes: int,
+        max_send_bytes: int,
     ) -> None:
         self.key = f"c{next(_keys)}"
         self.principal = principal
         self.level = "none"
         self.outbox = Outbox(max_frames, max_bytes)
+        self.max_send_bytes = max_send_bytes
+        self.too_large = 0
         self.open = True
         self._asgi_send = asgi_send
         self._wakeup = asyncio.Event()
@@ -58,6 +64,9 @@ class Connection:
             self._drain()
 
     def deliver(self, wire: Wire) -> None:
+        if wire.nbytes > self.max_send_bytes:
+            self._refuse(wire)
+            return
         sink = self._sink
         if sink is not None and not self.outbox and sink.writable():
             sink.write(wire)
@@ -67,6 +76,16 @@ class Connection:
         self.outbox.push(wire)
         if sink is None:
             self._wakeup.set()
+
+    def _refuse(self, wire: Wire) -> None:
+        self.too_large += 1
+        if self.too_large == 1:
+            logger.warning(
+                "%s: a message of %d bytes is over the limit of %d and is not sent",
+                self.principal.label,
+                wire.nbytes,
+                self.max_send_bytes,
+            )
 
     def send(self, frame: dict[str, Any]) -> None:
         """Send one control frame (answers, requests, status) as JSON."""

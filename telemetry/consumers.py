@@ -7,6 +7,7 @@ connection stays up.
 
 from __future__ import annotations
 
+import asyncio
 import logging
 from collections.abc import Awaitable, Callable
 from typing import Any
@@ -18,8 +19,9 @@ from telemetry import replies
 from telemetry.connection import Connection
 from telemetry.domain import names, protocol
 from telemetry.domain.bus import SubscribeParams
+from telemetry.domain.decoding import decode_frame
 from telemetry.domain.fragments import Reassembler
-from telemetry.domain.protocol import SUPPORTED_COMPRESSIONS, decode_frame, parse_op
+from telemetry.domain.protocol import SUPPORTED_COMPRESSIONS, parse_op
 from telemetry.exceptions import BadFrame, RosbridgeError
 from telemetry.hub import Client, Hub, get_hub
 from telemetry.server_services import ServiceCall
@@ -41,6 +43,7 @@ class RosbridgeConsumer(AsyncWebsocketConsumer):
     conn: Connection | None = None
     access: Access
     fragments: Reassembler
+    _frame_size = 0  # of the frame being handled
 
     async def __call__(self, scope: Any, receive: Any, send: Any) -> None:
         """Take each message straight from ``receive`` and dispatch it.
@@ -75,7 +78,12 @@ class RosbridgeConsumer(AsyncWebsocketConsumer):
         self.hub = await get_hub()
         config = self.hub.config
         self.access = Access(identity.principal)
-        self.fragments = Reassembler(max_chars=config.max_frame_bytes)
+        self.fragments = Reassembler(
+            config.per_connection.fragment_bytes,
+            self.hub.fragment_budget,
+            asyncio.get_running_loop().call_later,
+            config.fragment_timeout,
+        )
         self.conn = Connection(
             identity.principal,
             self.base_send,
@@ -83,6 +91,7 @@ class RosbridgeConsumer(AsyncWebsocketConsumer):
             config.send_queue_frames,
             config.send_queue_bytes,
             config.max_frame_bytes,
+            config.max_send_bytes,
         )
         await self.accept()
         self.conn.start()
@@ -97,6 +106,7 @@ class RosbridgeConsumer(AsyncWebsocketConsumer):
 
     async def websocket_disconnect(self, message: dict[str, Any]) -> None:
         if self.conn is not None:
+            self.fragments.clear()
             await self.hub.leave(self.conn)
             logger.info("%s disconnected (%s)", self.conn.principal.label, self.conn.key)
         raise StopConsumer()
@@ -105,8 +115,9 @@ class RosbridgeConsumer(AsyncWebsocketConsumer):
         """Carry out one frame; any RosbridgeError is answered and the frame dropped."""
         conn = self._conn
         frame = None
+        self._frame_size = len(data)
         try:
-            frame = decode_frame(data, self.hub.config.max_frame_bytes)
+            frame = decode_frame(data, self.hub.config.frame)
             op = parse_op(frame)
             if reassembled and isinstance(op, protocol.Fragment):
                 raise BadFrame("a fragment cannot hold another fragment", op="fragment")
@@ -126,7 +137,7 @@ class RosbridgeConsumer(AsyncWebsocketConsumer):
         conn = self._conn
         if conn.principal.robot is None and name.endswith(_CMD_VEL_SUFFIX):
             self.hub.check_command(conn, name, op.msg)
-        self.hub.publish(conn, name, op.msg, op.latch)
+        self.hub.publish(conn, name, op.msg, op.latch, self._frame_size)
 
     async def on_subscribe(self, op: protocol.Subscribe) -> None:
         name = self.access.resolve(op.topic)
@@ -135,7 +146,8 @@ class RosbridgeConsumer(AsyncWebsocketConsumer):
         if compression not in SUPPORTED_COMPRESSIONS:
             self._conn.report("warning", f"compression {compression} is not offered; using none")
             compression = "none"
-        params = SubscribeParams(op.throttle_rate, op.queue_length, op.fragment_size, compression)
+        fragment_size = self._fragment_size(op.fragment_size)
+        params = SubscribeParams(op.throttle_rate, op.queue_length, fragment_size, compression)
         await self.hub.subscribe(self._conn, name, op, params)
 
     async def on_unsubscribe(self, op: protocol.Unsubscribe) -> None:
@@ -153,6 +165,7 @@ class RosbridgeConsumer(AsyncWebsocketConsumer):
 
     async def on_call_service(self, op: protocol.CallService) -> None:
         name = self.access.resolve(op.service)
+        op.fragment_size = self._fragment_size(op.fragment_size)
         call = ServiceCall(self.hub, self._conn, self.access, name, op.args)
         await self.hub.call_service(call, op)
 
@@ -179,6 +192,7 @@ class RosbridgeConsumer(AsyncWebsocketConsumer):
 
     async def on_send_action_goal(self, op: protocol.SendActionGoal) -> None:
         name = self.access.resolve(op.action)
+        op.fragment_size = self._fragment_size(op.fragment_size)
         await self.hub.send_action_goal(self._conn, self.access, name, op)
 
     async def on_cancel_action_goal(self, op: protocol.CancelActionGoal) -> None:
@@ -199,6 +213,17 @@ class RosbridgeConsumer(AsyncWebsocketConsumer):
 
     async def on_set_level(self, op: protocol.SetLevel) -> None:
         self._conn.level = op.level
+
+    def _fragment_size(self, asked: int | None) -> int | None:
+        """Return the ``fragment_size`` to use: what was asked, raised to the least allowed.
+
+        Tiny fragments multiply the frames (and the work) a message costs; a client asking
+        for them gets fragments of the least size instead, and a warning."""
+        least = self.hub.config.per_connection.min_fragment_size
+        if asked is None or asked >= least:
+            return asked
+        self._conn.report("warning", f"fragment_size {asked} is below {least}; using {least}")
+        return least
 
     @property
     def _conn(self) -> Connection:

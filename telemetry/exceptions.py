@@ -50,3 +50,8 @@ class ServiceFailed(RosbridgeError):
 
 class ActionFailed(RosbridgeError):
     """An action goal cannot be carried out; the caller gets an ``action_result`` that failed."""
+
+
+class LimitReached(RosbridgeError):
+    """The connection (or the server as a whole) holds as much of something as it may:
+    subscriptions, advertisements, pending calls, parameters or fragments."""

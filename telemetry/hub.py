@@ -20,6 +20,7 @@ from telemetry.domain import names, protocol
 from telemetry.domain.bus import SubscribeParams, TopicBus
 from telemetry.domain.calls import CallTable, PendingCall
 from telemetry.domain.encoding import Outgoing
+from telemetry.domain.limits import ByteBudget, Holdings
 from telemetry.domain.messages import pose_of, string_of, twist_2d
 from telemetry.domain.protocol import Json
 from telemetry.domain.times import complete_header_stamp
@@ -55,16 +56,20 @@ class Hub:
     def __init__(self, config: RosbridgeConfig, services: dict[str, ServerService]) -> None:
         loop = asyncio.get_running_loop()
         self.config = config
+        limits = config.per_connection
         self.bus = TopicBus(
             scheduler=loop.call_later,
             clock=loop.time,
             type_hint=fleet_type,
             latch_hint=fleet_latched,
+            limits=limits,
         )
-        self.services = CallTable("service_request")
-        self.actions = CallTable("action_goal")
+        self.services = CallTable("service_request", limits)
+        self.actions = CallTable("action_goal", limits)
         self.server_services = services
         self.params: ParamStore = MemoryParams()
+        self.params_held = Holdings("parameters", limits.params, limits.param_bytes)
+        self.fragment_budget = ByteBudget(config.fragments_total_bytes)
         self.clients: dict[str, Client] = {}
         self.relay: Relay | None = None
         self.teleop = TeleopLocks(
@@ -75,8 +80,9 @@ class Hub:
         )
         self.fleet = FleetTracker(interval=config.fleet_flush_interval)
         self._fleet_topics: dict[str, tuple[int, str]] = {}
-        # goals this process's connections sent to actions on other processes
-        self._remote_goals: dict[tuple[str, Json], str] = {}
+        # goals this process's connections sent to actions on other processes, by
+        # connection: goal id -> that process's channel (the newest ``pending_calls``)
+        self._remote_goals: dict[str, dict[Json, str]] = {}
         self._directory: dict[str, set[str]] = {}
 
     async def start(self) -> None:
@@ -119,12 +125,23 @@ class Hub:
         for call in self.actions.drop(conn):
             self._fail_goal(call, f"Action {call.name} was unadvertised")
         await self.teleop.drop(conn.key)
-        self._remote_goals = {k: v for k, v in self._remote_goals.items() if k[0] != conn.key}
+        held = self.params_held.drop(conn.key)
+        owner = self.param_owner(conn)
+        if held and owner is not None:
+            await self.params.release(owner, held)
+        self._remote_goals.pop(conn.key, None)
         robot = conn.principal.robot
         if client is not None and client.robot_pk is not None and robot is not None:
             self._robot_left(robot, client.robot_pk)
         self._publish_directory("services", self.services)
         self._publish_directory("actions", self.actions)
+
+    def param_owner(self, conn: Connection) -> str | None:
+        """Return who owns the parameters ``conn`` sets: the connection itself, named
+        uniquely across server processes, or None for an admin's, which persist."""
+        if conn.principal.admin:
+            return None
+        return f"{self.relay.channel}/{conn.key}" if self.relay is not None else conn.key
 
     def _robot_left(self, robot: str, robot_pk: int) -> None:
         self.fleet.disconnected(robot_pk)
@@ -145,9 +162,11 @@ class Hub:
     def unadvertise(self, conn: Connection, name: str, aid: Json) -> None:
         self.bus.unadvertise(conn, name, aid)
 
-    def publish(self, conn: Connection, name: str, msg: dict[str, Json], latch: bool) -> None:
+    def publish(
+        self, conn: Connection, name: str, msg: dict[str, Json], latch: bool, size: int
+    ) -> None:
         complete_header_stamp(msg)
-        self.bus.publish(conn, name, msg, latch)
+        self.bus.publish(conn, name, msg, latch, size)
         tracked = self._fleet_topics.get(name)
         if tracked is not None:
             self._track(tracked[0], tracked[1], msg)
@@ -271,7 +290,10 @@ class Hub:
         provider = self.actions.provider(name)
         if provider is None:
             channel = await self._call_remote("actions", "rb.goal", conn, access, name, op)
-            self._remote_goals[(conn.key, op.id)] = channel
+            goals = self._remote_goals.setdefault(conn.key, {})
+            if len(goals) >= self.config.per_connection.pending_calls:
+                del goals[next(iter(goals))]  # the oldest can no longer be cancelled
+            goals[op.id] = channel
             return
         await access.require("call", name)
         pending = self.actions.start(
@@ -286,7 +308,7 @@ class Hub:
         self, conn: Connection, name: str, op: protocol.CancelActionGoal
     ) -> None:
         found = self.actions.of_caller(conn, op.id)
-        channel = self._remote_goals.get((conn.key, op.id))
+        channel = self._remote_goals.get(conn.key, {}).get(op.id)
         if found is None and channel is not None and self.relay is not None:
             self.relay.send(channel, self._request("rb.cancel", conn, name, op))
             return

@@ -175,6 +175,8 @@ class Relay:
                 alive.append(channel)
             else:
                 await self.redis.srem(names.redis_key("processes"), channel)
+                # its connections' parameters would otherwise outlive them
+                await self.hub.params.release_all(f"{channel}/")
         return alive
 
     async def entries(self, kind: str, others_only: bool = True) -> list[tuple[str, str, str]]:

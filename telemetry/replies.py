@@ -14,24 +14,36 @@ from typing import Any
 
 from telemetry.connection import Connection
 from telemetry.domain import protocol
+from telemetry.domain.names import MAX_NAME_LENGTH
 from telemetry.exceptions import RosbridgeError
 
 logger = logging.getLogger("telemetry.rosbridge")
+MAX_REASON_LENGTH = 500
 
 
 def answer(conn: Connection, error: RosbridgeError, frame: Mapping[str, Any] | None) -> None:
     """Tell ``conn`` (as rosbridge would) that ``frame`` failed with ``error``."""
     frame = frame or {}
-    op = error.op or frame.get("op")
-    ident = error.id if error.id is not None else frame.get("id")
-    logger.info("%s: dropped %s frame: %s", conn.principal.label, op or "a", error.message)
-    service, action = frame.get("service"), frame.get("action")
-    if op == "call_service" and isinstance(service, str):
-        conn.send(dict(protocol.service_response(service, ident, error.message, False)))
-    elif op == "send_action_goal" and isinstance(action, str):
-        result = protocol.action_result(
-            action, ident, error.message, protocol.STATUS_UNKNOWN, False
-        )
+    op = error.op or _name(frame.get("op"))
+    ident = error.id if error.id is not None else protocol.echoable_id(frame.get("id"))
+    reason = shortened(error.message)
+    logger.info("%s: dropped %s frame: %s", conn.principal.label, op or "a", reason)
+    service, action = _name(frame.get("service")), _name(frame.get("action"))
+    if op == "call_service" and service is not None:
+        conn.send(dict(protocol.service_response(service, ident, reason, False)))
+    elif op == "send_action_goal" and action is not None:
+        result = protocol.action_result(action, ident, reason, protocol.STATUS_UNKNOWN, False)
         conn.send(dict(result))
     else:
-        conn.report(error.level, f"{op}: {error.message}" if op else error.message, ident)
+        conn.report(error.level, f"{op}: {reason}" if op else reason, ident)
+
+
+def shortened(text: str) -> str:
+    """Return ``text`` cut to ``MAX_REASON_LENGTH`` characters, marked where it was cut."""
+    if len(text) <= MAX_REASON_LENGTH:
+        return text
+    return text[: MAX_REASON_LENGTH - 1] + "\u2026"
+
+
+def _name(value: Any) -> str | None:
+    return value if isinstance(value, str) and len(value) <= MAX_NAME_LENGTH else None

@@ -115,6 +115,8 @@ async def get_param(call: ServiceCall) -> Json:
 
 
 async def set_param(call: ServiceCall) -> Json:
+    """Set a parameter; it lives with the caller's connection unless an admin set it (see
+    ``telemetry.params``). Raises LimitReached past the connection's parameter budget."""
     name = await _param(call, "set_param")
     value = call.arg("value", "null")
     if not isinstance(value, str):
@@ -122,14 +124,18 @@ async def set_param(call: ServiceCall) -> Json:
     try:
         json.loads(value)
     except ValueError:
-        raise ServiceFailed(f"'value' is not JSON: {value!r}") from None
-    await call.hub.params.set(name, value)
+        raise ServiceFailed("'value' is not JSON") from None
+    owner = call.hub.param_owner(call.conn)
+    if owner is not None:
+        call.hub.params_held.take(call.conn.key, name, len(name) + len(value))
+    await call.hub.params.set(name, value, owner)
     return {"successful": True, "reason": ""}
 
 
 async def delete_param(call: ServiceCall) -> Json:
     name = await _param(call, "set_param")
     found = await call.hub.params.delete(name)
+    call.hub.params_held.release(call.conn.key, name)
     return {"successful": found, "reason": "" if found else f"Parameter {name} is not set"}
 
 

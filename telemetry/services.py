@@ -111,8 +111,12 @@ class Access:
     """One connection's authorisation decisions, cached by name.
 
     Each check raises NotAllowed naming what was refused. Robot memberships are read once
-    per connection: a change made while it is open applies when it reconnects.
+    per connection: a change made while it is open applies when it reconnects. Each cache
+    holds at most ``MAX_REMEMBERED`` entries and starts afresh past it, so a client naming
+    ever new names costs lookups again, never more memory.
     """
+
+    MAX_REMEMBERED = 4096
 
     def __init__(self, principal: Principal) -> None:
         self.principal = principal
@@ -126,13 +130,15 @@ class Access:
         """Return ``name`` made absolute in this connection's namespace. Raises InvalidName."""
         resolved = self._names.get(name)
         if resolved is None:
-            resolved = self._names[name] = names.absolute(name, self.principal.namespace)
+            resolved = names.absolute(name, self.principal.namespace)
+            _room_in(self._names, self.MAX_REMEMBERED)[name] = resolved
         return resolved
 
     async def owner(self, name: str) -> Owner | None:
         segment = rules.owner_segment(name)
         if segment not in self._owners:
-            self._owners[segment] = await database_sync_to_async(owner_named)(segment)
+            found = await database_sync_to_async(owner_named)(segment)
+            _room_in(self._owners, self.MAX_REMEMBERED)[segment] = found
         return self._owners[segment]
 
     async def require(self, what: str, name: str) -> None:
@@ -145,11 +151,20 @@ class Access:
             return
         if not _RULES[what](self.principal, name, await self.owner(name)):
             raise NotAllowed(f"{self.principal.label} may not {what.replace('_', ' ')} {name}")
+        if len(self._granted) >= self.MAX_REMEMBERED:
+            self._granted.clear()
         self._granted.add((what, name))
 
     def granted(self, what: str, name: str) -> bool:
         """True if ``require(what, name)`` already succeeded on this connection."""
         return (what, name) in self._granted
+
+
+def _room_in(cache: dict[str, Any], most: int) -> dict[str, Any]:
+    """Return ``cache``, emptied first if it holds ``most`` entries already."""
+    if len(cache) >= most:
+        cache.clear()
+    return cache
 
 
 def _may_set_param(principal: Principal, name: str, owner: Owner | None) -> bool:

@@ -9,10 +9,12 @@ import pytest
 from telemetry.domain import names
 from telemetry.domain.bus import SubscribeParams, TopicBus
 from telemetry.domain.encoding import Outgoing, Wire, to_json, ws_frame
-from telemetry.domain.fragments import Reassembler, split
+from telemetry.domain.fragments import PIECE_OVERHEAD, Reassembler, split
+from telemetry.domain.limits import ByteBudget
 from telemetry.domain.outbox import Outbox
 from telemetry.domain.times import parse_stamp, stamp
-from telemetry.exceptions import BadFrame, InvalidName, TypeConflict
+from telemetry.exceptions import InvalidName, LimitReached, TypeConflict
+from tests.timers import ManualTimers
 
 
 def wire(size: int) -> Wire:
@@ -84,16 +86,16 @@ def test_fragments_have_integer_totals_and_reassemble():
     text = json.dumps({"op": "publish", "topic": "/t", "msg": {"data": "z" * 100}})
     pieces = split(text, 16, "f")
     assert all(isinstance(p["total"], int) and p["total"] == len(pieces) for p in pieces)
-    joiner = Reassembler(max_chars=10_000)
+    joiner = Reassembler(10_000, ByteBudget(10_000), ManualTimers().call_later)
     results = [joiner.add("f", p["num"], p["total"], p["data"]) for p in reversed(pieces)]
     assert results[-1] == text
     assert results[:-1] == [None] * (len(pieces) - 1)
 
 
 def test_reassembly_refuses_oversized_messages():
-    joiner = Reassembler(max_chars=10)
+    joiner = Reassembler(PIECE_OVERHEAD * 2 + 10, ByteBudget(10_000), ManualTimers().call_later)
     joiner.add("f", 0, 3, "12345")
-    with pytest.raises(BadFrame):
+    with pytest.raises(LimitReached):
         joiner.add("f", 1, 3, "678901")
 
 

@@ -56,15 +56,15 @@ async def test_cbor_and_fragments_cross_the_wire(daphne_server, tokens):
 
     async with websockets.connect(daphne_server.rosbridge_url(tokens["r1"])) as r1:
         await r1.send(json.dumps({"op": "subscribe", "topic": "pose", "compression": "cbor"}))
-        await r1.send(json.dumps({"op": "subscribe", "topic": "odom", "fragment_size": 10}))
+        await r1.send(json.dumps({"op": "subscribe", "topic": "odom", "fragment_size": 1024}))
         await r1.send(json.dumps({"op": "publish", "topic": "pose", "msg": POSE}))
         frame = await asyncio.wait_for(r1.recv(), 5)
         assert isinstance(frame, bytes)
         assert cbor2.loads(frame)["msg"] == POSE
-        await r1.send(json.dumps({"op": "publish", "topic": "odom", "msg": {"a": "b" * 30}}))
+        await r1.send(json.dumps({"op": "publish", "topic": "odom", "msg": {"a": "b" * 3000}}))
         first = await receive_json(r1)
         pieces = [first] + [await receive_json(r1) for _ in range(first["total"] - 1)]
-        assert json.loads("".join(p["data"] for p in pieces))["msg"] == {"a": "b" * 30}
+        assert json.loads("".join(p["data"] for p in pieces))["msg"] == {"a": "b" * 3000}
 
 
 async def test_an_oversized_frame_is_dropped_and_a_huge_one_closes_the_connection(

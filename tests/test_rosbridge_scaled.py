@@ -159,6 +159,18 @@ async def test_params_are_shared(connect):
     assert got["values"]["value"] == "0.7"
 
 
+async def test_a_robots_params_go_with_its_connection_on_every_process(connect):
+    robot, viewer = await connect("r1", 0), await connect("viewer", 1)
+    await robot.call("/rosapi/set_param", {"name": "max_speed", "value": "0.7"})
+    await robot.socket.close()
+    deadline = time.monotonic() + WAIT
+    while (await viewer.call("/rosapi/get_param", {"name": "/r1/max_speed"}))["values"][
+        "successful"
+    ]:
+        assert time.monotonic() < deadline, "the parameter outlived its connection"
+        await asyncio.sleep(0.05)
+
+
 async def test_one_teleop_lock_across_processes_and_the_watchdog_stops_the_robot(connect):
     robot = await connect("r1", 0)
     first, second = await connect("operator", 1), await connect("operator2", 0)

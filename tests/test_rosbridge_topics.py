@@ -7,6 +7,7 @@ from typing import Any
 
 import pytest
 
+from telemetry.domain.limits import ConnectionLimits
 from tests.conftest import make_robot
 
 pytestmark = pytest.mark.django_db(transaction=True)
@@ -18,6 +19,9 @@ POSE = {
     },
     "pose": {"position": {"x": 1.0, "y": 2.0, "z": 0.0}, "orientation": {"w": 1.0}},
 }
+
+
+MIN_FRAGMENT = ConnectionLimits().min_fragment_size
 
 
 @pytest.fixture
@@ -162,17 +166,31 @@ async def test_queue_length_keeps_the_newest_while_throttled(rosbridge, token):
 
 async def test_fragment_size_splits_messages_with_integer_totals(rosbridge, token):
     robot = await rosbridge(token=token)
-    await robot.send(op="subscribe", topic="pose", fragment_size=40)
-    await robot.send(op="publish", topic="pose", msg=POSE)
+    await robot.send(op="subscribe", topic="odom", fragment_size=MIN_FRAGMENT)
+    msg = {"data": "z" * (3 * MIN_FRAGMENT)}
+    await robot.send(op="publish", topic="odom", msg=msg)
     first = await robot.receive()
     assert first["op"] == "fragment"
     assert isinstance(first["total"], int)
     assert first["num"] == 0
     pieces = [first] + [await robot.receive() for _ in range(first["total"] - 1)]
     assert [p["num"] for p in pieces] == list(range(first["total"]))
-    assert all(len(p["data"]) <= 40 for p in pieces)
+    assert all(len(p["data"]) <= MIN_FRAGMENT for p in pieces)
     whole = json.loads("".join(p["data"] for p in pieces))
-    assert whole == {"op": "publish", "topic": "pose", "msg": POSE}
+    assert whole == {"op": "publish", "topic": "odom", "msg": msg}
+
+
+async def test_a_fragment_size_below_the_least_gets_the_least_and_a_warning(rosbridge, token):
+    robot = await rosbridge(token=token)
+    await robot.send(op="set_level", level="warning")
+    await robot.send(op="subscribe", topic="odom", fragment_size=1)
+    warning = await robot.receive()
+    assert warning["level"] == "warning"
+    assert f"using {MIN_FRAGMENT}" in warning["msg"]
+    await robot.send(op="publish", topic="odom", msg={"data": "z" * (2 * MIN_FRAGMENT)})
+    first = await robot.receive()
+    assert first["total"] == 3
+    assert len(first["data"]) == MIN_FRAGMENT
 
 
 async def test_cbor_compression_sends_binary_frames(rosbridge, token):

@@ -62,6 +62,11 @@ DEFAULT_DICTIONARY = "DICT_APRILTAG_36h11"
 DEFAULT_SIZE = 0.06
 """Side of each code in metres (docs/design.md: the tag's physical size)."""
 
+MIN_SIZE = 0.01
+MAX_SIZE = 0.25
+"""Tags are printed at true size at 300 dpi: a 25 cm tag (a plate 69 x 38 cm, read from
+many metres) is already a 40-megapixel print; larger ones are refused."""
+
 QUIET_ZONE = 0.25
 """White band around and between the two codes, as a fraction of ``size``."""
 
@@ -314,8 +319,8 @@ def tag_sheets(tags: Sequence[TagArt], dpi: int) -> list[Image.Image]:
     sheet = _Sheet(dpi / INCH)
     for tag in tags:
         sheet.place(_print_image(tag, dpi))
-    # Bilevel pages go into the PDF losslessly (CCITT G4) where grey would become JPEG.
-    return [page.convert("1", dither=Image.Dither.NONE) for page in sheet.pages]
+    sheet.finish_page()
+    return sheet.pages
 
 
 class _Sheet:
@@ -332,12 +337,19 @@ class _Sheet:
         if self.pages and self.x + image.width > self.page_size[0] - self.margin:
             self.x, self.y, self.row_height = self.margin, self.y + self.row_height, 0
         if not self.pages or self.y + image.height > self.page_size[1] - self.margin:
+            self.finish_page()
             self.pages.append(Image.new("L", self.page_size, 255))
             self.x = self.y = self.margin
             self.row_height = 0
         self.pages[-1].paste(image, (self.x, self.y))
         self.x += image.width
         self.row_height = max(self.row_height, image.height)
+
+    def finish_page(self) -> None:
+        """Make the last page bilevel (kept one page at a time, so grey pages do not pile up):
+        bilevel pages go into the PDF losslessly (CCITT G4) where grey would become JPEG."""
+        if self.pages and self.pages[-1].mode != "1":
+            self.pages[-1] = self.pages[-1].convert("1", dither=Image.Dither.NONE)
 
     def _oriented(self, image: Image.Image) -> Image.Image:
         usable = [side - 2 * self.margin for side in self.page_size]
@@ -348,8 +360,35 @@ class _Sheet:
         return image
 
 
+def print_memory(sizes: Sequence[float], dpi: int = 300) -> int:
+    """Estimate the bytes that printing tags of ``sizes`` holds at its peak: the drawing
+    of the largest tag (a few bytes per pixel), and the A4 pages of a sheet (a byte each).
+
+    Raises TagPayloadError for a size out of ``MIN_SIZE`` to ``MAX_SIZE``, which no print
+    takes."""
+    for size in sizes:
+        _check_size(size)
+    pixels_per_metre = dpi / INCH
+    caption = sum(TEXT_POINTS) * 1.4 * INCH / 72
+    areas = [
+        (FACE_WIDTH * size + 2 * PRINT_MARGIN) * (FACE_HEIGHT * size + caption + 2 * PRINT_MARGIN)
+        for size in sizes
+    ]
+    page = A4[0] * A4[1]
+    pages = math.ceil(sum(areas) / page) + 1
+    return round((4 * max(areas, default=0) + pages * page) * pixels_per_metre**2)
+
+
+def _check_size(size: float) -> None:
+    if not MIN_SIZE <= size <= MAX_SIZE:
+        raise TagPayloadError(f"a tag's size must be {MIN_SIZE} to {MAX_SIZE} m, not {size}")
+
+
 def _print_image(tag: TagArt, dpi: int) -> Image.Image:
-    """Grey image of one printed tag: margin, crop marks, face, and caption below it."""
+    """Grey image of one printed tag: margin, crop marks, face, and caption below it.
+
+    Raises TagPayloadError for a size out of ``MIN_SIZE`` to ``MAX_SIZE``."""
+    _check_size(tag.size)
     pixels_per_metre = dpi / INCH
     face = tag_face(tag.marker_id, tag.payload, tag.dictionary, pixels_per_metre, tag.size)
     margin = round(PRINT_MARGIN * pixels_per_metre)

@@ -6,6 +6,10 @@ asked for it) and each ``id`` can be unsubscribed alone; publishing registers th
 (implicit advertise) when the topic's type is known; a latched topic's last message goes to
 every new subscriber; a publisher subscribed to its own topic receives its own messages.
 
+Each peer holds at most ``limits.subscriptions`` subscription requests and
+``limits.advertisements`` advertisements (publishing on a topic counts as one), counted
+when a request arrives, and the messages it latched, at most ``limits.latched_bytes``.
+
 Fan-out encodes each message once per variant (see ``encoding``) and hands the result to
 each peer's ``deliver``, which must not block: peers queue or drop, the bus never waits.
 """
@@ -18,9 +22,10 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import Protocol
 
-from telemetry.exceptions import TypeConflict, UnknownTopic
+from telemetry.exceptions import LimitReached, TypeConflict, UnknownTopic
 
 from .encoding import Outgoing, Wire
+from .limits import ConnectionLimits, Holdings, check_room
 from .names import canonical_type
 from .protocol import Json, PublishFrame
 
@@ -205,14 +210,22 @@ class TopicBus:
         clock: Callable[[], float] = time.monotonic,
         type_hint: Callable[[str], str | None] = lambda name: None,
         latch_hint: Callable[[str], bool] = lambda name: False,
+        limits: ConnectionLimits | None = None,
     ) -> None:
         self.scheduler = scheduler
+        self.limits = limits or ConnectionLimits()
         self.clock = clock
         self.type_hint = type_hint
         self.latch_hint = latch_hint
         self.listener: BusListener | None = None
         self._topics: dict[str, Topic] = {}
         self._peer_topics: dict[str, set[str]] = {}
+        # per peer key: subscription requests and advertisements it holds
+        self._subscriptions: dict[str, int] = {}
+        self._advertisements: dict[str, int] = {}
+        self._latched = Holdings(
+            "latched messages", self.limits.advertisements, self.limits.latched_bytes
+        )
 
     def get(self, name: str) -> Topic | None:
         return self._topics.get(name)
@@ -228,6 +241,20 @@ class TopicBus:
         topic.check_type(type_name)
         return topic
 
+    def _claim(self, held: dict[str, int], peer: Peer, topic: Topic, what: str) -> None:
+        """Count one more subscription request or advertisement of ``peer``.
+
+        Raises LimitReached (and forgets ``topic`` if it was made for this) when the peer
+        already holds as many as it may.
+        """
+        count = held.get(peer.key, 0)
+        try:
+            check_room(what, count, getattr(self.limits, what))
+        except LimitReached:
+            self._forget_if_idle(topic)
+            raise
+        held[peer.key] = count + 1
+
     def _remember(self, peer: Peer, name: str) -> None:
         self._peer_topics.setdefault(peer.key, set()).add(name)
 
@@ -242,6 +269,9 @@ class TopicBus:
 
     def _add_publisher(self, topic: Topic, peer: Peer, aid: Json) -> None:
         first = not topic.publishers
+        ids = topic.publishers.get(peer.key)
+        if ids is None or aid not in ids:
+            self._claim(self._advertisements, peer, topic, "advertisements")
         topic.publishers.setdefault(peer.key, set()).add(aid)
         self._remember(peer, topic.name)
         if first and self.listener is not None:
@@ -253,26 +283,38 @@ class TopicBus:
         if topic is None or peer.key not in topic.publishers:
             return
         ids = topic.publishers[peer.key]
+        before = len(ids)
         if aid is None:
             ids.clear()
         else:
             ids.discard(aid)
+        self._advertisements[peer.key] -= before - len(ids)
         if not ids:
+            self._latched.release(peer.key, name)
             del topic.publishers[peer.key]
             self._after_publisher_left(topic)
 
     def publish(
-        self, peer: Peer | None, name: str, msg: dict[str, Json], latch: bool = False
+        self,
+        peer: Peer | None,
+        name: str,
+        msg: dict[str, Json],
+        latch: bool = False,
+        size: int = 0,
     ) -> Outgoing:
         """Publish ``msg`` from ``peer`` (None: the server itself) and fan it out.
 
-        Registers the publisher if needed. Raises UnknownTopic if no one established the
-        topic's type and the server does not know it.
+        Registers the publisher if needed. ``size`` is the bytes of the frame that carried
+        ``msg``: on a latched topic the message is kept, and counts against the peer's
+        ``limits.latched_bytes``. Raises UnknownTopic if no one established the topic's
+        type and the server does not know it, LimitReached past the peer's limits.
         """
         topic = self._topic(name, None, need_type=True)
         if peer is not None and peer.key not in topic.publishers:
             self._add_publisher(topic, peer, None)
         topic.latched = topic.latched or latch
+        if topic.latched and peer is not None:
+            self._latched.take(peer.key, name, size)
         out = Outgoing(PublishFrame(op="publish", topic=name, msg=msg))
         self.fan_out(topic, out)
         if self.listener is not None:
@@ -317,6 +359,8 @@ class TopicBus:
         key = (peer.key, spelling or name)
         subscription = topic.subscriptions.get(key)
         first = subscription is None
+        if subscription is None or sid not in subscription.requests:
+            self._claim(self._subscriptions, peer, topic, "subscriptions")
         if subscription is None:
             subscription = topic.subscriptions[key] = Subscription(self, peer, key[1])
             self._remember(peer, name)
@@ -336,12 +380,18 @@ class TopicBus:
         subscription = topic.subscriptions.get(key) if topic else None
         if topic is None or subscription is None:
             return
-        if subscription.remove(sid):
+        before = len(subscription.requests)
+        emptied = subscription.remove(sid)
+        self._subscriptions[peer.key] -= before - len(subscription.requests)
+        if emptied:
             del topic.subscriptions[key]
             self._after_subscriber_left(topic)
 
     def drop(self, peer: Peer) -> None:
         """Forget everything ``peer`` published or subscribed (it disconnected)."""
+        self._subscriptions.pop(peer.key, None)
+        self._advertisements.pop(peer.key, None)
+        self._latched.drop(peer.key)
         for name in self._peer_topics.pop(peer.key, ()):
             topic = self._topics.get(name)
             if topic is None:

@@ -6,6 +6,9 @@ it as ``call_service`` (or ``send_action_goal``) with an id of its own,
 advertisement; the provider answers with that id and the answer is routed back to the
 caller under the caller's id. Advertising a name again replaces the provider; the requests
 still waiting on the old one fail.
+
+A peer advertises at most ``limits.services`` names in one table and has at most
+``limits.pending_calls`` requests waiting there.
 """
 
 from __future__ import annotations
@@ -13,6 +16,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from .bus import Peer
+from .limits import ConnectionLimits, check_room
 from .protocol import Json
 
 
@@ -48,9 +52,13 @@ class CallTable:
     ``id_prefix`` is ``service_request`` or ``action_goal``.
     """
 
-    def __init__(self, id_prefix: str) -> None:
+    def __init__(self, id_prefix: str, limits: ConnectionLimits | None = None) -> None:
         self.id_prefix = id_prefix
+        self.limits = limits or ConnectionLimits()
         self._providers: dict[str, Provider] = {}
+        # per peer key: names it serves, requests it waits on
+        self._served: dict[str, int] = {}
+        self._waiting: dict[str, int] = {}
         # (caller key, caller id) -> (name, request id), to cancel or drop a caller's calls
         self._by_caller: dict[tuple[str, Json], tuple[str, str]] = {}
 
@@ -68,8 +76,12 @@ class CallTable:
 
         ``spelling`` is the name as the provider wrote it: its requests carry that name.
         """
+        current = self._providers.get(name)
+        if current is None or current.peer.key != peer.key:
+            check_room("advertised names", self._served.get(peer.key, 0), self.limits.services)
         orphans = self._retire(name)
         self._providers[name] = Provider(name, type_name, peer, spelling or name)
+        self._served[peer.key] = self._served.get(peer.key, 0) + 1
         return orphans
 
     def unadvertise(self, name: str, peer: Peer) -> list[PendingCall] | None:
@@ -83,8 +95,10 @@ class CallTable:
         provider = self._providers.pop(name, None)
         if provider is None:
             return []
+        _decrement(self._served, provider.peer.key)
         for call in provider.pending.values():
             self._by_caller.pop((call.caller.key, call.caller_id), None)
+            _decrement(self._waiting, call.caller.key)
         return list(provider.pending.values())
 
     def start(
@@ -97,7 +111,13 @@ class CallTable:
         compression: str = "none",
         feedback: bool = False,
     ) -> PendingCall:
-        """Record a request to ``provider`` and return it with the id the provider will see."""
+        """Record a request to ``provider`` and return it with the id the provider will see.
+
+        Raises LimitReached when ``caller`` already waits on as many requests as it may.
+        """
+        waiting = self._waiting.get(caller.key, 0)
+        check_room("requests waiting for an answer", waiting, self.limits.pending_calls)
+        self._waiting[caller.key] = waiting + 1
         provider.counter += 1
         request_id = f"{self.id_prefix}:{provider.spelling}:{provider.counter}"
         call = PendingCall(
@@ -129,6 +149,7 @@ class CallTable:
             provider = self._providers[name]
             del provider.pending[call.request_id]
             self._by_caller.pop((call.caller.key, call.caller_id), None)
+            _decrement(self._waiting, call.caller.key)
         return call
 
     def of_caller(self, caller: Peer, caller_id: Json) -> tuple[Provider, PendingCall] | None:
@@ -149,4 +170,13 @@ class CallTable:
             for request_id in [r for r, c in provider.pending.items() if c.caller.key == peer.key]:
                 call = provider.pending.pop(request_id)
                 self._by_caller.pop((peer.key, call.caller_id), None)
+        self._waiting.pop(peer.key, None)
         return [call for call in orphans if call.caller.key != peer.key]
+
+
+def _decrement(counts: dict[str, int], key: str) -> None:
+    left = counts.get(key, 0) - 1
+    if left > 0:
+        counts[key] = left
+    else:
+        counts.pop(key, None)

@@ -5,10 +5,20 @@ into ``fragment`` frames past ``fragment_size``), ``cbor`` one binary CBOR frame
 keeps the payloads and, on demand, the same bytes framed as RFC 6455 server frames; server
 frames are unmasked, so those bytes are identical for every connection and can be written
 to each socket as they are.
+
+Byte strings (``uint8[]`` from a CBOR publisher) become base64 in JSON, as rosbridge's JSON
+writes ``uint8[]``. A string holding a lone surrogate (JSON's ``"\\ud800"`` decodes to
+one) cannot be UTF-8: JSON then escapes it as it came, CBOR replaces it with U+FFFD. Both
+happen only when the plain encoding fails, so the common path pays nothing for them.
+
+Nothing here bounds the size of what it encodes: the frames it is given are bounded where
+they come from (``decoding`` refuses anything past the node budget, so no structure shares
+parts), and each connection refuses to send an encoding past its own limit.
 """
 
 from __future__ import annotations
 
+import base64
 import itertools
 import json
 import math
@@ -21,15 +31,51 @@ from .fragments import split
 from .protocol import OutFrame
 
 _fragment_ids = itertools.count(1)
-_dumps = json.JSONEncoder(separators=(",", ":"), allow_nan=False, ensure_ascii=False).encode
+
+
+def _base64(value: Any) -> str:
+    if isinstance(value, bytes | bytearray | memoryview):
+        return base64.b64encode(value).decode("ascii")
+    raise TypeError(f"{type(value).__name__} has no JSON form")
+
+
+_dumps = json.JSONEncoder(
+    separators=(",", ":"), allow_nan=False, ensure_ascii=False, default=_base64
+).encode
+_dumps_ascii = json.JSONEncoder(separators=(",", ":"), allow_nan=False, default=_base64).encode
 
 
 def to_json(value: Any) -> str:
-    """Return compact JSON; NaN and infinities become ``null`` as in rosbridge's JSON."""
+    """Return compact JSON; NaN and infinities become ``null`` as in rosbridge's JSON, and
+    byte strings base64."""
     try:
         return _dumps(value)
     except ValueError:
         return _dumps(_without_nan(value))
+
+
+def _utf8(text: str) -> bytes:
+    try:
+        return text.encode("utf-8")
+    except UnicodeEncodeError:  # a lone surrogate: the ASCII spelling escapes it
+        return _dumps_ascii(_without_nan(json.loads(text))).encode("ascii")
+
+
+def _cbor(frame: Any) -> bytes:
+    try:
+        return cbor2.dumps(frame)
+    except UnicodeEncodeError:
+        return cbor2.dumps(_without_surrogates(frame))
+
+
+def _without_surrogates(value: Any) -> Any:
+    if isinstance(value, str):
+        return value.encode("utf-16", "surrogatepass").decode("utf-16", "replace")
+    if isinstance(value, dict):
+        return {_without_surrogates(k): _without_surrogates(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_without_surrogates(v) for v in value]
+    return value
 
 
 def _without_nan(value: Any) -> Any:
@@ -80,12 +126,12 @@ class Wire:
 def encode(frame: OutFrame | dict[str, Any], compression: str, fragment_size: int | None) -> Wire:
     """Encode ``frame`` for one variant; unknown compressions fall back to JSON."""
     if compression == "cbor":
-        return Wire((cbor2.dumps(frame),), binary=True)
+        return Wire((_cbor(frame),), binary=True)
     text = to_json(frame)
     if fragment_size is None or len(text) <= fragment_size:
-        return Wire((text.encode("utf-8"),), binary=False)
+        return Wire((_utf8(text),), binary=False)
     pieces = split(text, fragment_size, f"fragment:{next(_fragment_ids)}")
-    return Wire(tuple(to_json(p).encode("utf-8") for p in pieces), binary=False)
+    return Wire(tuple(_utf8(to_json(p)) for p in pieces), binary=False)
 
 
 class Outgoing:

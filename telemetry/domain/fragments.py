@@ -7,14 +7,16 @@ a float there, which strict clients reject).
 
 from __future__ import annotations
 
-import time
-from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from telemetry.exceptions import BadFrame
+from telemetry.exceptions import BadFrame, LimitReached
 
+from .limits import ByteBudget
 from .protocol import FragmentFrame
+
+if TYPE_CHECKING:
+    from .bus import Cancellable, Scheduler
 
 
 def split(text: str, size: int, fragment_id: Any) -> list[FragmentFrame]:
@@ -28,56 +30,67 @@ def split(text: str, size: int, fragment_id: Any) -> list[FragmentFrame]:
     ]
 
 
+# What a stored piece costs beside its characters (the str and dict entry), so that a
+# flood of one-character pieces counts for what it holds.
+PIECE_OVERHEAD = 64
+
+
 @dataclass
 class _Pending:
     total: int
     pieces: dict[int, str] = field(default_factory=dict)
-    size: int = 0
-    touched: float = 0.0
+    cost: int = 0
+    timer: Cancellable | None = None
 
 
 class Reassembler:
     """Collects one connection's incoming fragments until a message is whole.
 
-    Bounded: at most ``max_pending`` messages in progress, each at most ``max_chars`` long;
-    a message untouched for ``timeout`` seconds is forgotten when the next fragment arrives.
+    Bounded three ways: the pieces this connection holds cost at most ``max_bytes``
+    (and at most ``max_pending`` messages are in progress); every connection's pieces
+    together draw on the ``shared`` budget; and a message that got no piece for
+    ``timeout`` seconds is forgotten by a timer, whether or not anything else arrives.
     """
 
     def __init__(
         self,
-        max_chars: int,
+        max_bytes: int,
+        shared: ByteBudget,
+        scheduler: Scheduler,
+        timeout: float = 10.0,
         max_pending: int = 16,
-        timeout: float = 60.0,
-        clock: Callable[[], float] = time.monotonic,
     ) -> None:
-        self.max_chars = max_chars
-        self.max_pending = max_pending
+        self.max_bytes = max_bytes
+        self.shared = shared
+        self.scheduler = scheduler
         self.timeout = timeout
-        self.clock = clock
+        self.max_pending = max_pending
+        self.held = 0
         self._pending: dict[Any, _Pending] = {}
 
     def add(self, fragment_id: Any, num: int, total: int, data: str) -> str | None:
         """Store one piece; return the whole message text once every piece has arrived.
 
-        Raises BadFrame for a piece that contradicts the others or breaks a limit; the
-        message it belonged to is then forgotten.
+        Raises BadFrame for a piece that contradicts the others, LimitReached when this
+        connection's or the server's budget is spent; the message it belonged to is then
+        forgotten.
         """
-        now = self.clock()
-        self._expire(now)
         pending = self._pending_for(fragment_id, total)
         if not 0 <= num < total or total != pending.total or num in pending.pieces:
-            del self._pending[fragment_id]
+            self._forget(fragment_id)
             raise BadFrame(f"fragment {num} of {total} does not fit message {fragment_id!r}")
+        self._hold(fragment_id, pending, data)
         pending.pieces[num] = data
-        pending.size += len(data)
-        pending.touched = now
-        if pending.size > self.max_chars:
-            del self._pending[fragment_id]
-            raise BadFrame(f"fragmented message {fragment_id!r} is over the size limit")
         if len(pending.pieces) < total:
+            self._arm(fragment_id, pending)
             return None
-        del self._pending[fragment_id]
+        self._forget(fragment_id)
         return "".join(pending.pieces[i] for i in range(total))
+
+    def clear(self) -> None:
+        """Forget every message in progress (the connection closed)."""
+        for fragment_id in list(self._pending):
+            self._forget(fragment_id)
 
     def _pending_for(self, fragment_id: Any, total: int) -> _Pending:
         pending = self._pending.get(fragment_id)
@@ -85,11 +98,35 @@ class Reassembler:
             if total < 1:
                 raise BadFrame("fragment total must be at least 1")
             if len(self._pending) >= self.max_pending:
-                raise BadFrame("too many fragmented messages in progress")
+                raise LimitReached("too many fragmented messages in progress")
             pending = self._pending[fragment_id] = _Pending(total=total)
         return pending
 
-    def _expire(self, now: float) -> None:
-        stale = [key for key, p in self._pending.items() if now - p.touched > self.timeout]
-        for key in stale:
-            del self._pending[key]
+    def _hold(self, fragment_id: Any, pending: _Pending, data: str) -> None:
+        # A str of ASCII takes a byte per character, any other up to four.
+        cost = PIECE_OVERHEAD + len(data) * (1 if data.isascii() else 4)
+        try:
+            if self.held + cost > self.max_bytes:
+                raise LimitReached(
+                    f"fragmented messages of this connection are over {self.max_bytes} bytes"
+                )
+            self.shared.take(cost, "fragmented messages")
+        except LimitReached:
+            self._forget(fragment_id)
+            raise
+        pending.cost += cost
+        self.held += cost
+
+    def _arm(self, fragment_id: Any, pending: _Pending) -> None:
+        if pending.timer is not None:
+            pending.timer.cancel()
+        pending.timer = self.scheduler(self.timeout, lambda: self._forget(fragment_id))
+
+    def _forget(self, fragment_id: Any) -> None:
+        pending = self._pending.pop(fragment_id, None)
+        if pending is None:
+            return
+        if pending.timer is not None:
+            pending.timer.cancel()
+        self.held -= pending.cost
+        self.shared.give_back(pending.cost)

@@ -7,12 +7,9 @@ frame; absent optional fields take rosbridge's defaults. Outgoing frames are Typ
 
 from __future__ import annotations
 
-import json
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any, NotRequired, TypedDict
-
-import cbor2
 
 from telemetry.exceptions import BadFrame
 
@@ -20,6 +17,12 @@ Json = Any
 COMPRESSIONS = frozenset({"none", "cbor", "png", "cbor-raw"})
 SUPPORTED_COMPRESSIONS = frozenset({"none", "cbor"})
 LEVELS = ("info", "warning", "error", "none")
+# An ``id`` names a request in its answer, and the server keeps it while the request
+# lasts: a string this long at most, or an integer of CBOR's 64 bits.
+MAX_ID_LENGTH = 1024
+_ID_RANGE = range(-(2**63), 2**64)
+# Message, service and action types (``geometry_msgs/msg/PoseStamped``) are short.
+MAX_TYPE_LENGTH = 256
 
 
 # ---------------------------------------------------------------- incoming operations
@@ -172,27 +175,7 @@ Op = (
 )
 
 
-# ---------------------------------------------------------------- decoding and validation
-
-
-def decode_frame(data: str | bytes, max_bytes: int) -> dict[str, Json]:
-    """Return the JSON object in a text frame (or the CBOR object in a binary one).
-
-    Raises BadFrame when the frame is over ``max_bytes``, not decodable, or not an object.
-    """
-    if len(data) > max_bytes:
-        raise BadFrame(f"frame of {len(data)} bytes is over the limit of {max_bytes}")
-    try:
-        frame = json.loads(data) if isinstance(data, str) else cbor2.loads(data)
-    except (ValueError, cbor2.CBORDecodeError) as exc:
-        raise BadFrame(f"frame is not valid {_format(data)}: {exc}") from None
-    if not isinstance(frame, dict):
-        raise BadFrame(f"frame is a {type(frame).__name__}, not an object")
-    return frame
-
-
-def _format(data: str | bytes) -> str:
-    return "JSON" if isinstance(data, str) else "CBOR"
+# ---------------------------------------------------------------- validation
 
 
 def parse_op(frame: Mapping[str, Json]) -> Op:
@@ -213,9 +196,21 @@ class _FieldError(Exception):
     pass
 
 
-def _id(frame: Mapping[str, Json]) -> Json:
-    value = frame.get("id")
-    return value if isinstance(value, str | int) and not isinstance(value, bool) else None
+def echoable_id(value: Json) -> str | int | None:
+    """Return ``value`` if it may name a frame in an answer, else None.
+
+    Only a string of at most ``MAX_ID_LENGTH`` characters or a 64-bit integer is ever
+    echoed: anything else a client put there stays with the frame that is dropped.
+    """
+    if isinstance(value, str):
+        return value if len(value) <= MAX_ID_LENGTH else None
+    if isinstance(value, int) and not isinstance(value, bool) and value in _ID_RANGE:
+        return value
+    return None
+
+
+def _id(frame: Mapping[str, Json]) -> str | int | None:
+    return echoable_id(frame.get("id"))
 
 
 class _Fields:
@@ -295,11 +290,22 @@ class _Fields:
             raise _FieldError(f"level must be one of {', '.join(LEVELS)}")
         return value
 
+    def type_name(self, key: str) -> str:
+        value = self.text(key)
+        if len(value) > MAX_TYPE_LENGTH:
+            raise _FieldError(f"'{key}' is longer than {MAX_TYPE_LENGTH} characters")
+        return value
+
+    def opt_type_name(self, key: str) -> str | None:
+        return None if self.frame.get(key) is None else self.type_name(key)
+
     @property
-    def id(self) -> Json:
+    def id(self) -> str | int | None:
         value = self.frame.get("id")
-        if value is not None and (not isinstance(value, str | int) or isinstance(value, bool)):
-            raise _FieldError("'id' must be a string or an integer")
+        if value is not None and echoable_id(value) is None:
+            raise _FieldError(
+                f"'id' must be a string of at most {MAX_ID_LENGTH} characters or a 64-bit integer"
+            )
         return value
 
 
@@ -307,7 +313,7 @@ def _subscribe(f: _Fields) -> Subscribe:
     return Subscribe(
         topic=f.text("topic"),
         id=f.id,
-        type=f.opt_text("type"),
+        type=f.opt_type_name("type"),
         throttle_rate=f.opt_integer("throttle_rate", 0) or 0,
         queue_length=f.opt_integer("queue_length", 0) or 0,
         fragment_size=f.opt_integer("fragment_size", None, minimum=1),
@@ -320,7 +326,7 @@ def _call_service(f: _Fields) -> CallService:
         service=f.text("service"),
         id=f.id,
         args=f.args("args"),
-        type=f.opt_text("type"),
+        type=f.opt_type_name("type"),
         fragment_size=f.opt_integer("fragment_size", None, minimum=1),
         compression=f.compression(),
     )
@@ -329,7 +335,7 @@ def _call_service(f: _Fields) -> CallService:
 def _send_action_goal(f: _Fields) -> SendActionGoal:
     return SendActionGoal(
         action=f.text("action"),
-        action_type=f.text("action_type"),
+        action_type=f.type_name("action_type"),
         id=f.id,
         args=f.args("args"),
         feedback=f.boolean("feedback", False),
@@ -346,7 +352,7 @@ def _fragment(f: _Fields) -> Fragment:
 
 _PARSERS: dict[str, Callable[[_Fields], Op]] = {
     "advertise": lambda f: Advertise(
-        topic=f.text("topic"), type=f.text("type"), id=f.id, latch=f.boolean("latch", False)
+        topic=f.text("topic"), type=f.type_name("type"), id=f.id, latch=f.boolean("latch", False)
     ),
     "unadvertise": lambda f: Unadvertise(topic=f.text("topic"), id=f.id),
     "publish": lambda f: Publish(
@@ -361,9 +367,13 @@ _PARSERS: dict[str, Callable[[_Fields], Op]] = {
         id=f.id,
         values=f.frame.get("values"),
     ),
-    "advertise_service": lambda f: AdvertiseService(service=f.text("service"), type=f.text("type")),
+    "advertise_service": lambda f: AdvertiseService(
+        service=f.text("service"), type=f.type_name("type")
+    ),
     "unadvertise_service": lambda f: UnadvertiseService(service=f.text("service")),
-    "advertise_action": lambda f: AdvertiseAction(action=f.text("action"), type=f.text("type")),
+    "advertise_action": lambda f: AdvertiseAction(
+        action=f.text("action"), type=f.type_name("type")
+    ),
     "unadvertise_action": lambda f: UnadvertiseAction(action=f.text("action")),
     "send_action_goal": _send_action_goal,
     "cancel_action_goal": lambda f: CancelActionGoal(action=f.text("action"), id=f.id),

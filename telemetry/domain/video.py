@@ -220,6 +220,25 @@ class StreamParams:
         return " ".join(parts)
 
 
+# The source size assumed when a stream keeps it (a camera's is known only from its frames).
+ASSUMED_SOURCE = (1280, 720)
+# Frames libvpx holds per encoder (lookahead, references, golden and alt-ref), in I420.
+VP8_FRAMES_HELD = 8
+
+
+def encoder_memory(params: StreamParams) -> int:
+    """Estimate the bytes an encoder of ``params`` holds: 0 for a stream that passes the
+    camera's own JPEG through, else its frames at the size it sends."""
+    image = params.image
+    if params.type != VP8 and image.untouched:
+        return 0
+    width = image.width or ASSUMED_SOURCE[0]
+    height = image.height or ASSUMED_SOURCE[1]
+    if params.type == VP8:
+        return width * height * 3 // 2 * VP8_FRAMES_HELD + 2 * 2**20  # + a keyframe interval
+    return width * height * 3 * 2  # the decoded frame and its resized copy
+
+
 @dataclass(frozen=True, slots=True)
 class StreamRequest:
     """A parsed ``/stream`` (or ``/snapshot``) query: the topic as asked, and the params."""

@@ -21,7 +21,7 @@ from abc import ABC, abstractmethod
 from collections.abc import Callable
 from concurrent.futures import Executor
 from dataclasses import dataclass
-from typing import TypeVar
+from typing import TYPE_CHECKING, TypeVar
 
 from telemetry.domain import jpeg, multipart
 from telemetry.domain.newest import Closed, Newest
@@ -37,6 +37,9 @@ from telemetry.domain.video_stats import StreamStats
 from telemetry.domain.vp8 import Vp8Encoder
 from telemetry.domain.webm import EncodedFrame, FrameClock, LiveWebm
 from telemetry.video.feeds import CameraFeed
+
+if TYPE_CHECKING:
+    from cloudnav_web.heavy import Ticket
 
 logger = logging.getLogger(__name__)
 
@@ -65,6 +68,7 @@ class Pipeline(ABC):
         self.params = params
         self.executor = executor
         self.viewers = 0
+        self.ticket: Ticket | None = None  # the encoder's share of the video budget
         self.stats = StreamStats(started=time.time())
         self._task: asyncio.Task[None] | None = None
 

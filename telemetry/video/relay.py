@@ -4,6 +4,10 @@
 starting it (and the topic's feed) for the first viewer; leaving stops the pipeline with
 its last viewer and unsubscribes the feed with its last pipeline. So a camera nobody
 watches costs nothing, and two viewers asking the same thing share one encoder.
+
+An encoder is heavy work: before answering, a view ``reserve``s what a new one would need
+from the video budget (``cloudnav_web.heavy``), and is refused with 429 or 503 beyond it;
+the pipeline holds that ticket until it stops.
 """
 
 from __future__ import annotations
@@ -16,7 +20,8 @@ from concurrent.futures import ThreadPoolExecutor
 from contextlib import asynccontextmanager
 from typing import Any
 
-from telemetry.domain.video import SOURCE, VP8, StreamParams
+from cloudnav_web.heavy import Ticket, video_budget
+from telemetry.domain.video import SOURCE, VP8, StreamParams, encoder_memory
 from telemetry.hub import Hub, get_hub
 from telemetry.video.feeds import CameraFeed
 from telemetry.video.pipelines import ImagePipeline, Pipeline, Vp8Pipeline
@@ -34,25 +39,41 @@ class VideoRelay:
         self.feeds: dict[str, CameraFeed] = {}
         self.pipelines: dict[tuple[str, StreamParams], Pipeline] = {}
 
+    def reserve(self, topic: str, params: StreamParams, client: str) -> Ticket | None:
+        """Take from the video budget what a new encoder of ``params`` needs; None if a
+        pipeline already serves them or they need no encoder. Raises Overloaded."""
+        need = encoder_memory(params)
+        if need == 0 or (topic, params) in self.pipelines:
+            return None
+        return video_budget().take(client, need)
+
     @asynccontextmanager
-    async def watch(self, topic: str, params: StreamParams) -> AsyncIterator[Pipeline]:
+    async def watch(
+        self, topic: str, params: StreamParams, ticket: Ticket | None = None
+    ) -> AsyncIterator[Pipeline]:
         """Yield the pipeline serving ``params`` on ``topic`` for as long as it is watched.
 
-        Raises RosbridgeError (TypeConflict) if ``topic`` carries another message type.
+        A new pipeline takes over ``ticket`` (from ``reserve``) until it stops; an existing
+        one needs none, and the ticket is given back. Raises RosbridgeError (TypeConflict) if
+        ``topic`` carries another message type.
         """
-        pipeline = self._acquire(topic, params)
+        pipeline = self._acquire(topic, params, ticket)
         try:
             yield pipeline
         finally:
             self._release(topic, pipeline)
 
-    def _acquire(self, topic: str, params: StreamParams) -> Pipeline:
+    def _acquire(self, topic: str, params: StreamParams, ticket: Ticket | None) -> Pipeline:
         pipeline = self.pipelines.get((topic, params))
         if pipeline is None:
             feed = self._feed(topic)
             kind = Vp8Pipeline if params.type == VP8 else ImagePipeline
             pipeline = self.pipelines[(topic, params)] = kind(feed, params, self.executor)
+            pipeline.ticket = ticket.handover() if ticket is not None else None
             pipeline.start()
+            ticket = None
+        if ticket is not None:
+            ticket.release()
         pipeline.viewers += 1
         return pipeline
 
@@ -70,6 +91,8 @@ class VideoRelay:
             return
         del self.pipelines[(topic, pipeline.params)]
         pipeline.stop()
+        if pipeline.ticket is not None:
+            pipeline.ticket.release()
         if not any(key[0] == topic for key in self.pipelines):
             self.feeds.pop(topic).stop()
 

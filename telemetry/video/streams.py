@@ -17,6 +17,7 @@ import time
 from collections.abc import AsyncIterator, Mapping
 from typing import Any
 
+from cloudnav_web.heavy import Ticket
 from telemetry.domain import multipart
 from telemetry.domain.newest import Closed
 from telemetry.domain.video import MJPEG, NoFrame, StreamParams
@@ -29,12 +30,18 @@ SNAPSHOT_TIMEOUT = 5.0
 
 
 async def image_body(
-    relay: VideoRelay, camera: Camera, params: StreamParams, scope: Mapping[str, Any]
+    relay: VideoRelay,
+    camera: Camera,
+    params: StreamParams,
+    scope: Mapping[str, Any],
+    ticket: Ticket | None = None,
 ) -> AsyncIterator[bytes]:
-    """Yield a multipart body: the preamble, then the newest part whenever it can go."""
+    """Yield a multipart body: the preamble, then the newest part whenever it can go.
+
+    ``ticket`` is what ``relay.reserve`` took for a new encoder."""
     readiness = readiness_for(scope)
     try:
-        async with relay.watch(camera.topic, params) as pipeline:
+        async with relay.watch(camera.topic, params, ticket) as pipeline:
             assert isinstance(pipeline, ImagePipeline)
             yield multipart.preamble()
             async for part in _newest_parts(pipeline, readiness):
@@ -64,12 +71,18 @@ async def _newest_parts(pipeline: ImagePipeline, readiness: Readiness) -> AsyncI
 
 
 async def webm_body(
-    relay: VideoRelay, camera: Camera, params: StreamParams, scope: Mapping[str, Any]
+    relay: VideoRelay,
+    camera: Camera,
+    params: StreamParams,
+    scope: Mapping[str, Any],
+    ticket: Ticket | None = None,
 ) -> AsyncIterator[bytes]:
-    """Yield a live WebM body: a start the viewer can decode at once, then new Clusters."""
+    """Yield a live WebM body: a start the viewer can decode at once, then new Clusters.
+
+    ``ticket`` is what ``relay.reserve`` took for a new encoder."""
     readiness = readiness_for(scope)
     try:
-        async with relay.watch(camera.topic, params) as pipeline:
+        async with relay.watch(camera.topic, params, ticket) as pipeline:
             assert isinstance(pipeline, Vp8Pipeline)
             # An empty write sends the response headers now (daphne sends them with the
             # first body bytes), so the viewer's player sets up before the first frame.

@@ -32,6 +32,7 @@ from django.shortcuts import render
 from django.urls import reverse
 from django.views.decorators.http import require_GET
 
+from cloudnav_web.heavy import Overloaded, release_with
 from cloudnav_web.pages import _context as page_context
 from maps.access import global_role
 from telemetry.domain import multipart, names
@@ -87,33 +88,55 @@ def error_response(error: VideoError, as_json: bool = False) -> HttpResponse:
     return response
 
 
-async def _requested(request: HttpRequest) -> tuple[VideoRelay, Camera, StreamRequest]:
-    """Return the relay, the camera and the stream a request asks for. Raises VideoError."""
+async def _requested(
+    request: HttpRequest,
+) -> tuple[VideoRelay, Camera, StreamRequest, Principal]:
+    """Return the relay, the camera and the stream a request asks for, and who asks.
+
+    Raises VideoError."""
     principal = await principal_of(request)
     asked = parse_stream_request(request.GET)
     relay = await get_video_relay()
     camera = await find_camera(relay.hub, asked.topic, principal)
-    return relay, camera, asked
+    return relay, camera, asked, principal
 
 
 @require_GET
 async def stream(request: HttpRequest) -> HttpResponseBase:
+    """An endless stream; a new encoder first takes its share of the video budget (429 or
+    503 with Retry-After when there is none)."""
     try:
-        relay, camera, asked = await _requested(request)
+        relay, camera, asked, principal = await _requested(request)
     except VideoError as error:
         return error_response(error)
+    try:
+        ticket = relay.reserve(camera.topic, asked.params, principal.label)
+    except Overloaded as busy:
+        return busy_response(busy)
     scope = getattr(request, "scope", {})
+    response: StreamingHttpResponse
     if asked.params.type == VP8:
-        body = webm_body(relay, camera, asked.params, scope)
-        return StreamingHttpResponse(body, headers=multipart.video_headers(WEBM))
-    body = image_body(relay, camera, asked.params, scope)
-    return StreamingHttpResponse(body, headers=multipart.stream_headers())
+        body = webm_body(relay, camera, asked.params, scope, ticket)
+        response = StreamingHttpResponse(body, headers=multipart.video_headers(WEBM))
+    else:
+        body = image_body(relay, camera, asked.params, scope, ticket)
+        response = StreamingHttpResponse(body, headers=multipart.stream_headers())
+    if ticket is not None:
+        release_with(response, ticket)  # if the body never starts; the encoder takes it over
+    return response
+
+
+def busy_response(busy: Overloaded) -> HttpResponse:
+    response = HttpResponse(f"{busy.detail}\n", status=busy.status_code, content_type="text/plain")
+    if busy.wait is not None:
+        response["Retry-After"] = str(busy.wait)
+    return response
 
 
 @require_GET
 async def snapshot_view(request: HttpRequest) -> HttpResponse:
     try:
-        relay, camera, asked = await _requested(request)
+        relay, camera, asked, _ = await _requested(request)
         part = await snapshot(relay, camera, asked.params)
     except VideoError as error:
         return error_response(error)
@@ -128,7 +151,7 @@ async def stream_viewer(request: HttpRequest) -> HttpResponse:
     """A page with one stream, as web_video_server's viewer (VP8 through Media Source
     Extensions, which Chromium plays live where a plain ``<video>`` lags)."""
     try:
-        _, camera, asked = await _requested(request)
+        _, camera, asked, _ = await _requested(request)
     except NotAuthenticated as error:
         if token_of(request) is None:
             return redirect_to_login(request.get_full_path())
