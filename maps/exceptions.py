@@ -31,3 +31,25 @@ class NoRouteError(TopologyError):
 
 class TagPayloadError(MapStoreError):
     """A QR payload cannot be parsed, or is too long for QR version 3."""
+
+
+class NoSuchVersion(MapStoreError):
+    """A sub-map has no version of that number."""
+
+
+class VersionConflict(MapStoreError):
+    """A change was made on a version that is no longer the sub-map's current one.
+
+    ``based_on`` is the version it was made on, ``current`` the sub-map's now."""
+
+    def __init__(self, based_on: int, current: int) -> None:
+        super().__init__(
+            f"This was made on version {based_on}, but the sub-map is at version {current} "
+            "now: review it against the current version."
+        )
+        self.based_on = based_on
+        self.current = current
+
+
+class IncomparableVersions(MapStoreError):
+    """Two versions whose cells do not line up (other resolution, yaw or origin)."""

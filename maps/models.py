@@ -6,6 +6,8 @@ from django.conf import settings
 from django.core.validators import MinValueValidator, RegexValidator
 from django.db import models
 
+from .domain.versions import Reason, map_ref
+
 code_validator = RegexValidator(
     r"^[A-Za-z][A-Za-z0-9_]*$",
     "Use letters, digits and underscores, starting with a letter.",
@@ -30,14 +32,12 @@ class Building(models.Model):
         return self.code
 
 
-class SubMap(models.Model):
-    """One ROS map_server map of part of a building; ``building/code`` is its Map ID."""
+class MapFile(models.Model):
+    """A map_server pair: the image as uploaded and its YAML metadata, with a content
+    version (hash) that changes whenever either changes."""
 
     MODES = [("trinary", "trinary"), ("scale", "scale"), ("raw", "raw")]
 
-    building = models.ForeignKey(Building, models.CASCADE, related_name="submaps")
-    code = models.CharField(max_length=40, validators=[code_validator])
-    name = models.CharField(max_length=200, blank=True)
     image = models.BinaryField()
     image_name = models.CharField(max_length=200)
     width = models.PositiveIntegerField()
@@ -51,6 +51,20 @@ class SubMap(models.Model):
     negate = models.BooleanField(default=False)
     mode = models.CharField(max_length=10, choices=MODES, default="trinary")
     version = models.CharField(max_length=64, editable=False)
+
+    class Meta:
+        abstract = True
+
+
+class SubMap(MapFile):
+    """One ROS map_server map of part of a building; ``building/code`` is its Map ID.
+
+    Its map file is a copy of its current version's (``revision``, see SubMapVersion)."""
+
+    building = models.ForeignKey(Building, models.CASCADE, related_name="submaps")
+    code = models.CharField(max_length=40, validators=[code_validator])
+    name = models.CharField(max_length=200, blank=True)
+    revision = models.PositiveIntegerField(default=1, editable=False)
     # Where the node is drawn in the topology editor, in the editor's own units.
     node_x = models.FloatField(default=0.0)
     node_y = models.FloatField(default=0.0)
@@ -68,6 +82,34 @@ class SubMap(models.Model):
     @property
     def map_id(self) -> str:
         return f"{self.building.code}/{self.code}"
+
+
+class SubMapVersion(MapFile):
+    """One version of a sub-map: its map_server pair as it was made, who made it, when and
+    why. Versions are numbered from 1 per sub-map and never change once made; the sub-map
+    holds a copy of its current one (``SubMap.revision``)."""
+
+    REASONS = [(reason.value, reason.value) for reason in Reason]
+
+    submap = models.ForeignKey(SubMap, models.CASCADE, related_name="versions")
+    number = models.PositiveIntegerField()
+    reason = models.CharField(max_length=16, choices=REASONS)
+    note = models.CharField(max_length=500, blank=True)
+    author = models.ForeignKey(
+        settings.AUTH_USER_MODEL, models.SET_NULL, null=True, blank=True, related_name="+"
+    )
+    created = models.DateTimeField(auto_now_add=True)
+    # The version this one restores (rollback) or was built on (mapping, accepted change).
+    based_on = models.PositiveIntegerField(null=True, blank=True)
+
+    class Meta:
+        ordering = ["submap", "-number"]
+        constraints = [
+            models.UniqueConstraint(fields=["submap", "number"], name="version_unique_number")
+        ]
+
+    def __str__(self) -> str:
+        return map_ref(self.submap.map_id, self.number)
 
 
 class TopologyEdge(models.Model):

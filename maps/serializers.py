@@ -13,8 +13,9 @@ from . import services
 from .domain import tagart
 from .domain.mapfile import LoadedMap, load_map_archive, load_map_upload
 from .domain.tagart import marker_id_limit
+from .domain.versions import map_ref
 from .exceptions import TagPayloadError
-from .models import Building, EnvironmentalTag, SubMap
+from .models import Building, EnvironmentalTag, SubMap, SubMapVersion
 
 
 class BuildingSerializer(serializers.ModelSerializer):
@@ -55,6 +56,7 @@ class SubMapSerializer(serializers.ModelSerializer):
             "negate",
             "mode",
             "version",
+            "revision",
             "node_x",
             "node_y",
             "updated",
@@ -67,7 +69,8 @@ class SubMapSerializer(serializers.ModelSerializer):
     def get_links(self, submap: SubMap) -> dict[str, str]:
         args = [submap.building.code, submap.code]
         names = ["image", "grid", "export", "bundle"]
-        return {name: reverse(f"submap-{name}", args=args) for name in names}
+        links = {name: reverse(f"submap-{name}", args=args) for name in names}
+        return {**links, "versions": reverse("version-list", args=args)}
 
 
 class SubMapUploadSerializer(serializers.Serializer):
@@ -80,6 +83,9 @@ class SubMapUploadSerializer(serializers.Serializer):
     archive = serializers.FileField(required=False)
     node_x = serializers.FloatField(required=False)
     node_y = serializers.FloatField(required=False)
+    note = serializers.CharField(
+        max_length=500, required=False, allow_blank=True, help_text="Why: kept in the history"
+    )
 
     def validate(self, attrs: dict[str, Any]) -> dict[str, Any]:
         has_pair = "image" in attrs or "yaml" in attrs
@@ -194,6 +200,71 @@ class TagSerializer(serializers.ModelSerializer):
             services.check_tag_payload(building, links_to)
         except TagPayloadError as exc:
             raise serializers.ValidationError({"links_to": [str(exc)]}) from None
+
+
+class VersionSerializer(serializers.ModelSerializer):
+    """One version of a sub-map, without its image (see ``links``)."""
+
+    author: serializers.SlugRelatedField = serializers.SlugRelatedField(
+        slug_field="username", read_only=True
+    )
+    map_ref = serializers.SerializerMethodField()
+    origin = serializers.SerializerMethodField()
+    links = serializers.SerializerMethodField()
+
+    class Meta:
+        model = SubMapVersion
+        fields = [
+            "number",
+            "map_ref",
+            "reason",
+            "note",
+            "author",
+            "created",
+            "based_on",
+            "version",
+            "image_name",
+            "width",
+            "height",
+            "resolution",
+            "origin",
+            "links",
+        ]
+
+    def get_map_ref(self, version: SubMapVersion) -> str:
+        return map_ref(version.submap.map_id, version.number)
+
+    def get_origin(self, version: SubMapVersion) -> list[float]:
+        return [version.origin_x, version.origin_y, version.origin_yaw]
+
+    def get_links(self, version: SubMapVersion) -> dict[str, str]:
+        args = [version.submap.building.code, version.submap.code, version.number]
+        names = ["image", "grid", "rollback"]
+        return {name: reverse(f"version-{name}", args=args) for name in names}
+
+
+class VersionComparisonSerializer(serializers.Serializer):
+    """The query (``from``, ``to``: version numbers) and answer of a comparison."""
+
+    to = serializers.IntegerField(min_value=1)
+    added = serializers.IntegerField(read_only=True)
+    removed = serializers.IntegerField(read_only=True)
+    unknown_changed = serializers.IntegerField(read_only=True)
+    compared = serializers.IntegerField(read_only=True)
+    truncated = serializers.BooleanField(read_only=True)
+    cells = serializers.DictField(read_only=True)
+
+    def get_fields(self) -> dict[str, Any]:
+        fields = super().get_fields()
+        fields["from"] = serializers.IntegerField(min_value=1)  # a keyword in Python
+        return fields
+
+    @classmethod
+    def numbers(cls, query: Any) -> dict[str, int]:
+        """The version numbers ``from`` and ``to`` of a query; raises ValidationError."""
+        parsed = cls(data=query)
+        parsed.is_valid(raise_exception=True)
+        return {"from": parsed.validated_data["from"], "to": parsed.validated_data["to"]}
 
 
 class TopologyNodeSerializer(serializers.Serializer):

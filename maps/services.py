@@ -26,8 +26,9 @@ from .domain.tagart import TagArt
 from .domain.tagpayload import TagPayload, encode_payload
 from .domain.topology import Coverage, Edge, RouteStep, TagLink, route_between, tag_coverage
 from .domain.topology import validate_graph as validate_topology
+from .domain.versions import Reason, map_ref
 from .exceptions import TopologyError
-from .models import Building, EnvironmentalTag, SubMap, TopologyEdge
+from .models import Building, EnvironmentalTag, MapFile, SubMap, SubMapVersion, TopologyEdge
 
 IMAGE_CONTENT_TYPES = {
     "pgm": "image/x-portable-graymap",
@@ -41,7 +42,25 @@ IMAGE_CONTENT_TYPES = {
 }
 
 
-def metadata_of(submap: SubMap) -> MapMetadata:
+MAP_FILE_FIELDS = (
+    "image",
+    "image_name",
+    "width",
+    "height",
+    "resolution",
+    "origin_x",
+    "origin_y",
+    "origin_yaw",
+    "occupied_thresh",
+    "free_thresh",
+    "negate",
+    "mode",
+    "version",
+)
+"""The fields of a map file (``MapFile``): what a version copies from its sub-map and back."""
+
+
+def metadata_of(submap: MapFile) -> MapMetadata:
     return MapMetadata(
         image=submap.image_name,
         resolution=submap.resolution,
@@ -53,7 +72,7 @@ def metadata_of(submap: SubMap) -> MapMetadata:
     )
 
 
-def _apply_metadata(submap: SubMap, meta: MapMetadata) -> None:
+def _apply_metadata(submap: MapFile, meta: MapMetadata) -> None:
     submap.image_name = meta.image
     submap.resolution = meta.resolution
     submap.origin_x, submap.origin_y, submap.origin_yaw = meta.origin
@@ -66,40 +85,92 @@ def _apply_metadata(submap: SubMap, meta: MapMetadata) -> None:
 
 @transaction.atomic
 def save_submap(
-    building: Building, code: str, loaded: LoadedMap, **fields: Any
+    building: Building,
+    code: str,
+    loaded: LoadedMap,
+    *,
+    author: Any = None,
+    note: str = "",
+    **fields: Any,
 ) -> tuple[SubMap, bool]:
-    """Store an uploaded map under ``building/code``, replacing the image of an existing one.
+    """Store an uploaded map under ``building/code``; an existing sub-map gets it as a new
+    version (reason ``upload``, by ``author`` saying ``note``) unless it holds that very
+    map already.
 
     Returns the sub-map and whether it was created. ``fields`` sets name and node position.
     """
-    submap = SubMap.objects.filter(building=building, code=code).first()
+    submap = SubMap.objects.select_for_update().filter(building=building, code=code).first()
     created = submap is None
     if submap is None:
         submap = SubMap(building=building, code=code)
+    before = submap.version
     for name, value in fields.items():
         setattr(submap, name, value)
-    submap.image = loaded.image_bytes
-    submap.width, submap.height = loaded.width, loaded.height
-    _apply_metadata(submap, loaded.meta)
-    submap.save()
+    apply_loaded(submap, loaded)
+    if created or submap.version != before:
+        record_version(submap, Reason.UPLOAD, author, note)
+    else:
+        submap.save()
     return submap, created
 
 
+def apply_loaded(submap: MapFile, loaded: LoadedMap) -> None:
+    submap.image = loaded.image_bytes
+    submap.width, submap.height = loaded.width, loaded.height
+    _apply_metadata(submap, loaded.meta)
+
+
 @transaction.atomic
-def update_submap(submap: SubMap, changes: Mapping[str, Any]) -> SubMap:
-    """Change a sub-map's map_server metadata, name or node position; the version follows.
+def update_submap(submap: SubMap, changes: Mapping[str, Any], author: Any = None) -> SubMap:
+    """Change a sub-map's map_server metadata, name or node position. Changed metadata
+    makes a new version (reason ``edit``, by ``author``).
 
     Raises MapFileError for metadata that map_server would refuse; nothing is saved then.
     """
+    submap = SubMap.objects.select_for_update().get(pk=submap.pk)
     meta_fields = _yaml_fields(metadata_of(submap))
     meta_changes = {k: v for k, v in changes.items() if k in meta_fields}
     meta = validate_metadata({**meta_fields, **meta_changes})
     for name in ("name", "node_x", "node_y"):
         if name in changes:
             setattr(submap, name, changes[name])
+    before = submap.version
     _apply_metadata(submap, meta)
-    submap.save()
+    if submap.version != before:
+        record_version(submap, Reason.EDIT, author, "map_server metadata edited")
+    else:
+        submap.save()
     return submap
+
+
+def record_version(
+    submap: SubMap,
+    reason: Reason,
+    author: Any = None,
+    note: str = "",
+    based_on: int | None = None,
+) -> SubMapVersion:
+    """Save ``submap`` with its map file as its next version; call it inside a transaction
+    holding the sub-map's row (``select_for_update``), so numbers never clash.
+
+    ``author`` is the person who made it (None: the system, a robot); ``based_on`` the
+    version it restores or was built on."""
+    last = None
+    if submap.pk is not None:
+        numbers = SubMapVersion.objects.filter(submap=submap).values_list("number", flat=True)
+        last = numbers.order_by("-number").first()
+    submap.revision = (last or 0) + 1
+    submap.save()
+    person = author if getattr(author, "is_authenticated", False) and author.pk else None
+    return SubMapVersion.objects.create(
+        submap=submap,
+        number=submap.revision,
+        reason=reason.value,
+        note=note[:500],
+        author=person,
+        based_on=based_on,
+        **{name: getattr(submap, name) for name in MAP_FILE_FIELDS},
+    )
 
 
 def _yaml_fields(meta: MapMetadata) -> dict[str, Any]:
@@ -114,19 +185,20 @@ def _yaml_fields(meta: MapMetadata) -> dict[str, Any]:
     }
 
 
-def grid_of(submap: SubMap) -> np.ndarray:
-    """Return the sub-map's occupancy grid (row 0 = bottom row), converted once per version."""
-    return _cached_grid(submap.pk, submap.version, bytes(submap.image), metadata_of(submap))
+def grid_of(submap: MapFile) -> np.ndarray:
+    """Return the occupancy grid (row 0 = bottom row) of a sub-map or one of its versions,
+    converted once per content version."""
+    return _cached_grid(submap.version, bytes(submap.image), metadata_of(submap))
 
 
 @lru_cache(maxsize=32)
-def _cached_grid(pk: int, version: str, image: bytes, meta: MapMetadata) -> np.ndarray:
+def _cached_grid(version: str, image: bytes, meta: MapMetadata) -> np.ndarray:
     grid = occupancy_from_image(open_map_image(image, settings.CLOUDNAV_MAX_MAP_PIXELS), meta)
     grid.setflags(write=False)
     return grid
 
 
-def image_content_type(submap: SubMap) -> str:
+def image_content_type(submap: MapFile) -> str:
     extension = submap.image_name.rsplit(".", 1)[-1].lower()
     return IMAGE_CONTENT_TYPES.get(extension, "application/octet-stream")
 
@@ -217,15 +289,18 @@ def coverage_of(building: Building, edges: list[Edge] | None = None) -> Coverage
 
 
 def bundle_etag(submap: SubMap) -> str:
-    """A strong validator over everything a bundle holds: image, YAML fields, tags, topology."""
+    """A strong validator over everything a bundle holds: image, YAML fields, tags, topology.
+    It starts with the version's name (``v<n>-``), so a robot's request says what it holds.
+    """
     state = {
         "version": submap.version,
+        "revision": submap.revision,
         "tags": [_tag_document(t) for t in submap.tags.select_related("links_to")],
         "topology": topology_document(submap.building),
         "dictionary": submap.building.marker_dictionary,
     }
     digest = hashlib.sha256(json.dumps(state, sort_keys=True).encode()).hexdigest()
-    return f'"{digest[:40]}"'
+    return f'"v{submap.revision}-{digest[:40]}"'
 
 
 def bundle_of(submap: SubMap) -> dict[str, Any]:
@@ -236,6 +311,8 @@ def bundle_of(submap: SubMap) -> dict[str, Any]:
         "building": submap.building.code,
         "map": submap.code,
         "version": submap.version,
+        "revision": submap.revision,
+        "map_ref": map_ref(submap.map_id, submap.revision),
         "image": {
             "name": submap.image_name,
             "content_type": image_content_type(submap),

@@ -8,6 +8,7 @@ from . import views
 
 building = "buildings/<slug:building>"
 submap = f"{building}/maps/<slug:map>"
+version = f"{submap}/versions/<int:number>"
 
 urlpatterns = [
     path("buildings/", views.BuildingList.as_view(), name="building-list"),
@@ -18,6 +19,12 @@ urlpatterns = [
     path(f"{submap}/grid", views.SubMapGrid.as_view(), name="submap-grid"),
     path(f"{submap}/export", views.SubMapExport.as_view(), name="submap-export"),
     path(f"{submap}/bundle", views.SubMapBundle.as_view(), name="submap-bundle"),
+    path(f"{submap}/versions/", views.VersionList.as_view(), name="version-list"),
+    path(f"{submap}/versions/compare", views.VersionComparison.as_view(), name="version-compare"),
+    path(f"{version}/", views.VersionDetail.as_view(), name="version-detail"),
+    path(f"{version}/image", views.VersionImage.as_view(), name="version-image"),
+    path(f"{version}/grid", views.VersionGrid.as_view(), name="version-grid"),
+    path(f"{version}/rollback", views.VersionRollback.as_view(), name="version-rollback"),
     path(f"{building}/topology", views.Topology.as_view(), name="topology"),
     path(
         f"{building}/topology/validation",

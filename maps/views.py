@@ -20,12 +20,12 @@ from rest_framework.views import APIView
 
 from cloudnav_web.heavy import heavy_response
 
-from . import services
+from . import services, versions
 from .access import Role, buildings_for, may_create_buildings, robot_of, role_in
 from .domain.mapfile import export_map, map_yaml_text, occupancy_grid_json
 from .domain.tagart import print_memory, render_tag_pdf, render_tag_png
 from .domain.topology import Coverage, Edge
-from .models import Building, EnvironmentalTag, SubMap
+from .models import Building, EnvironmentalTag, MapFile, SubMap
 from .serializers import (
     BuildingSerializer,
     CoverageSerializer,
@@ -35,6 +35,8 @@ from .serializers import (
     SubMapUploadSerializer,
     TagSerializer,
     TopologySerializer,
+    VersionComparisonSerializer,
+    VersionSerializer,
 )
 
 
@@ -109,7 +111,12 @@ class SubMapList(generics.ListCreateAPIView):
             k: v for k, v in upload.validated_data.items() if k in ("name", "node_x", "node_y")
         }
         submap, created = services.save_submap(
-            target, upload.validated_data["code"], upload.load(), **fields
+            target,
+            upload.validated_data["code"],
+            upload.load(),
+            author=request.user,
+            note=upload.validated_data.get("note", ""),
+            **fields,
         )
         answer = status.HTTP_201_CREATED if created else status.HTTP_200_OK
         return Response(SubMapSerializer(submap).data, status=answer)
@@ -127,7 +134,7 @@ class SubMapDetail(APIView):
         submap = submap_for(request, building, map, Role.ADMIN)
         changes = SubMapUpdateSerializer(data=request.data, partial=True)
         changes.is_valid(raise_exception=True)
-        submap = services.update_submap(submap, changes.validated_data)
+        submap = services.update_submap(submap, changes.validated_data, author=request.user)
         return Response(SubMapSerializer(submap).data)
 
     def delete(self, request: Request, building: str, map: str) -> Response:
@@ -140,13 +147,16 @@ class SubMapImage(APIView):
 
     @extend_schema(responses={(200, "image/*"): OpenApiTypes.BINARY})
     def get(self, request: Request, building: str, map: str) -> HttpResponse:
-        submap = submap_for(request, building, map)
-        response = HttpResponse(
-            bytes(submap.image), content_type=services.image_content_type(submap)
-        )
-        response["Content-Disposition"] = f'inline; filename="{submap.image_name}"'
-        response["ETag"] = quote_etag(submap.version)
-        return response
+        return image_response(submap_for(request, building, map))
+
+
+def image_response(map_file: MapFile) -> HttpResponse:
+    response = HttpResponse(
+        bytes(map_file.image), content_type=services.image_content_type(map_file)
+    )
+    response["Content-Disposition"] = f'inline; filename="{map_file.image_name}"'
+    response["ETag"] = quote_etag(map_file.version)
+    return response
 
 
 # Bytes a map cell costs while its grid is converted and written as JSON (heavy work).
@@ -159,13 +169,19 @@ class SubMapGrid(APIView):
     @extend_schema(responses={200: OpenApiTypes.OBJECT})
     def get(self, request: Request, building: str, map: str) -> HttpResponseBase:
         submap = submap_for(request, building, map)
+        return grid_response(request, submap, submap.map_id)
 
-        def build() -> bytes:
-            meta = services.metadata_of(submap)
-            return occupancy_grid_json(services.grid_of(submap), meta, frame_id=submap.map_id)
 
-        need = submap.width * submap.height * GRID_BYTES_PER_CELL
-        return heavy_response(request, need, build, "application/json")
+def grid_response(request: Request, map_file: MapFile, frame_id: str) -> HttpResponseBase:
+    """``map_file``'s grid as a ``nav_msgs/OccupancyGrid`` in rosbridge JSON, under the
+    heavy-work budget."""
+
+    def build() -> bytes:
+        meta = services.metadata_of(map_file)
+        return occupancy_grid_json(services.grid_of(map_file), meta, frame_id=frame_id)
+
+    need = map_file.width * map_file.height * GRID_BYTES_PER_CELL
+    return heavy_response(request, need, build, "application/json")
 
 
 class SubMapExport(APIView):
@@ -201,6 +217,99 @@ class SubMapBundle(APIView):
 
 def _etags(header: str) -> set[str]:
     return {tag.strip().removeprefix("W/") for tag in header.split(",") if tag.strip()}
+
+
+# Versions
+
+
+class VersionList(APIView):
+    """A sub-map's versions, newest first (who, when, why), the current one's number and
+    the tags that stand in an occupied cell of it."""
+
+    @extend_schema(responses={200: OpenApiTypes.OBJECT})
+    def get(self, request: Request, building: str, map: str) -> Response:
+        submap = submap_for(request, building, map)
+        return Response(
+            {
+                "map_id": submap.map_id,
+                "current": submap.revision,
+                "buried_tags": versions.buried_tags_of(submap),
+                "versions": VersionSerializer(versions.history(submap), many=True).data,
+            }
+        )
+
+
+class VersionDetail(APIView):
+    @extend_schema(responses=VersionSerializer)
+    def get(self, request: Request, building: str, map: str, number: int) -> Response:
+        submap = submap_for(request, building, map)
+        return Response(VersionSerializer(versions.version_of(submap, number)).data)
+
+
+class VersionImage(APIView):
+    """An old version's image, as it was made."""
+
+    @extend_schema(responses={(200, "image/*"): OpenApiTypes.BINARY})
+    def get(self, request: Request, building: str, map: str, number: int) -> HttpResponse:
+        return image_response(versions.version_of(submap_for(request, building, map), number))
+
+
+class VersionGrid(APIView):
+    """An old version as a ``nav_msgs/OccupancyGrid`` in rosbridge JSON (heavy work)."""
+
+    @extend_schema(responses={200: OpenApiTypes.OBJECT})
+    def get(self, request: Request, building: str, map: str, number: int) -> HttpResponseBase:
+        submap = submap_for(request, building, map)
+        return grid_response(request, versions.version_of(submap, number), submap.map_id)
+
+
+class VersionRollback(APIView):
+    """Make an earlier version current again: a new version with its map (admins)."""
+
+    parser_classes = [JSONParser]
+
+    @extend_schema(request=OpenApiTypes.OBJECT, responses={201: VersionSerializer})
+    def post(self, request: Request, building: str, map: str, number: int) -> Response:
+        submap = submap_for(request, building, map, Role.ADMIN)
+        note = str(request.data.get("note", "")) if isinstance(request.data, dict) else ""
+        made = versions.rollback(submap, number, request.user, note)
+        return Response(VersionSerializer(made).data, status=status.HTTP_201_CREATED)
+
+
+# Changed cells listed in a comparison at most; the counts are always whole.
+COMPARISON_CELLS = 50_000
+
+
+class VersionComparison(APIView):
+    """How version ``to`` differs from version ``from``: cells that became occupied
+    (``added``) or free (``removed``), as ``[row, col]`` of ``to``'s grid."""
+
+    @extend_schema(
+        parameters=[
+            OpenApiParameter("from", int, required=True),
+            OpenApiParameter("to", int, required=True),
+        ],
+        responses=VersionComparisonSerializer,
+    )
+    def get(self, request: Request, building: str, map: str) -> Response:
+        submap = submap_for(request, building, map)
+        numbers = VersionComparisonSerializer.numbers(request.query_params)
+        diff = versions.compare(submap, numbers["from"], numbers["to"])
+        return Response(
+            {
+                "from": numbers["from"],
+                "to": numbers["to"],
+                "added": len(diff.added),
+                "removed": len(diff.removed),
+                "unknown_changed": diff.unknown_changed,
+                "compared": diff.compared,
+                "truncated": len(diff.added) + len(diff.removed) > COMPARISON_CELLS,
+                "cells": {
+                    "added": diff.added[:COMPARISON_CELLS].tolist(),
+                    "removed": diff.removed[: max(0, COMPARISON_CELLS - len(diff.added))].tolist(),
+                },
+            }
+        )
 
 
 # Topology and routes

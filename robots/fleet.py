@@ -1,4 +1,5 @@
-"""Fleet state: each connected robot's last pose, Map ID and last-seen time, kept in memory
+"""Fleet state: each connected robot's last pose, Map ID (and the version of it held) and
+last-seen time, kept in memory
 and written to ``RobotState`` by a background flush, never once per message.
 
 The rosbridge server calls ``connected``, ``pose``, ``map_id`` and ``disconnected``; these
@@ -17,6 +18,7 @@ from datetime import UTC, datetime, timedelta
 
 from channels.db import database_sync_to_async
 
+from maps.domain.versions import split_map_ref
 from telemetry.domain.messages import Pose2D
 
 from .models import RobotState
@@ -32,6 +34,7 @@ class _Entry:
     online: bool = True
     pose: Pose2D | None = None
     map_id: str | None = None
+    map_version: int | None = None  # the version of ``map_id`` the robot said it holds
     last_seen: datetime = field(default_factory=lambda: datetime.now(UTC))
     connections: int = 0
     written: datetime = field(default=NEVER)
@@ -69,13 +72,15 @@ class FleetTracker:
     def pose(self, robot_pk: int, pose: Pose2D) -> None:
         entry = self._entry(robot_pk)
         entry.pose = pose
-        if pose.map_id:
-            entry.map_id = pose.map_id
+        if pose.map_id and pose.map_id != entry.map_id:
+            entry.map_id, entry.map_version = pose.map_id, None
         self._touch(robot_pk, entry)
 
-    def map_id(self, robot_pk: int, map_id: str) -> None:
+    def map_id(self, robot_pk: int, name: str) -> None:
+        """The robot's ``map_id`` message: a Map ID, with the version held
+        (``building/code@v<n>``) when the robot says it."""
         entry = self._entry(robot_pk)
-        entry.map_id = map_id
+        entry.map_id, entry.map_version = split_map_ref(name)
         self._touch(robot_pk, entry)
 
     def _touch(self, robot_pk: int, entry: _Entry, urgent: bool = False) -> None:
@@ -127,8 +132,8 @@ def write_states(batch: dict[int, _Entry]) -> None:
         fields: list[str] = ["online", "last_seen"]
         row = RobotState(robot_id=pk, online=entry.online, last_seen=entry.last_seen)
         if entry.map_id is not None:
-            row.map_id = entry.map_id
-            fields.append("map_id")
+            row.map_id, row.map_version = entry.map_id, entry.map_version
+            fields += ["map_id", "map_version"]
         if entry.pose is not None:
             row.x, row.y, row.yaw = entry.pose.x, entry.pose.y, entry.pose.yaw
             fields += ["x", "y", "yaw"]

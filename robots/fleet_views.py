@@ -23,6 +23,7 @@ class FleetEntrySerializer(serializers.Serializer[Any]):
     buildings = serializers.ListField(child=serializers.CharField())
     online = serializers.BooleanField()
     map_id = serializers.CharField(allow_blank=True)
+    map_version = serializers.IntegerField(allow_null=True)
     x = serializers.FloatField(allow_null=True)
     y = serializers.FloatField(allow_null=True)
     yaw = serializers.FloatField(allow_null=True)
@@ -58,6 +59,7 @@ def fleet_entry(robot: Robot) -> dict[str, Any]:
         "buildings": [b.code for b in robot.buildings.all()],
         "online": bool(state and is_online(state)),
         "map_id": state.map_id if state else "",
+        "map_version": state.map_version if state else None,
         "x": state.x if state else None,
         "y": state.y if state else None,
         "yaw": state.yaw if state else None,
@@ -66,7 +68,8 @@ def fleet_entry(robot: Robot) -> dict[str, Any]:
 
 
 class FleetList(APIView):
-    """Every visible robot: online, Map ID, pose (x, y, yaw in that map) and last seen."""
+    """Every visible robot: online, Map ID and the version of it held, pose (x, y, yaw in
+    that map) and last seen."""
 
     permission_classes = [permissions.IsAuthenticated, SeesFleet]
 

@@ -36,6 +36,8 @@ class RobotState(models.Model):
     robot = models.OneToOneField(Robot, models.CASCADE, primary_key=True, related_name="state")
     online = models.BooleanField(default=False)
     map_id = models.CharField(max_length=100, blank=True)
+    # The version of ``map_id`` the robot holds, as it said on its ``map_id`` topic.
+    map_version = models.PositiveIntegerField(null=True, blank=True)
     x = models.FloatField(null=True, blank=True)
     y = models.FloatField(null=True, blank=True)
     yaw = models.FloatField(null=True, blank=True)

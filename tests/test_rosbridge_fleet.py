@@ -69,6 +69,14 @@ async def test_the_pose_and_map_id_are_kept(rosbridge, robot):
     await eventually(lambda: state_of(record).map_id == "boccioni_1/Hall")
 
 
+async def test_the_version_a_robot_holds_is_kept_apart_from_its_map_id(rosbridge, robot):
+    record, token = robot
+    client = await rosbridge(token=token)
+    await client.send(op="publish", topic="map_id", msg={"data": "boccioni_1/Hall@v4"})
+    await eventually(lambda: (s := state_of(record)) is not None and s.map_version == 4)
+    assert (await database_sync_to_async(state_of)(record)).map_id == "boccioni_1/Hall"
+
+
 async def test_state_is_not_written_once_per_message(rosbridge, robot, settings, monkeypatch):
     from robots import fleet
 

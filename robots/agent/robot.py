@@ -14,7 +14,8 @@ watchdog, is in simulated seconds. Messages are stamped ``epoch + simulated seco
 Topics (relative names, so the server resolves them to ``/{robot}/...``): publishes
 ``pose`` (10 Hz, only once the robot knows its sub-map: ``frame_id`` is the Map ID),
 ``odom`` (10 Hz), ``scan`` (5 Hz), ``plan`` (when it changes), ``nav_status`` (on every
-change and at 1 Hz), ``map_id`` (latched, on entering a sub-map), ``localisation``
+change and at 1 Hz), ``map_id`` (latched, on entering a sub-map and on taking a new version
+of it: ``building/code@v<n>``, the version held), ``localisation``
 (latched, on every change and at 1 Hz: lost, entering a sub-map or localised, see
 ``whereabouts``) and ``camera/image/compressed`` (``camera_rate``); subscribes
 ``cmd_vel``, ``goal`` and
@@ -243,7 +244,8 @@ class Robot:
         self._published_status = -1
         self._published_whereabouts: Whereabouts | None = None
         self._map_to_publish: str | None = None
-        self._tasks: set[asyncio.Task[None]] = set()
+        self._tasks: set[asyncio.Task[Any]] = set()
+        self._checking: asyncio.Task[Any] | None = None
         supervisor.on_map.append(self._entered)
 
     # --- commands from the network -----------------------------------------------------
@@ -297,13 +299,14 @@ class Robot:
         await self.supervisor.entered()
 
     def _entered(self, submap: SubMap) -> None:
-        self._map_to_publish = submap.map_id
+        self._map_to_publish = submap.map_ref
         self.detector.sizes.update({m: tag.size for m, tag in submap.tags.items()})
 
-    def _spawn(self, coroutine: Any) -> None:
+    def _spawn(self, coroutine: Any) -> asyncio.Task[Any]:
         task = asyncio.get_running_loop().create_task(coroutine)
         self._tasks.add(task)
         task.add_done_callback(self._tasks.discard)
+        return task
 
     # --- one control period --------------------------------------------------------------
 
@@ -319,7 +322,16 @@ class Robot:
         camera_due = self._due(self.config.detect_rate, self.config.camera_rate)
         image = self._look() if camera_due else None
         self._drive(LocalObstacles.from_scan(ranges.astype(np.float64), self.hardware.scan_angles))
+        self._check_map()
         await self._publish(scan, image)
+
+    def _check_map(self) -> None:
+        """Now and then ask for the sub-map the robot is in again (a conditional request),
+        so a new version reaches a robot driving in it; one check at a time."""
+        if self._checking is None or self._checking.done():
+            self._checking = None
+            if self.supervisor.current is not None and self._due(self.config.map_check_rate):
+                self._checking = self._spawn(self.supervisor.refresh())
 
     @property
     def stamp(self) -> float:

@@ -63,6 +63,7 @@ from numpy.typing import NDArray
 from maps.domain.mapfile import load_map_upload
 from maps.domain.planning import Costmap, inflate
 from maps.domain.topology import Edge, RouteStep, TagLink, route_between
+from maps.domain.versions import map_ref
 from maps.exceptions import MapStoreError
 from robots.agent.perception import TagDetection
 from robots.agent.relocalise import PoseEstimate, relocalise
@@ -131,6 +132,7 @@ class SubMap:
     nodes: tuple[str, ...]
     edges: tuple[Edge, ...]
     crossings: tuple[TagLink, ...] | None = None  # None: a server that did not send them
+    revision: int | None = None  # the version's number; None: a server without versions
     _costmaps: dict[tuple[float, PlannerConfig], Costmap] = field(
         default_factory=dict, init=False, repr=False
     )
@@ -138,6 +140,11 @@ class SubMap:
     @property
     def map_id(self) -> str:
         return f"{self.building}/{self.code}"
+
+    @property
+    def map_ref(self) -> str:
+        """The Map ID with the version held (``building/code@v<n>``), what ``map_id`` says."""
+        return self.map_id if self.revision is None else map_ref(self.map_id, self.revision)
 
     def costmap(self, radius: float, planner: PlannerConfig) -> Costmap:
         """The grid inflated for a robot of ``radius`` (metres) by ``planner``, computed
@@ -189,11 +196,16 @@ def submap_from_bundle(document: Mapping[str, Any], etag: str) -> SubMap:
             nodes=tuple(str(node["code"]) for node in topology["nodes"]),
             edges=tuple(_edge(e) for e in topology["edges"]),
             crossings=_crossings(topology.get("crossings")),
+            revision=_revision(document.get("revision")),
         )
     except (KeyError, TypeError, ValueError, AttributeError, binascii.Error) as error:
         raise BundleError(f"a bundle that cannot be read: {error!r}") from None
     except MapStoreError as error:  # map file errors
         raise BundleError(f"the bundle's map cannot be loaded: {error}") from None
+
+
+def _revision(value: Any) -> int | None:
+    return None if value is None else int(value)
 
 
 def _edge(document: Mapping[str, Any]) -> Edge:
@@ -457,6 +469,28 @@ class MapsSupervisor:
         self._arrived_at = None
         for callback in self.on_map:
             callback(submap)
+
+    async def refresh(self) -> bool:
+        """Ask the server again, conditionally, for the sub-map the robot is in; a new
+        version of it becomes current at once (same frame, so the pose estimate stands;
+        plans are made again on it). Returns whether the map changed. Unreachable servers
+        and unreadable answers leave everything as it was."""
+        held = self.current
+        if held is None or self.entering:
+            return False
+        try:
+            fresh = await self.cache.load(held.map_id)
+        except BundleError as error:
+            logger.warning("cannot check %s for a new version: %s", held.map_id, error)
+            return False
+        if fresh is held or self.current is not held or self.entering:
+            return False
+        logger.info("%s: version %s replaces %s", held.map_id, fresh.revision, held.revision)
+        self.current = fresh
+        self.tracker.set_map(fresh)
+        for callback in self.on_map:
+            callback(fresh)
+        return True
 
     async def relocate(self, estimate: PoseEstimate, map_id: str, odom: Pose) -> None:
         """An operator's initial pose in ``map_id``: fetch that map, reset there.

@@ -149,6 +149,9 @@ class RobotConfig:
     status_rate: float = 1.0
     """``nav_status`` and ``localisation`` messages per second when nothing changes (each
     change goes out too)."""
+    map_check_rate: float = 0.5
+    """Times per second the robot asks again, conditionally, for the bundle of the sub-map
+    it is in, so a new version reaches it while it drives there (0: only on entering)."""
     jpeg_quality: int = 80
     body: BodyLimits = field(default_factory=BodyLimits)
     localisation: FilterParams = field(default_factory=FilterParams)

@@ -64,6 +64,10 @@ export const urls = {
   submaps: (b) => `/api/buildings/${b}/maps/`,
   submap: (b, m) => `/api/buildings/${b}/maps/${m}/`,
   grid: (b, m) => `/api/buildings/${b}/maps/${m}/grid`,
+  versions: (b, m) => `/api/buildings/${b}/maps/${m}/versions/`,
+  versionGrid: (b, m, n) => `/api/buildings/${b}/maps/${m}/versions/${n}/grid`,
+  rollback: (b, m, n) => `/api/buildings/${b}/maps/${m}/versions/${n}/rollback`,
+  compare: (b, m, from, to) => `/api/buildings/${b}/maps/${m}/versions/compare?from=${from}&to=${to}`,
   topology: (b) => `/api/buildings/${b}/topology`,
   validation: (b) => `/api/buildings/${b}/topology/validation`,
   route: (b, from, to) =>
@@ -74,6 +78,13 @@ export const urls = {
   tagPrint: (id, ext) => `/api/tags/${id}/print.${ext}`,
   tagSheet: (b) => `/api/buildings/${b}/tags/print.pdf`,
 };
+
+/** A robot's map_id message, "building/code@v3" (or a plain Map ID): { mapId, version }. */
+export function splitMapRef(text) {
+  const plain = (text || "").trim();
+  const match = /^([^@\s]+)@v([1-9][0-9]*)$/.exec(plain);
+  return match ? { mapId: match[1], version: Number(match[2]) } : { mapId: plain, version: null };
+}
 
 /** Split a Map ID "building/map" into its parts. */
 export function splitMapId(mapId) {

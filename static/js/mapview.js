@@ -17,6 +17,8 @@ const COLORS = {
   initialpose: "#8a4ff0",
   tag: "#b3128a",
   selected: "#ff9f1a",
+  added: [224, 65, 47, 230],
+  removed: [31, 157, 85, 230],
 };
 const DRAG_THRESHOLD_PX = 4;
 const ZOOM_STEP = 1.15;
@@ -58,6 +60,7 @@ export class MapView {
     this.layers = { tags: [], trail: [], plan: [], scan: [], robot: null, goal: null };
     this.grid = null;
     this.image = null;
+    this.overlay = null;
     this.tool = null;
     this.drag = null;
     this.follow = false;
@@ -71,6 +74,7 @@ export class MapView {
 
   setGrid(grid) {
     this.grid = grid;
+    this.overlay = null;
     const { width, height } = grid.info;
     const image = document.createElement("canvas");
     image.width = width;
@@ -78,6 +82,28 @@ export class MapView {
     image.getContext("2d").putImageData(new ImageData(gridPixels(grid), width, height), 0, 0);
     this.image = image;
     this.fit();
+  }
+
+  /** Mark cells of the grid shown: { added: [[row, col], ...], removed: [...] } (rows
+   * counted from the bottom, as in the grid), drawn over it; null clears them. */
+  setCells(cells) {
+    this.overlay = null;
+    if (cells && this.grid) {
+      const { width, height } = this.grid.info;
+      const pixels = new Uint8ClampedArray(width * height * 4);
+      for (const kind of ["added", "removed"]) {
+        for (const [row, col] of cells[kind] || []) {
+          if (row < 0 || row >= height || col < 0 || col >= width) continue;
+          pixels.set(COLORS[kind], ((height - 1 - row) * width + col) * 4);
+        }
+      }
+      const image = document.createElement("canvas");
+      image.width = width;
+      image.height = height;
+      image.getContext("2d").putImageData(new ImageData(pixels, width, height), 0, 0);
+      this.overlay = image;
+    }
+    this.redraw();
   }
 
   /** Set one layer: tags, trail, plan, scan (arrays) or robot, goal (a pose or null). */
@@ -265,6 +291,10 @@ export class MapView {
     );
     ctx.imageSmoothingEnabled = s * res < 2;
     ctx.drawImage(this.image, 0, 0);
+    if (this.overlay) {
+      ctx.imageSmoothingEnabled = false;
+      ctx.drawImage(this.overlay, 0, 0);
+    }
     ctx.restore();
   }
 

@@ -1,7 +1,7 @@
 // A robot's page: its sub-map with pose, trail, plan, laser and goal; velocity plots; topic
 // rates and latency; the camera; and for operators teleoperation, goals and initial pose.
 
-import { api, splitMapId, urls } from "./api.js";
+import { api, splitMapId, splitMapRef, urls } from "./api.js";
 import { CameraPanel } from "./camera.js";
 import { degrees, planarPose, poseStamped, poseWithCovariance, scanPoints } from "./geometry.js";
 import { MapView } from "./mapview.js";
@@ -23,6 +23,7 @@ const connection = connectFleet();
 
 const state = {
   robotMap: null,
+  robotMapVersion: null,
   shownMap: null,
   followRobotMap: true,
   pose: null,
@@ -84,11 +85,25 @@ function drawRobotLayers() {
   else delete wrap.dataset.robot;
 }
 
-function enterMap(mapId) {
-  if (!mapId || mapId === state.robotMap) return;
+/** The robot is in `mapId`; `version` is the one it holds (from map_id), null when it
+ * says none, undefined when this message does not say (a pose). */
+function enterMap(mapId, version = undefined) {
+  if (!mapId) return;
+  const sameMap = mapId === state.robotMap;
+  if (sameMap && (version === undefined || version === state.robotMapVersion)) return;
+  state.robotMapVersion = version ?? null;
+  $("robot-map").textContent = state.robotMapVersion === null ? mapId : `${mapId} (version ${state.robotMapVersion})`;
+  if (sameMap) {
+    // A new version of the map the robot is in: draw it anew.
+    grids.delete(mapId);
+    if (state.shownMap === mapId) {
+      state.shownMap = null;
+      showMap(mapId);
+    }
+    return;
+  }
   state.robotMap = mapId;
   state.trail = [];
-  $("robot-map").textContent = mapId;
   if (state.followRobotMap) showMap(mapId);
   topology.show(mapId);
   renderGoalControls();
@@ -123,7 +138,8 @@ connection.subscribe(`${ns}/pose`, "geometry_msgs/PoseStamped", (msg) => {
 
 connection.subscribe(`${ns}/map_id`, "std_msgs/String", (msg) => {
   heard();
-  enterMap(msg.data);
+  const { mapId, version } = splitMapRef(msg.data);
+  enterMap(mapId, version);
 });
 
 const linearPlot = new TimePlot($("plot-linear"), [{ label: "linear.x", color: "#2f6fed" }]);

@@ -5,6 +5,7 @@ import { ApiError, api, urls } from "./api.js";
 import { degrees } from "./geometry.js";
 import { MapView } from "./mapview.js";
 import { el, fixed, pageConfig } from "./page.js";
+import { VersionsPanel } from "./versions.js";
 
 const $ = (id) => document.getElementById(id);
 const config = pageConfig();
@@ -17,17 +18,20 @@ const view = new MapView($("map-canvas"), {
   onClick: (world, screen) => selectNear(screen),
   onHover: ({ x, y }) => { $("map-cursor").textContent = `${x.toFixed(2)}, ${y.toFixed(2)} m`; },
 });
-window.cloudnav = { ...(window.cloudnav || {}), submapPage: { view, state } };
+const versions = new VersionsPanel({
+  building: config.building, map: config.map, editable, view, onChanged: () => loadGrid(),
+});
+window.cloudnav = { ...(window.cloudnav || {}), submapPage: { view, state, versions } };
 
 async function load() {
-  const [grid, buildingTags] = await Promise.all([
-    api.get(urls.grid(config.building, config.map)),
-    api.get(urls.tags(config.building)),
-  ]);
-  view.setGrid(grid);
-  $("map-wrap").dataset.loaded = config.map;
+  const [, buildingTags] = await Promise.all([loadGrid(), api.get(urls.tags(config.building)), versions.load()]);
   setTags(buildingTags);
   if (editable && !state.selected) newTag();
+}
+
+async function loadGrid() {
+  view.setGrid(await api.get(urls.grid(config.building, config.map)));
+  $("map-wrap").dataset.loaded = config.map;
 }
 
 function setTags(buildingTags) {

@@ -70,7 +70,11 @@ class Command(BaseCommand):
             )
             loaded = load_map_upload(map_yaml_text(meta).encode(), {meta.image: sub.pgm}, 10**8)
             existing = building.submaps.filter(code=sub.code).only("version").first()
-            fields = {"name": sub.name, "node_x": sub.node_xy[0], "node_y": sub.node_xy[1]}
+            fields: dict[str, Any] = {
+                "name": sub.name,
+                "node_x": sub.node_xy[0],
+                "node_y": sub.node_xy[1],
+            }
             if existing is None or existing.version != content_version(loaded.image_bytes, meta):
                 services.save_submap(building, sub.code, loaded, **fields)
             else:
