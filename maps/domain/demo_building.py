@@ -292,6 +292,25 @@ def demo_building(cloud_location: str = "http://127.0.0.1:8000") -> DemoBuilding
     )
 
 
+Rect = tuple[float, float, float, float]
+"""``(x0, y0, x1, y1)`` in world metres."""
+
+
+def furniture_rects() -> tuple[Rect, ...]:
+    """The furniture the floor plan places (every sub-map shows it), as rectangles."""
+    return tuple((r.x0, r.y0, r.x1, r.y1) for r in _FURNITURE)
+
+
+def space_interiors() -> dict[str, tuple[Rect, ...]]:
+    """Each sub-map's free interiors (its main one first), by sub-map code."""
+    return {s.code: tuple((r.x0, r.y0, r.x1, r.y1) for r in s.interiors) for s in _SPACES}
+
+
+def doorway_openings() -> dict[tuple[str, str], Rect]:
+    """The opening of each doorway through the wall two spaces share, by their codes."""
+    return {(d.a, d.b): (d.opening.x0, d.opening.y0, d.opening.x1, d.opening.y1) for d in _DOORWAYS}
+
+
 def world_to_cell(
     x: float, y: float, origin: tuple[float, ...], resolution: float = RESOLUTION
 ) -> tuple[int, int]:

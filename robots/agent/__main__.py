@@ -9,8 +9,10 @@ Many in one process, with the tokens ``manage.py seed_demo`` wrote::
     python -m robots.agent --server http://127.0.0.1:8000 \
         --tokens-file var/demo_tokens.json --count 3
 
-``--time-scale 4`` runs the simulation four times faster than the wall clock (every rate
-and timeout of the robot is in simulated time). Ctrl-C (or SIGTERM) stops the robots.
+``--changes 7`` runs a building that differs from its stored maps in ways drawn from
+seed 7 (``robots/agent/sim/changes.py``). ``--time-scale 4`` runs the simulation four
+times faster than the wall clock (every rate and timeout of the robot is in simulated
+time). Ctrl-C (or SIGTERM) stops the robots.
 """
 
 from __future__ import annotations
@@ -32,6 +34,7 @@ from robots.agent.fleet import (
     parse_pose,
     run_fleet,
 )
+from robots.agent.sim.changes import plan_changes
 from robots.domain.params import RobotConfig
 
 
@@ -46,6 +49,13 @@ def arguments(argv: Sequence[str] | None = None) -> argparse.Namespace:
     add_robot_arguments(parser)
     parser.add_argument("--start", type=parse_pose, help="x,y,yaw (default: the demo's start)")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument(
+        "--changes",
+        type=int,
+        metavar="SEED",
+        help="run a building that differs from its maps: changes drawn from SEED "
+        "(moved and new furniture, a closed door, a new wall, an unmapped room)",
+    )
     parser.add_argument("--log-level", default="INFO")
     options = parser.parse_args(argv)
     if options.time_scale <= 0 or options.count < 1:
@@ -70,6 +80,7 @@ async def main(options: argparse.Namespace) -> None:
         particles=options.particles,
         seed=options.seed,
         robot=RobotConfig(camera_rate=options.camera_rate),
+        changes=None if options.changes is None else plan_changes(options.changes),
     )
     fleet = build_fleet(tokens_of(options), fleet_options)
     running = asyncio.create_task(run_fleet(fleet, options.time_scale))

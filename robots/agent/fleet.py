@@ -21,6 +21,7 @@ from maps.domain.demo_building import demo_building
 from maps.domain.planning import warm_up
 from robots.agent.client import RosbridgeClient
 from robots.agent.robot import PoseTracker, Robot, SimHardware, declare, particle_filter
+from robots.agent.sim.changes import WorldChanges, changed_demo_world
 from robots.agent.sim.world import World, demo_world
 from robots.agent.supervisor import BundleCache, MapsSupervisor
 from robots.domain.params import RobotConfig
@@ -40,6 +41,7 @@ class FleetOptions:
     particles: int | None = None
     seed: int = 0
     robot: RobotConfig = field(default_factory=RobotConfig)
+    changes: WorldChanges | None = None  # how the building differs from its maps
 
 
 def add_robot_arguments(parser: argparse.ArgumentParser) -> None:
@@ -105,9 +107,12 @@ def demo_start(index: int) -> Pose:
 
 
 def build_fleet(tokens: Iterable[tuple[str, str]], options: FleetOptions) -> list[FleetRobot]:
-    """Robots for ``(name, token)`` pairs in the demo building, its tags naming the
-    server as their cloud."""
-    world = demo_world(endpoints(options.server)[0])
+    """Robots for ``(name, token)`` pairs in the demo building (as ``options.changes``
+    left it), its tags naming the server as their cloud."""
+    cloud = endpoints(options.server)[0]
+    world = (
+        demo_world(cloud) if options.changes is None else changed_demo_world(options.changes, cloud)
+    )
     return [
         build_robot(name, token, world, options, index)
         for index, (name, token) in enumerate(tokens)
