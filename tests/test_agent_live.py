@@ -134,7 +134,7 @@ async def test_an_operator_places_the_robot_sends_a_goal_and_cancels_it(
         placed = with_covariance(pose(CORRIDOR_A, *START))
         await operator.send(op="publish", topic=f"/{ROBOT}/initialpose", msg=placed)
         await operator.until(lambda: f"/{ROBOT}/pose" in operator.latest, "a pose in a map")
-        assert operator.latest[f"/{ROBOT}/map_id"] == {"data": CORRIDOR_A}
+        assert operator.latest[f"/{ROBOT}/map_id"] == {"data": f"{CORRIDOR_A}@v1"}
         assert operator.latest[f"/{ROBOT}/pose"]["header"]["frame_id"] == CORRIDOR_A
 
         await operator.send(op="publish", topic=f"/{ROBOT}/goal", msg=pose(CORRIDOR_A, 16, 23.2, 0))

@@ -173,7 +173,10 @@ async def test_a_goal_in_another_sub_map_is_routed_through_the_tag(cloud):
     assert robot.supervisor.current is not None
     assert robot.supervisor.current.map_id == "boccioni_1/Atrium1"
     assert math.dist(robot.hardware.true_pose[:2], goal[:2]) < 0.25
-    assert [m["data"] for m in recorder.on("map_id")] == [CORRIDOR_A, "boccioni_1/Atrium1"]
+    assert [m["data"] for m in recorder.on("map_id")] == [
+        f"{CORRIDOR_A}@v1",
+        "boccioni_1/Atrium1@v1",
+    ]
     texts = {e["text"] for m in recorder.on("nav_status") for e in m["status_list"]}
     assert "to tag 1, leading to Atrium1" in texts  # the tag the route leads through
     assert recorder.on("plan")[-1]["header"]["frame_id"] == "boccioni_1/Atrium1"
@@ -188,7 +191,7 @@ async def test_a_robot_with_no_map_reads_the_tag_before_it_then_drives_on(cloud)
     await run_until(robot, lambda: finished(robot), 60)
 
     assert statuses(robot) == [GoalStatus.SUCCEEDED]
-    assert [m["data"] for m in recorder.on("map_id")] == [CORRIDOR_A]
+    assert [m["data"] for m in recorder.on("map_id")] == [f"{CORRIDOR_A}@v1"]
     assert math.dist(robot.hardware.true_pose[:2], (6.0, 23.2)) < 0.25
 
 
