@@ -11,6 +11,7 @@ from rest_framework.views import exception_handler as drf_exception_handler
 from maps.exceptions import (
     IncomparableVersions,
     MapFileError,
+    MappingError,
     NoRouteError,
     NoSuchVersion,
     TagPayloadError,
@@ -20,8 +21,9 @@ from maps.exceptions import (
 
 
 def exception_handler(exc: Exception, context: dict[str, Any]) -> Response | None:
-    """Answer map store errors with 400 (404 for no route or version, 409 for a change on
-    a version no longer current) and field errors; defer the rest."""
+    """Answer map store errors with 400 (404 for no route or version; 409 for a change on
+    a version no longer current, or a mapping session that cannot do what was asked) and
+    field errors; defer the rest."""
     if isinstance(exc, NoRouteError):
         return Response({exc.field: [exc.message]}, status=status.HTTP_404_NOT_FOUND)
     if isinstance(exc, MapFileError | TopologyError):
@@ -31,6 +33,8 @@ def exception_handler(exc: Exception, context: dict[str, Any]) -> Response | Non
     if isinstance(exc, VersionConflict):
         body = {"detail": str(exc), "based_on": exc.based_on, "current": exc.current}
         return Response(body, status=status.HTTP_409_CONFLICT)
+    if isinstance(exc, MappingError):
+        return Response({"detail": str(exc)}, status=status.HTTP_409_CONFLICT)
     if isinstance(exc, IncomparableVersions):
         return Response({"detail": str(exc)}, status=status.HTTP_400_BAD_REQUEST)
     if isinstance(exc, TagPayloadError):

@@ -53,3 +53,8 @@ class VersionConflict(MapStoreError):
 
 class IncomparableVersions(MapStoreError):
     """Two versions whose cells do not line up (other resolution, yaw or origin)."""
+
+
+class MappingError(MapStoreError):
+    """A mapping session cannot be started, resumed or published as asked; the message
+    says why (an offline robot, a second session on one robot, a session in another state)."""

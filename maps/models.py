@@ -151,3 +151,61 @@ class EnvironmentalTag(models.Model):
 
     def __str__(self) -> str:
         return f"tag {self.marker_id} in {self.submap}"
+
+
+class MappingSession(models.Model):
+    """A robot building a sub-map in the cloud: a new one (``code`` not yet a sub-map) or
+    an update of ``submap`` made on its version ``based_on``.
+
+    The server process the robot is connected to runs its SLAM and writes the map so far
+    here every few seconds (``grid_pgm``: a map_saver PGM with its origin and resolution),
+    with the corrected path and the keyframes it needs to resume."""
+
+    RUNNING, INTERRUPTED, FINISHED, PUBLISHED, DISCARDED = (
+        "running",
+        "interrupted",
+        "finished",
+        "published",
+        "discarded",
+    )
+    STATES = [(s, s) for s in (RUNNING, INTERRUPTED, FINISHED, PUBLISHED, DISCARDED)]
+    OPEN = (RUNNING, INTERRUPTED)
+
+    robot = models.ForeignKey("robots.Robot", models.CASCADE, related_name="mapping_sessions")
+    building = models.ForeignKey(Building, models.CASCADE, related_name="mapping_sessions")
+    code = models.CharField(max_length=40, validators=[code_validator])
+    submap = models.ForeignKey(
+        SubMap, models.SET_NULL, null=True, blank=True, related_name="mapping_sessions"
+    )
+    based_on = models.PositiveIntegerField(null=True, blank=True)
+    state = models.CharField(max_length=12, choices=STATES, default=RUNNING)
+    reason = models.CharField(max_length=300, blank=True)  # why it stopped, in words
+    started_by = models.ForeignKey(
+        settings.AUTH_USER_MODEL, models.SET_NULL, null=True, blank=True, related_name="+"
+    )
+    created = models.DateTimeField(auto_now_add=True)
+    updated = models.DateTimeField(auto_now=True)
+    start_x = models.FloatField(default=0.0)
+    start_y = models.FloatField(default=0.0)
+    start_yaw = models.FloatField(default=0.0)
+    grid_pgm = models.BinaryField(default=b"", blank=True)
+    origin_x = models.FloatField(default=0.0)
+    origin_y = models.FloatField(default=0.0)
+    resolution = models.FloatField(default=0.05)
+    snapshot = models.PositiveIntegerField(default=0)  # counts the maps written
+    path = models.JSONField(default=list, blank=True)
+    stats = models.JSONField(default=dict, blank=True)
+    keyframes = models.BinaryField(default=b"", blank=True)
+
+    class Meta:
+        ordering = ["-created"]
+        constraints = [
+            models.UniqueConstraint(
+                fields=["robot"],
+                condition=models.Q(state__in=["running", "interrupted"]),
+                name="one_open_mapping_session_per_robot",
+            )
+        ]
+
+    def __str__(self) -> str:
+        return f"mapping {self.building.code}/{self.code} by {self.robot} ({self.state})"

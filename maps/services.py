@@ -91,11 +91,11 @@ def save_submap(
     *,
     author: Any = None,
     note: str = "",
+    reason: Reason = Reason.UPLOAD,
     **fields: Any,
 ) -> tuple[SubMap, bool]:
-    """Store an uploaded map under ``building/code``; an existing sub-map gets it as a new
-    version (reason ``upload``, by ``author`` saying ``note``) unless it holds that very
-    map already.
+    """Store a map under ``building/code``; an existing sub-map gets it as a new version
+    (``reason``, by ``author`` saying ``note``) unless it holds that very map already.
 
     Returns the sub-map and whether it was created. ``fields`` sets name and node position.
     """
@@ -108,7 +108,7 @@ def save_submap(
         setattr(submap, name, value)
     apply_loaded(submap, loaded)
     if created or submap.version != before:
-        record_version(submap, Reason.UPLOAD, author, note)
+        record_version(submap, reason, author, note)
     else:
         submap.save()
     return submap, created

@@ -5,6 +5,7 @@ from __future__ import annotations
 from django.urls import path, re_path
 
 from . import views
+from .mapping import views as mapping
 
 building = "buildings/<slug:building>"
 submap = f"{building}/maps/<slug:map>"
@@ -33,6 +34,24 @@ urlpatterns = [
     ),
     path(f"{building}/route", views.Route.as_view(), name="route"),
     path(f"{building}/tags/print.pdf", views.BuildingTagSheet.as_view(), name="tag-sheet"),
+    path("mapping/sessions/", mapping.SessionList.as_view(), name="mapping-list"),
+    path("mapping/sessions/<int:pk>/", mapping.SessionDetail.as_view(), name="mapping-detail"),
+    path("mapping/sessions/<int:pk>/grid", mapping.SessionGrid.as_view(), name="mapping-grid"),
+    path(
+        "mapping/sessions/<int:pk>/candidate.zip",
+        mapping.SessionCandidate.as_view(),
+        name="mapping-candidate",
+    ),
+    re_path(
+        r"^mapping/sessions/(?P<pk>\d+)/(?P<action>finish|resume|discard)$",
+        mapping.SessionAction.as_view(),
+        name="mapping-action",
+    ),
+    path(
+        "mapping/sessions/<int:pk>/publish",
+        mapping.SessionPublish.as_view(),
+        name="mapping-publish",
+    ),
     path("tags/", views.TagList.as_view(), name="tag-list"),
     path("tags/<int:pk>/", views.TagDetail.as_view(), name="tag-detail"),
     re_path(

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import asyncio
 import weakref
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -80,6 +81,9 @@ class Hub:
         )
         self.fleet = FleetTracker(interval=config.fleet_flush_interval)
         self._fleet_topics: dict[str, tuple[int, str]] = {}
+        # Topic taps: called with each message published here on that topic (mapping
+        # sessions hand a robot's scans to SLAM); a tap must only queue the message.
+        self.taps: dict[str, Callable[[dict[str, Json]], None]] = {}
         # goals this process's connections sent to actions on other processes, by
         # connection: goal id -> that process's channel (the newest ``pending_calls``)
         self._remote_goals: dict[str, dict[Json, str]] = {}
@@ -170,6 +174,9 @@ class Hub:
         tracked = self._fleet_topics.get(name)
         if tracked is not None:
             self._track(tracked[0], tracked[1], msg)
+        tap = self.taps.get(name)
+        if tap is not None:
+            tap(msg)
 
     def _track(self, robot_pk: int, kind: str, msg: dict[str, Json]) -> None:
         if kind == names.POSE:
@@ -464,6 +471,9 @@ async def get_hub() -> Hub:
 
 
 async def _new_hub() -> Hub:
+    from maps.mapping.runner import MappingRunner
+
     hub = Hub(RosbridgeConfig.load(), server_services())
     await hub.start()
+    MappingRunner(hub).start()  # mapping sessions of the robots connected here
     return hub

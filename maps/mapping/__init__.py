@@ -1,0 +1,1 @@
+"""Mapping sessions: robots build sub-maps in the cloud (see ``sessions`` and ``runner``)."""

@@ -1,0 +1,237 @@
+"""Mapping in the server process a robot is connected to, off the relay's hot path.
+
+Each server process runs one ``MappingRunner`` beside its rosbridge hub. Every
+``POLL`` seconds it asks the database for the running sessions of the robots connected
+to *this* process (in the scaled mode, the robot's process does its mapping, wherever
+the session was started) and starts a ``SessionWorker`` for each new one.
+
+A worker taps the robot's ``scan`` and ``odom`` topics on the hub: the tap only appends
+the message to a bounded queue (``QUEUE_SCANS``; the oldest is dropped, and counted,
+when SLAM falls behind), so publishing costs the relay one dict look-up and one append.
+SLAM (``maps.domain.slam``) runs on the queue in a worker thread; every ``SAVE_EVERY``
+seconds the map so far, the corrected path, the figures and the keyframes are written to
+the session, which is what pages and the API read.
+
+A robot that disconnects leaves its session ``interrupted`` with the map so far; a
+session finished or discarded meanwhile stops its worker (after a last write for a
+finished one, so its candidate map is complete).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import math
+import time
+from collections import deque
+from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
+from typing import Any, Protocol
+
+from asgiref.sync import sync_to_async
+
+from telemetry.domain.messages import pose_of
+
+from ..domain.slam import Mapper, Scan, SlamParams
+from ..models import MappingSession
+from . import sessions
+
+logger = logging.getLogger(__name__)
+
+POLL = 1.0
+"""Seconds between the runner's looks at the sessions of this process's robots."""
+QUEUE_SCANS = 20
+"""Scans waiting for SLAM at most; beyond, the oldest is dropped."""
+SAVE_EVERY = 2.0
+"""Seconds between writes of the map so far."""
+
+_EXECUTOR = ThreadPoolExecutor(max_workers=2, thread_name_prefix="mapping")
+
+Tap = Callable[[dict[str, Any]], None]
+
+
+class TopicTaps(Protocol):
+    """What the runner needs of the hub: the robots connected here and topic taps."""
+
+    taps: dict[str, Tap]
+
+    def robots(self) -> set[str]: ...
+
+
+class SessionWorker:
+    """SLAM of one session, fed by taps on its robot's topics."""
+
+    def __init__(self, session: MappingSession, prior: Any = None, resume: bytes = b"") -> None:
+        self.session_pk = session.pk
+        self.robot = session.robot.name
+        self.params = SlamParams()
+        start = (session.start_x, session.start_y, session.start_yaw)
+        if resume:
+            self.mapper = Mapper.resumed(resume, self.params, prior)
+        else:
+            self.mapper = Mapper(self.params, start, prior)
+        self.queue: deque[tuple[dict[str, Any] | None, dict[str, Any]]] = deque(maxlen=QUEUE_SCANS)
+        self.dropped = 0
+        self.bad_scans = 0
+        self.cpu = 0.0
+        self._odom: dict[str, Any] | None = None
+        self._wake = asyncio.Event()
+        self._task: asyncio.Task[None] | None = None
+        self._saved_at = 0.0
+        self._started = time.monotonic()
+
+    # --- the taps: on the hot path, O(1) ----------------------------------------------
+
+    def on_odom(self, msg: dict[str, Any]) -> None:
+        self._odom = msg
+
+    def on_scan(self, msg: dict[str, Any]) -> None:
+        if len(self.queue) == self.queue.maxlen:
+            self.dropped += 1
+        self.queue.append((self._odom, msg))
+        self._wake.set()
+
+    # --- the work ------------------------------------------------------------------------
+
+    def start(self) -> None:
+        self._task = asyncio.get_running_loop().create_task(self._run())
+
+    async def stop(self, save: bool = True) -> None:
+        if self._task is not None:
+            self._task.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await self._task
+        if save:
+            await self._save()
+
+    async def _run(self) -> None:
+        loop = asyncio.get_running_loop()
+        while True:
+            with contextlib.suppress(TimeoutError):
+                await asyncio.wait_for(self._wake.wait(), SAVE_EVERY)
+            self._wake.clear()
+            batch = list(self.queue)
+            self.queue.clear()
+            if batch:
+                await loop.run_in_executor(_EXECUTOR, self._process, batch)
+            if time.monotonic() - self._saved_at >= SAVE_EVERY:
+                await self._save()
+
+    def _process(self, batch: list[tuple[dict[str, Any] | None, dict[str, Any]]]) -> None:
+        started = time.thread_time()
+        for odom_msg, scan_msg in batch:
+            odom = _odom_pose(odom_msg)
+            try:
+                scan = Scan.from_message(scan_msg, self.params.usable_range)
+            except ValueError:
+                self.bad_scans += 1
+                continue
+            if odom is not None:
+                self.mapper.add(odom, scan)
+        self.cpu += time.thread_time() - started
+
+    async def _save(self) -> None:
+        self._saved_at = time.monotonic()
+        loop = asyncio.get_running_loop()
+        snapshot = await loop.run_in_executor(_EXECUTOR, self._snapshot)
+        await sync_to_async(sessions.save_progress)(self.session_pk, *snapshot)
+
+    def _snapshot(self) -> tuple[Any, ...]:
+        started = time.thread_time()
+        grid, origin = self.mapper.grid()
+        state = self.mapper.state()
+        self.cpu += time.thread_time() - started
+        stats = self.mapper.stats
+        elapsed = max(1e-6, time.monotonic() - self._started)
+        figures = {
+            **stats.__dict__,
+            "dropped": self.dropped,
+            "bad_scans": self.bad_scans,
+            "cpu_share": round(self.cpu / elapsed, 4),
+            "pose": list(self.mapper.pose),
+        }
+        return grid, origin, self.params.resolution, list(self.mapper.path), figures, state
+
+
+def _odom_pose(msg: dict[str, Any] | None) -> tuple[float, float, float] | None:
+    """The planar pose of a ``nav_msgs/Odometry`` in rosbridge JSON, or None."""
+    found = pose_of(msg.get("pose")) if isinstance(msg, dict) else None  # type: ignore[arg-type]
+    if found is None or not all(math.isfinite(v) for v in (found.x, found.y, found.yaw)):
+        return None
+    return found.x, found.y, found.yaw
+
+
+class MappingRunner:
+    """The mapping workers of one server process (see the module's docstring)."""
+
+    def __init__(self, hub: TopicTaps) -> None:
+        self.hub = hub
+        self.workers: dict[int, SessionWorker] = {}
+        self._task: asyncio.Task[None] | None = None
+
+    def start(self) -> None:
+        self._task = asyncio.get_running_loop().create_task(self._run())
+
+    async def _run(self) -> None:
+        while True:
+            try:
+                await self.sync()
+            except Exception:  # the database may be away for a moment; try again
+                logger.exception("mapping runner: looking at sessions failed")
+            await asyncio.sleep(POLL)
+
+    async def sync(self) -> None:
+        """Start workers for new running sessions of robots here; stop the others."""
+        here = self.hub.robots()
+        running = await sync_to_async(_running_sessions)(here)
+        for pk, worker in list(self.workers.items()):
+            if pk in running and worker.robot in here:
+                continue
+            del self.workers[pk]
+            self._untap(worker)
+            await worker.stop(save=True)
+            if worker.robot not in here:
+                await sync_to_async(_interrupt)(pk)
+        for pk in running - self.workers.keys():
+            found = await sync_to_async(_session_start)(pk)
+            if found is not None:
+                worker = SessionWorker(*found)
+                self.workers[pk] = worker
+                self._tap(worker)
+                worker.start()
+
+    def _tap(self, worker: SessionWorker) -> None:
+        self.hub.taps[f"/{worker.robot}/scan"] = worker.on_scan
+        self.hub.taps[f"/{worker.robot}/odom"] = worker.on_odom
+
+    def _untap(self, worker: SessionWorker) -> None:
+        for topic in ("scan", "odom"):
+            self.hub.taps.pop(f"/{worker.robot}/{topic}", None)
+
+
+def _running_sessions(robots: set[str]) -> set[int]:
+    """Primary keys of the running sessions of ``robots``."""
+    return set(sessions.open_session_of(robots).values_list("pk", flat=True))
+
+
+def _session_start(pk: int) -> tuple[MappingSession, Any, bytes] | None:
+    """A session with the grid it updates (or None) and the state to resume from (empty
+    for a fresh one); None when it is no longer running."""
+    from .. import services
+
+    session = MappingSession.objects.select_related("robot", "submap").filter(pk=pk).first()
+    if session is None or session.state != MappingSession.RUNNING:
+        return None
+    prior = None
+    if session.submap is not None:
+        submap = session.submap
+        prior = (services.grid_of(submap), (submap.origin_x, submap.origin_y))
+    return session, prior, bytes(session.keyframes)
+
+
+def _interrupt(session_pk: int) -> None:
+    MappingSession.objects.filter(pk=session_pk, state=MappingSession.RUNNING).update(
+        state=MappingSession.INTERRUPTED,
+        reason="the robot disconnected: resume the session or discard it",
+    )

@@ -1,0 +1,202 @@
+"""REST adapters of mapping sessions: start one for a robot, watch its map grow, finish,
+resume, discard, publish the map as a sub-map or a new version of one."""
+
+from __future__ import annotations
+
+import io
+import zipfile
+from typing import Any
+
+from django.http import HttpResponse, HttpResponseBase
+from drf_spectacular.types import OpenApiTypes
+from drf_spectacular.utils import OpenApiParameter, extend_schema
+from rest_framework import serializers, status
+from rest_framework.exceptions import NotFound
+from rest_framework.parsers import JSONParser
+from rest_framework.request import Request
+from rest_framework.response import Response
+from rest_framework.views import APIView
+
+from robots.models import Robot
+
+from ..access import Role, buildings_for
+from ..domain.mapfile import map_yaml_text, occupancy_grid_json
+from ..models import MappingSession
+from ..serializers import VersionSerializer
+from ..views import building_for
+from . import sessions
+
+
+class StartSerializer(serializers.Serializer):
+    robot = serializers.CharField()
+    building = serializers.CharField()
+    code = serializers.RegexField(r"^[A-Za-z][A-Za-z0-9_]*$", max_length=40)
+    update = serializers.BooleanField(  # type: ignore[assignment]
+        default=False, help_text="true: a new version of the existing sub-map `code`"
+    )
+
+
+class SessionSerializer(serializers.ModelSerializer):
+    robot = serializers.CharField(source="robot.name")
+    building = serializers.CharField(source="building.code")
+    started_by: serializers.SlugRelatedField = serializers.SlugRelatedField(
+        slug_field="username", read_only=True
+    )
+    map_id = serializers.SerializerMethodField()
+    size = serializers.SerializerMethodField()
+
+    class Meta:
+        model = MappingSession
+        fields = [
+            "id",
+            "robot",
+            "building",
+            "code",
+            "map_id",
+            "based_on",
+            "state",
+            "reason",
+            "started_by",
+            "created",
+            "updated",
+            "snapshot",
+            "origin_x",
+            "origin_y",
+            "resolution",
+            "size",
+            "path",
+            "stats",
+        ]
+
+    def get_map_id(self, session: MappingSession) -> str:
+        return f"{session.building.code}/{session.code}"
+
+    def get_size(self, session: MappingSession) -> list[int]:
+        """[width, height] of the map so far, in cells ([0, 0] before the first)."""
+        pgm = bytes(session.grid_pgm)
+        if not pgm:
+            return [0, 0]
+        width, height = pgm.split(b"\n")[1].split()[:2]
+        return [int(width), int(height)]
+
+
+def session_for(request: Request, pk: int, need: Role = Role.VIEWER) -> MappingSession:
+    """Session ``pk`` if the caller holds ``need`` in its building; NotFound otherwise
+    (or PermissionDenied for a role too low, as ``building_for``)."""
+    session = (
+        MappingSession.objects.select_related("robot", "building", "submap", "started_by")
+        .filter(pk=pk)
+        .first()
+    )
+    if session is None:
+        raise NotFound("No such mapping session.")
+    building_for(request, session.building.code, need)
+    return session
+
+
+def _document(session: MappingSession) -> dict[str, Any]:
+    return dict(SessionSerializer(session).data)
+
+
+class SessionList(APIView):
+    """Mapping sessions of the buildings one sees (``?building=``, ``?robot=``); POST
+    starts one (operators and admins)."""
+
+    parser_classes = [JSONParser]
+
+    @extend_schema(
+        parameters=[OpenApiParameter("building", str), OpenApiParameter("robot", str)],
+        responses=SessionSerializer(many=True),
+    )
+    def get(self, request: Request) -> Response:
+        found = MappingSession.objects.filter(building__in=buildings_for(request.user))
+        if code := request.query_params.get("building"):
+            found = found.filter(building__code=code)
+        if name := request.query_params.get("robot"):
+            found = found.filter(robot__name=name)
+        found = found.select_related("robot", "building", "started_by").defer("keyframes")
+        return Response([_document(s) for s in found[:50]])
+
+    @extend_schema(request=StartSerializer, responses={201: SessionSerializer})
+    def post(self, request: Request) -> Response:
+        asked = StartSerializer(data=request.data)
+        asked.is_valid(raise_exception=True)
+        data = asked.validated_data
+        building = building_for(request, data["building"], Role.OPERATOR)
+        robot = Robot.objects.filter(name=data["robot"], buildings=building).first()
+        if robot is None:
+            raise NotFound(f"No robot {data['robot']} in {building.code}.")
+        session = sessions.start(robot, building, data["code"], request.user, data["update"])
+        return Response(_document(session), status=status.HTTP_201_CREATED)
+
+
+class SessionDetail(APIView):
+    @extend_schema(responses=SessionSerializer)
+    def get(self, request: Request, pk: int) -> Response:
+        return Response(_document(session_for(request, pk)))
+
+
+class SessionGrid(APIView):
+    """The map so far as a ``nav_msgs/OccupancyGrid`` in rosbridge JSON."""
+
+    @extend_schema(responses={200: OpenApiTypes.OBJECT})
+    def get(self, request: Request, pk: int) -> HttpResponseBase:
+        session = session_for(request, pk)
+        loaded = sessions.candidate(session)
+        body = occupancy_grid_json(loaded.grid, loaded.meta, frame_id=f"mapping/{session.pk}")
+        return HttpResponse(body, content_type="application/json")
+
+
+class SessionCandidate(APIView):
+    """The map so far as a map_server pair: a zip of ``<code>.yaml`` and ``<code>.pgm``."""
+
+    @extend_schema(responses={(200, "application/zip"): OpenApiTypes.BINARY})
+    def get(self, request: Request, pk: int) -> HttpResponse:
+        session = session_for(request, pk)
+        loaded = sessions.candidate(session)
+        archive = io.BytesIO()
+        with zipfile.ZipFile(archive, "w", zipfile.ZIP_DEFLATED) as bundle:
+            bundle.writestr(f"{session.code}.yaml", map_yaml_text(loaded.meta))
+            bundle.writestr(loaded.meta.image, loaded.image_bytes)
+        response = HttpResponse(archive.getvalue(), content_type="application/zip")
+        response["Content-Disposition"] = f'attachment; filename="mapping_{session.pk}.zip"'
+        return response
+
+
+# What each action does: the state it leads to and the states it may start from.
+ACTIONS = {
+    "finish": (MappingSession.FINISHED, (MappingSession.RUNNING, MappingSession.INTERRUPTED)),
+    "resume": (MappingSession.RUNNING, (MappingSession.INTERRUPTED,)),
+    "discard": (
+        MappingSession.DISCARDED,
+        (MappingSession.RUNNING, MappingSession.INTERRUPTED, MappingSession.FINISHED),
+    ),
+}
+
+
+class SessionAction(APIView):
+    """``finish`` (the map becomes a candidate), ``resume`` an interrupted session,
+    ``discard``; operators and admins."""
+
+    parser_classes = [JSONParser]
+
+    @extend_schema(request=None, responses=SessionSerializer)
+    def post(self, request: Request, pk: int, action: str) -> Response:
+        session = session_for(request, pk, Role.OPERATOR)
+        to, allowed = ACTIONS[action]
+        session = sessions.change_state(session, to, allowed)
+        return Response(_document(session_for(request, session.pk)))
+
+
+class SessionPublish(APIView):
+    """Admins: a finished session's map becomes a sub-map, or a new version of the one it
+    updated (409 when that one moved past the version the session started on)."""
+
+    parser_classes = [JSONParser]
+
+    @extend_schema(request=OpenApiTypes.OBJECT, responses={201: VersionSerializer})
+    def post(self, request: Request, pk: int) -> Response:
+        session = session_for(request, pk, Role.ADMIN)
+        note = request.data.get("note", "") if isinstance(request.data, dict) else ""
+        made = sessions.publish(session, request.user, str(note))
+        return Response(VersionSerializer(made).data, status=status.HTTP_201_CREATED)
