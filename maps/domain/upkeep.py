@@ -1,0 +1,181 @@
+"""Upkeep of a stored sub-map from the fleet's lasers: evidence per cell, gathered over
+passes, and the change it proposes (cells that became occupied, cells that became free).
+
+A robot driving through a sub-map adds each scan at its pose estimate (``add``). A scan
+is used only when the pose is trustworthy: at least ``trust`` of its returns end within
+a cell of a wall the stored map has (a robot whose estimate is off sees a map that
+disagrees everywhere, and its evidence would be wrong everywhere). Within a *pass* (a
+robot's visit, ended by ``end_pass``) a cell counts as seen occupied when returns ended
+in it at least ``hits_per_pass`` times and at least half as often as beams crossed it,
+and as seen free when beams crossed it ``misses_per_pass`` times and returns ended in it
+at most a quarter as often (a pose a few centimetres off puts some returns from the
+surface beside it there). A
+cell is proposed when it disagreed with the stored map on ``min_passes`` passes and
+agreed on none:
+
+- **added**: seen occupied where the stored map is free or unknown, and no stored wall
+  within one cell (a wall seen a few centimetres off is the same wall);
+- **removed**: seen free where the stored map is occupied.
+
+The stretch of a beam just before its return (``surface_margin``) is not counted as
+crossed, so a surface seen from a slightly wrong pose does not erase itself.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+from scipy.ndimage import binary_dilation
+
+from maps.domain.slam import Scan
+from maps.domain.versions import cell_classes
+from robots.domain.se2 import Pose
+
+Grid = npt.NDArray[np.int8]
+Counts = npt.NDArray[np.uint16]
+Cells = npt.NDArray[np.intp]
+
+
+@dataclass(frozen=True)
+class UpkeepParams:
+    trust: float = 0.5
+    hits_per_pass: int = 2
+    misses_per_pass: int = 3
+    min_passes: int = 2
+    surface_margin: float = 0.075  # metres before a return not counted as crossed
+    max_range: float = 6.0  # metres: farther returns are not used
+    beams: int = 180  # beams used per scan at most (evenly taken)
+
+
+@dataclass(frozen=True)
+class Proposal:
+    """Cells (row, col) of the stored grid that changed, with the passes backing each."""
+
+    added: Cells
+    removed: Cells
+    added_passes: npt.NDArray[np.uint16]
+    removed_passes: npt.NDArray[np.uint16]
+    passes: int
+
+    @property
+    def empty(self) -> bool:
+        return not len(self.added) and not len(self.removed)
+
+    def applied_to(self, grid: Grid) -> Grid:
+        """``grid`` with the change: added cells occupied (100), removed ones free (0)."""
+        out = np.array(grid, copy=True)
+        if len(self.added):
+            out[self.added[:, 0], self.added[:, 1]] = 100
+        if len(self.removed):
+            out[self.removed[:, 0], self.removed[:, 1]] = 0
+        return out
+
+
+class Evidence:
+    """Laser evidence about one stored grid (row 0 at the bottom, cell (0, 0)'s corner at
+    ``origin``), gathered pass by pass."""
+
+    def __init__(
+        self,
+        grid: Grid,
+        origin: Sequence[float],
+        resolution: float,
+        params: UpkeepParams | None = None,
+    ) -> None:
+        self.params = params or UpkeepParams()
+        self.stored = cell_classes(grid)
+        self.origin = (float(origin[0]), float(origin[1]))
+        self.resolution = resolution
+        self.near_wall = binary_dilation(self.stored == 1, iterations=1)
+        shape = grid.shape
+        self.pass_hits: Counts = np.zeros(shape, np.uint16)
+        self.pass_misses: Counts = np.zeros(shape, np.uint16)
+        self.occupied_passes: Counts = np.zeros(shape, np.uint16)
+        self.free_passes: Counts = np.zeros(shape, np.uint16)
+        self.observed = np.zeros(shape, bool)
+        self.passes = 0
+        self.scans = 0
+        self.untrusted = 0
+
+    def add(self, pose: Pose, scan: Scan) -> bool:
+        """Add one scan taken at ``pose`` (the stored map's frame); returns whether it was
+        trusted (and used)."""
+        p = self.params
+        scan = scan.thinned(p.beams)
+        good = np.isfinite(scan.ranges) & (scan.ranges <= p.max_range)
+        ranges, angles = scan.ranges[good], scan.angles[good] + pose[2]
+        if not len(ranges):
+            return False
+        ends = np.column_stack(
+            (pose[0] + ranges * np.cos(angles), pose[1] + ranges * np.sin(angles))
+        )
+        hit_cells = self._cells(ends)
+        inside = hit_cells[:, 0] >= 0
+        near = self.near_wall[hit_cells[inside, 0], hit_cells[inside, 1]]
+        if not len(near) or near.mean() < p.trust:
+            self.untrusted += 1
+            return False
+        self.scans += 1
+        crossed = self._crossed(pose, ranges, angles)
+        for cells, counts in ((hit_cells[inside], self.pass_hits), (crossed, self.pass_misses)):
+            flat = np.unique(cells[:, 0] * self.stored.shape[1] + cells[:, 1])
+            counts.reshape(-1)[flat] += 1
+            self.observed.reshape(-1)[flat] = True
+        return True
+
+    def _crossed(
+        self, pose: Pose, ranges: npt.NDArray[np.float64], angles: npt.NDArray[np.float64]
+    ) -> Cells:
+        p = self.params
+        reach = np.clip(ranges - p.surface_margin, 0.0, None)
+        samples = math.ceil(float(reach.max(initial=0.0)) / (self.resolution / 2)) + 1
+        t = np.linspace(0.0, 1.0, samples)[None, :]
+        x = pose[0] + (reach * np.cos(angles))[:, None] * t
+        y = pose[1] + (reach * np.sin(angles))[:, None] * t
+        cells = self._cells(np.column_stack((x.ravel(), y.ravel())))
+        return cells[cells[:, 0] >= 0]
+
+    def _cells(self, points: npt.NDArray[np.float64]) -> Cells:
+        """(row, col) of each point; (-1, -1) outside the grid."""
+        cols = np.floor((points[:, 0] - self.origin[0]) / self.resolution).astype(np.intp)
+        rows = np.floor((points[:, 1] - self.origin[1]) / self.resolution).astype(np.intp)
+        height, width = self.stored.shape
+        outside = (rows < 0) | (rows >= height) | (cols < 0) | (cols >= width)
+        rows[outside] = -1
+        cols[outside] = -1
+        return np.column_stack((rows, cols))
+
+    def end_pass(self) -> None:
+        """Close the current pass: count what each cell looked like in it."""
+        p = self.params
+        hits, misses = self.pass_hits, self.pass_misses
+        seen_occupied = (hits >= p.hits_per_pass) & (2 * hits >= misses)
+        seen_free = (misses >= p.misses_per_pass) & (4 * hits <= misses)
+        self.occupied_passes += seen_occupied
+        self.free_passes += seen_free
+        hits[...] = 0
+        misses[...] = 0
+        self.passes += 1
+
+    def proposal(self) -> Proposal:
+        """The change the evidence so far backs (see the module's docstring)."""
+        n = self.params.min_passes
+        added = (
+            (self.occupied_passes >= n)
+            & (self.free_passes == 0)
+            & (self.stored != 1)
+            & ~self.near_wall
+        )
+        removed = (self.free_passes >= n) & (self.occupied_passes == 0) & (self.stored == 1)
+        added_cells, removed_cells = np.argwhere(added), np.argwhere(removed)
+        return Proposal(
+            added_cells,
+            removed_cells,
+            self.occupied_passes[added],
+            self.free_passes[removed],
+            self.passes,
+        )

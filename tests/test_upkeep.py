@@ -1,0 +1,77 @@
+"""Change detection from robots driving through a changed room: cells that became
+occupied or free are proposed after two passes, not after one; scans from a robot whose
+pose is off are not used."""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import numpy as np
+
+from maps.domain.slam import Scan
+from maps.domain.upkeep import Evidence
+from robots.agent.sim.laser import Laser, LaserSpec
+from robots.agent.sim.world import world_from_grid
+
+RES = 0.05
+
+
+def room(boxes: list[tuple[int, int, int, int]]) -> np.ndarray:
+    """A 6 x 6 m room (120 cells a side) walled round, with boxes (row0, row1, col0, col1)."""
+    grid = np.zeros((120, 120), np.int8)
+    grid[:2, :] = grid[-2:, :] = grid[:, :2] = grid[:, -2:] = 100
+    for r0, r1, c0, c1 in boxes:
+        grid[r0:r1, c0:c1] = 100
+    return grid
+
+
+STORED = room([(30, 40, 30, 40)])  # a cabinet at (1.5-2, 1.5-2) m
+TRUTH = room([(80, 90, 70, 90)])  # ...gone; a table at (3.5-4.5, 4-4.5) m instead
+
+
+def drive(evidence: Evidence, seed: int, offset: float = 0.0) -> None:
+    """One pass: a loop 1.2 m inside the walls, a scan every 10 cm."""
+    laser = Laser(world_from_grid(TRUTH, (0.0, 0.0), RES), LaserSpec(), seed=seed)
+    angles = laser.spec.angles()
+    corners = [(1.2, 1.2), (4.8, 1.2), (4.8, 4.8), (1.2, 4.8), (1.2, 1.2)]
+    for (ax, ay), (bx, by) in itertools.pairwise(corners):
+        heading = math.atan2(by - ay, bx - ax)
+        for t in np.linspace(0, 1, 36, endpoint=False):
+            pose = (ax + t * (bx - ax), ay + t * (by - ay), heading)
+            ranges = laser.scan(pose).astype(np.float64)
+            ranges[~np.isfinite(ranges)] = np.nan
+            estimate = (pose[0] + offset, pose[1] + offset, pose[2] + offset / 3)
+            evidence.add(estimate, Scan(angles, ranges))
+
+
+def cells_between(cells: np.ndarray, rows: range, cols: range) -> int:
+    return int(np.count_nonzero(np.isin(cells[:, 0], rows) & np.isin(cells[:, 1], cols)))
+
+
+def test_a_changed_room_is_proposed_after_two_passes_and_not_one() -> None:
+    evidence = Evidence(STORED, (0.0, 0.0), RES)
+    drive(evidence, seed=1)
+    evidence.end_pass()
+    assert evidence.proposal().empty
+    drive(evidence, seed=2)
+    evidence.end_pass()
+    proposal = evidence.proposal()
+    assert proposal.passes == 2
+    # The vanished cabinet: most of its 100 cells seen free on both passes.
+    assert cells_between(proposal.removed, range(30, 40), range(30, 40)) >= 80
+    assert len(proposal.removed) == cells_between(proposal.removed, range(30, 40), range(30, 40))
+    # The new table: its faces (the cells a laser can see) proposed, nothing far from it.
+    assert cells_between(proposal.added, range(79, 91), range(69, 91)) >= 40
+    assert cells_between(proposal.added, range(79, 91), range(69, 91)) == len(proposal.added)
+    assert (proposal.added_passes >= 2).all()
+    changed = proposal.applied_to(STORED)
+    assert changed[35, 35] == 0
+    assert changed[80, 75] == 100
+
+
+def test_scans_from_a_robot_whose_pose_is_off_are_not_used() -> None:
+    evidence = Evidence(STORED, (0.0, 0.0), RES)
+    drive(evidence, seed=1, offset=0.4)  # 0.4 m off each way and 7.6 degrees
+    assert evidence.scans == 0
+    assert evidence.untrusted > 100
