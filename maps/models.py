@@ -209,3 +209,41 @@ class MappingSession(models.Model):
 
     def __str__(self) -> str:
         return f"mapping {self.building.code}/{self.code} by {self.robot} ({self.state})"
+
+
+class ChangeProposal(models.Model):
+    """A change to a sub-map that the fleet's lasers back: cells that became occupied
+    (``added``) and free (``removed``), as ``[row, col]`` of the version ``based_on``,
+    with the passes that saw each (``added_passes``, ``removed_passes``)."""
+
+    OPEN, ACCEPTED, REJECTED = "open", "accepted", "rejected"
+    STATES = [(s, s) for s in (OPEN, ACCEPTED, REJECTED)]
+
+    submap = models.ForeignKey(SubMap, models.CASCADE, related_name="change_proposals")
+    based_on = models.PositiveIntegerField()
+    state = models.CharField(max_length=10, choices=STATES, default=OPEN)
+    added = models.JSONField(default=list)
+    removed = models.JSONField(default=list)
+    added_passes = models.JSONField(default=list)
+    removed_passes = models.JSONField(default=list)
+    passes = models.PositiveIntegerField(default=0)
+    scans = models.PositiveIntegerField(default=0)
+    created = models.DateTimeField(auto_now_add=True)
+    updated = models.DateTimeField(auto_now=True)
+    decided_by = models.ForeignKey(
+        settings.AUTH_USER_MODEL, models.SET_NULL, null=True, blank=True, related_name="+"
+    )
+    version = models.PositiveIntegerField(null=True, blank=True)  # made by accepting it
+
+    class Meta:
+        ordering = ["-updated"]
+        constraints = [
+            models.UniqueConstraint(
+                fields=["submap", "based_on"],
+                condition=models.Q(state="open"),
+                name="one_open_proposal_per_version",
+            )
+        ]
+
+    def __str__(self) -> str:
+        return f"change to {self.submap} v{self.based_on} ({self.state})"

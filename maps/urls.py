@@ -26,6 +26,13 @@ urlpatterns = [
     path(f"{version}/image", views.VersionImage.as_view(), name="version-image"),
     path(f"{version}/grid", views.VersionGrid.as_view(), name="version-grid"),
     path(f"{version}/rollback", views.VersionRollback.as_view(), name="version-rollback"),
+    path(f"{submap}/changes/", mapping.ProposalList.as_view(), name="change-list"),
+    re_path(
+        r"^buildings/(?P<building>[-\w]+)/maps/(?P<map>[-\w]+)/changes/(?P<pk>\d+)/"
+        r"(?P<decision>accept|reject)$",
+        mapping.ProposalDecision.as_view(),
+        name="change-decision",
+    ),
     path(f"{building}/topology", views.Topology.as_view(), name="topology"),
     path(
         f"{building}/topology/validation",

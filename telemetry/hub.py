@@ -82,8 +82,8 @@ class Hub:
         self.fleet = FleetTracker(interval=config.fleet_flush_interval)
         self._fleet_topics: dict[str, tuple[int, str]] = {}
         # Topic taps: called with each message published here on that topic (mapping
-        # sessions hand a robot's scans to SLAM); a tap must only queue the message.
-        self.taps: dict[str, Callable[[dict[str, Json]], None]] = {}
+        # sessions and map upkeep take robots' scans); a tap must only queue the message.
+        self.taps: dict[str, list[Callable[[dict[str, Json]], None]]] = {}
         # goals this process's connections sent to actions on other processes, by
         # connection: goal id -> that process's channel (the newest ``pending_calls``)
         self._remote_goals: dict[str, dict[Json, str]] = {}
@@ -174,8 +174,7 @@ class Hub:
         tracked = self._fleet_topics.get(name)
         if tracked is not None:
             self._track(tracked[0], tracked[1], msg)
-        tap = self.taps.get(name)
-        if tap is not None:
+        for tap in self.taps.get(name, ()):
             tap(msg)
 
     def _track(self, robot_pk: int, kind: str, msg: dict[str, Json]) -> None:
@@ -472,8 +471,10 @@ async def get_hub() -> Hub:
 
 async def _new_hub() -> Hub:
     from maps.mapping.runner import MappingRunner
+    from maps.mapping.upkeep import UpkeepRunner
 
     hub = Hub(RosbridgeConfig.load(), server_services())
     await hub.start()
     MappingRunner(hub).start()  # mapping sessions of the robots connected here
+    UpkeepRunner(hub).start()  # laser evidence about the stored maps, from the same robots
     return hub

@@ -54,7 +54,7 @@ Tap = Callable[[dict[str, Any]], None]
 class TopicTaps(Protocol):
     """What the runner needs of the hub: the robots connected here and topic taps."""
 
-    taps: dict[str, Tap]
+    taps: dict[str, list[Tap]]
 
     def robots(self) -> set[str]: ...
 
@@ -202,12 +202,24 @@ class MappingRunner:
                 worker.start()
 
     def _tap(self, worker: SessionWorker) -> None:
-        self.hub.taps[f"/{worker.robot}/scan"] = worker.on_scan
-        self.hub.taps[f"/{worker.robot}/odom"] = worker.on_odom
+        tap(self.hub, f"/{worker.robot}/scan", worker.on_scan)
+        tap(self.hub, f"/{worker.robot}/odom", worker.on_odom)
 
     def _untap(self, worker: SessionWorker) -> None:
-        for topic in ("scan", "odom"):
-            self.hub.taps.pop(f"/{worker.robot}/{topic}", None)
+        untap(self.hub, f"/{worker.robot}/scan", worker.on_scan)
+        untap(self.hub, f"/{worker.robot}/odom", worker.on_odom)
+
+
+def tap(hub: TopicTaps, topic: str, callback: Tap) -> None:
+    hub.taps.setdefault(topic, []).append(callback)
+
+
+def untap(hub: TopicTaps, topic: str, callback: Tap) -> None:
+    callbacks = hub.taps.get(topic, [])
+    if callback in callbacks:
+        callbacks.remove(callback)
+    if not callbacks:
+        hub.taps.pop(topic, None)
 
 
 def _running_sessions(robots: set[str]) -> set[int]:

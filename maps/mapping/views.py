@@ -21,10 +21,10 @@ from robots.models import Robot
 
 from ..access import Role, buildings_for
 from ..domain.mapfile import map_yaml_text, occupancy_grid_json
-from ..models import MappingSession
+from ..models import ChangeProposal, MappingSession
 from ..serializers import VersionSerializer
 from ..views import building_for
-from . import sessions
+from . import sessions, upkeep
 
 
 class StartSerializer(serializers.Serializer):
@@ -200,3 +200,74 @@ class SessionPublish(APIView):
         note = request.data.get("note", "") if isinstance(request.data, dict) else ""
         made = sessions.publish(session, request.user, str(note))
         return Response(VersionSerializer(made).data, status=status.HTTP_201_CREATED)
+
+
+# Proposed changes (map upkeep)
+
+
+class ProposalSerializer(serializers.ModelSerializer):
+    decided_by: serializers.SlugRelatedField = serializers.SlugRelatedField(
+        slug_field="username", read_only=True
+    )
+
+    class Meta:
+        model = ChangeProposal
+        fields = [
+            "id",
+            "based_on",
+            "state",
+            "added",
+            "removed",
+            "added_passes",
+            "removed_passes",
+            "passes",
+            "scans",
+            "created",
+            "updated",
+            "decided_by",
+            "version",
+        ]
+
+
+class ProposalList(APIView):
+    """The changes the fleet's lasers propose for a sub-map (``?state=open``), cells as
+    ``[row, col]`` of the version they were seen on, with the passes backing each."""
+
+    @extend_schema(
+        parameters=[OpenApiParameter("state", str)], responses=ProposalSerializer(many=True)
+    )
+    def get(self, request: Request, building: str, map: str) -> Response:
+        found = upkeep.proposals_of(building_for(request, building), map)
+        if state := request.query_params.get("state"):
+            found = found.filter(state=state)
+        return Response(ProposalSerializer(found[:20], many=True).data)
+
+
+class ProposalDecision(APIView):
+    """Admins: ``accept`` a proposal (optionally only the cells kept: ``{"added": [...],
+    "removed": [...]}``), making the next version, or ``reject`` it."""
+
+    parser_classes = [JSONParser]
+
+    @extend_schema(request=OpenApiTypes.OBJECT, responses=ProposalSerializer)
+    def post(self, request: Request, building: str, map: str, pk: int, decision: str) -> Response:
+        target = building_for(request, building, Role.ADMIN)
+        proposal = upkeep.proposals_of(target, map).filter(pk=pk).first()
+        if proposal is None:
+            raise NotFound("No such proposal.")
+        body = request.data if isinstance(request.data, dict) else {}
+        if decision == "accept":
+            upkeep.accept(proposal, request.user, _cells(body, "added"), _cells(body, "removed"))
+        else:
+            upkeep.reject(proposal, request.user)
+        proposal.refresh_from_db()
+        return Response(ProposalSerializer(proposal).data)
+
+
+def _cells(body: dict[str, Any], key: str) -> list[list[int]] | None:
+    value = body.get(key)
+    if value is None:
+        return None
+    pair = serializers.ListField(child=serializers.IntegerField(), min_length=2, max_length=2)
+    cells: list[list[int]] = serializers.ListField(child=pair).run_validation(value)
+    return cells
