@@ -1,0 +1,95 @@
+// The robot page's mapping card: start a mapping session for this robot (a new sub-map,
+// or a new version of one), watch the map grow with the corrected path, then finish,
+// resume, discard or (admins) publish it.
+
+import { ApiError, api } from "./api.js";
+import { MapView } from "./mapview.js";
+import { el, fixed, pageConfig } from "./page.js";
+
+const $ = (id) => document.getElementById(id);
+const REFRESH_MS = 1000;
+const OPEN = ["running", "interrupted"];
+const config = pageConfig();
+const card = $("mapping-card");
+const sessionsUrl = "/api/mapping/sessions/";
+const state = { session: null, snapshot: 0 };
+const view = new MapView($("mapping-canvas"));
+window.cloudnav = { ...(window.cloudnav || {}), mapping: { view, state } };
+
+async function refresh() {
+  try {
+    const list = await api.get(`${sessionsUrl}?robot=${encodeURIComponent(config.robot)}`);
+    state.session = list.find((s) => OPEN.includes(s.state)) || list.find((s) => s.state === "finished") || null;
+    await show(state.session);
+  } catch (error) {
+    say("error", error.message);
+  }
+}
+
+async function show(session) {
+  $("mapping-state").textContent = session ? `${session.map_id}: ${session.state}` : "no session";
+  card.dataset.state = session ? session.state : "";
+  for (const [id, states] of [["finish", OPEN], ["resume", ["interrupted"]], ["discard", [...OPEN, "finished"]], ["publish", ["finished"]]]) {
+    const button = $(`mapping-${id}`);
+    if (button) button.hidden = !session || !states.includes(session.state) || (id === "publish" && config.role !== "admin");
+  }
+  const start = $("mapping-start");
+  if (start) start.hidden = Boolean(session && OPEN.includes(session.state));
+  if (!session) return;
+  const s = session.stats || {};
+  $("mapping-figures").textContent = session.snapshot
+    ? `${session.size[0]}×${session.size[1]} cells · ${s.keyframes ?? 0} keyframes · ${s.loop_closures ?? 0} loop closures · ${s.dropped ?? 0} scans dropped · ${fixed(100 * (s.cpu_share ?? 0), 1)} % CPU`
+    : "waiting for the robot's scans…";
+  if (session.reason) say("info", session.reason);
+  if (session.snapshot && session.snapshot !== state.snapshot) {
+    view.setGrid(await api.get(`${sessionsUrl}${session.id}/grid`));
+    state.snapshot = session.snapshot;
+    $("mapping-wrap").dataset.snapshot = session.snapshot;
+  }
+  view.set("trail", (session.path || []).map(([x, y]) => ({ x, y })));
+  const last = (session.path || []).at(-1);
+  view.set("robot", last ? { x: last[0], y: last[1], yaw: last[2] } : null);
+}
+
+function say(kind, text) {
+  $("mapping-messages").replaceChildren(...(text ? [el("div", { class: `alert ${kind}`, role: "status" }, text)] : []));
+}
+
+async function act(action, body = undefined) {
+  if (!state.session) return;
+  try {
+    const answer = await api.post(`${sessionsUrl}${state.session.id}/${action}`, body);
+    if (action === "publish") say("ok", `Published as version ${answer.number} of ${state.session.map_id}.`);
+    else say("", "");
+    await refresh();
+  } catch (error) {
+    say("error", error instanceof ApiError ? error.messages.join("; ") : error.message);
+  }
+}
+
+async function start(event) {
+  event.preventDefault();
+  const form = event.target;
+  try {
+    await api.post(sessionsUrl, {
+      robot: config.robot,
+      building: config.buildings[0],
+      code: form.code.value,
+      update: form.update.value === "true",
+    });
+    state.snapshot = 0;
+    say("ok", "Mapping: drive the robot around; the map grows here.");
+    await refresh();
+  } catch (error) {
+    say("error", error instanceof ApiError ? error.messages.join("; ") : error.message);
+  }
+}
+
+if (card.dataset.mayDrive === "1") {
+  $("mapping-start").addEventListener("submit", start);
+  for (const action of ["finish", "resume", "discard", "publish"]) {
+    $(`mapping-${action}`).addEventListener("click", () => act(action, action === "publish" ? {} : undefined));
+  }
+}
+refresh();
+setInterval(refresh, REFRESH_MS);
