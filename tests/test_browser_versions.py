@@ -1,6 +1,7 @@
 """An admin reviews a sub-map's versions in a real browser: the history, a comparison drawn
-over the map, a rollback; the robot driving in that sub-map then says it holds the new
-version, and its page shows it."""
+over the map, a rollback; a change the fleet proposed, shown over the map and accepted.
+The robot driving in that sub-map then says it holds the new version, and its page
+shows it."""
 
 from __future__ import annotations
 
@@ -16,7 +17,7 @@ from playwright.sync_api import BrowserContext, expect
 from maps import services
 from maps.domain.demo_building import demo_building
 from maps.domain.mapfile import MapMetadata, load_map_upload, map_yaml_text
-from maps.models import Building
+from maps.models import Building, ChangeProposal, SubMap
 from tests.browser_support import BUILDING, ROBOT, Demo, open_as, screenshot
 from tests.fixtures_live import agent_process
 
@@ -95,3 +96,47 @@ def test_an_admin_compares_and_rolls_back_and_the_robot_takes_the_new_version(
     robot = open_as(context, demo, "operator", f"/robots/{ROBOT}/")
     expect(robot.locator("#robot-map")).to_have_text(f"{BUILDING}/CorridorA (version 3)")
     screenshot(robot, "robot-map-version")
+
+
+@pytest.fixture
+def a_proposed_cabinet(demo: Demo) -> int:
+    """An open proposal for Corridor A's version 1: a 4 x 4 cell cabinet in the corridor
+    (stored before Chromium starts)."""
+    corridor = SubMap.objects.get(building__code=BUILDING, code="CorridorA")
+    middle_row, middle_col = corridor.height // 2, corridor.width // 2
+    cells = [[middle_row + r, middle_col + c] for r in range(4) for c in range(4)]
+    made = ChangeProposal.objects.create(
+        submap=corridor,
+        based_on=1,
+        added=cells,
+        added_passes=[2] * len(cells),
+        passes=2,
+        scans=240,
+    )
+    return made.pk
+
+
+def test_an_admin_accepts_a_proposed_change_and_the_robot_takes_it(
+    a_proposed_cabinet: int, robot_in_corridor_a: Path, context: BrowserContext, demo: Demo
+) -> None:
+    page = open_as(context, demo, "admin", f"/buildings/{BUILDING}/maps/CorridorA/")
+    row = page.locator(f"#changes-list tr[data-proposal='{a_proposed_cabinet}']")
+    expect(row).to_contain_text("16 cells became occupied, 0 free")
+    expect(row).to_contain_text("seen on 2 passes")
+    row.locator("button", has_text="Show").click()
+    expect(page.locator("#versions-diff")).to_contain_text("Proposed: 16 cells")
+    screenshot(page, "submap-proposed-change")
+
+    deadline = time.monotonic() + 30
+    while held_version(demo, page) != 1:
+        assert time.monotonic() < deadline, "the robot never entered Corridor A"
+        time.sleep(0.2)
+    row.locator("button", has_text="Accept").click()
+    page.locator("#accept-dialog button[value=confirm]").click()
+    accepted = time.monotonic()
+    expect(page.locator("#versions-current")).to_have_text("version 2")
+    expect(page.locator("#versions-list tr[data-version='2']")).to_contain_text("change")
+    expect(page.locator("#changes-list")).to_contain_text("No change proposed.")
+    while held_version(demo, page) != 2:
+        assert time.monotonic() - accepted < ACCEPT_TO_ROBOT_S, "the robot kept version 1"
+        time.sleep(0.2)

@@ -5,6 +5,7 @@ import { ApiError, api, urls } from "./api.js";
 import { degrees } from "./geometry.js";
 import { MapView } from "./mapview.js";
 import { el, fixed, pageConfig } from "./page.js";
+import { ChangesPanel } from "./changes.js";
 import { VersionsPanel } from "./versions.js";
 
 const $ = (id) => document.getElementById(id);
@@ -21,10 +22,14 @@ const view = new MapView($("map-canvas"), {
 const versions = new VersionsPanel({
   building: config.building, map: config.map, editable, view, onChanged: () => loadGrid(),
 });
-window.cloudnav = { ...(window.cloudnav || {}), submapPage: { view, state, versions } };
+const changes = new ChangesPanel({
+  building: config.building, map: config.map, editable, versions, onChanged: () => loadGrid(),
+});
+window.cloudnav = { ...(window.cloudnav || {}), submapPage: { view, state, versions, changes } };
 
 async function load() {
   const [, buildingTags] = await Promise.all([loadGrid(), api.get(urls.tags(config.building)), versions.load()]);
+  await changes.load();
   setTags(buildingTags);
   if (editable && !state.selected) newTag();
 }
