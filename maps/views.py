@@ -8,7 +8,7 @@ from typing import Any
 
 from django.db.models import QuerySet
 from django.http import HttpResponse, HttpResponseBase
-from django.utils.http import quote_etag
+from django.utils.http import content_disposition_header, quote_etag
 from drf_spectacular.types import OpenApiTypes
 from drf_spectacular.utils import OpenApiParameter, extend_schema
 from rest_framework import generics, status
@@ -144,7 +144,10 @@ class SubMapImage(APIView):
         response = HttpResponse(
             bytes(submap.image), content_type=services.image_content_type(submap)
         )
-        response["Content-Disposition"] = f'inline; filename="{submap.image_name}"'
+        # Names stored before control characters were refused may hold CR or LF.
+        response["Content-Disposition"] = (
+            content_disposition_header(False, submap.image_name) or "inline"
+        )
         response["ETag"] = quote_etag(submap.version)
         return response
 
