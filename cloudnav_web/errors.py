@@ -8,13 +8,22 @@ from rest_framework import status
 from rest_framework.response import Response
 from rest_framework.views import exception_handler as drf_exception_handler
 
-from maps.exceptions import MapFileError, NoRouteError, TagPayloadError, TopologyError
+from maps.exceptions import (
+    MapFileError,
+    NoRouteError,
+    SubMapExistsError,
+    TagPayloadError,
+    TopologyError,
+)
 
 
 def exception_handler(exc: Exception, context: dict[str, Any]) -> Response | None:
-    """Answer map store errors with 400 (404 for no route) and field errors; defer the rest."""
+    """Answer map store errors with 400 (404 for no route, 409 for an upload that would
+    replace a map unasked) and field errors; defer the rest."""
     if isinstance(exc, NoRouteError):
         return Response({exc.field: [exc.message]}, status=status.HTTP_404_NOT_FOUND)
+    if isinstance(exc, SubMapExistsError):
+        return Response({exc.field: [exc.message]}, status=status.HTTP_409_CONFLICT)
     if isinstance(exc, MapFileError | TopologyError):
         return Response({exc.field: [exc.message]}, status=status.HTTP_400_BAD_REQUEST)
     if isinstance(exc, TagPayloadError):

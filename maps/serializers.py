@@ -71,17 +71,30 @@ class SubMapSerializer(serializers.ModelSerializer):
 
 
 class SubMapUploadSerializer(serializers.Serializer):
-    """A map_server pair as ``image`` + ``yaml`` files, or a zip of both as ``archive``."""
+    """A map_server pair as ``image`` + ``yaml`` files, or a zip of both as ``archive``.
 
-    code = serializers.RegexField(r"^[A-Za-z][A-Za-z0-9_]*$", max_length=40)
+    ``replace`` lets the upload replace the map of an existing code; ``dry_run`` checks
+    and converts the upload as storing it would, stores nothing and answers a preview
+    (then ``code`` may be left out).
+    """
+
+    code = serializers.RegexField(r"^[A-Za-z][A-Za-z0-9_]*$", max_length=40, required=False)
     name = serializers.CharField(max_length=200, required=False, allow_blank=True)
     image = serializers.FileField(required=False)
     yaml = serializers.FileField(required=False)
     archive = serializers.FileField(required=False)
     node_x = serializers.FloatField(required=False)
     node_y = serializers.FloatField(required=False)
+    replace = serializers.BooleanField(
+        default=False, help_text="Replace the map of an existing code (else 409)."
+    )
+    dry_run = serializers.BooleanField(
+        default=False, help_text="Check and preview the upload; store nothing."
+    )
 
     def validate(self, attrs: dict[str, Any]) -> dict[str, Any]:
+        if "code" not in attrs and not attrs["dry_run"]:
+            raise serializers.ValidationError({"code": ["This field is required."]})
         has_pair = "image" in attrs or "yaml" in attrs
         if "archive" in attrs and has_pair:
             raise serializers.ValidationError({"archive": ["Send an archive or a pair, not both."]})

@@ -22,11 +22,12 @@ from .domain.mapfile import (
     open_map_image,
     validate_metadata,
 )
+from .domain.preview import upload_preview
 from .domain.tagart import TagArt
 from .domain.tagpayload import TagPayload, encode_payload
 from .domain.topology import Coverage, Edge, RouteStep, TagLink, route_between, tag_coverage
 from .domain.topology import validate_graph as validate_topology
-from .exceptions import TopologyError
+from .exceptions import SubMapExistsError, TopologyError
 from .models import Building, EnvironmentalTag, SubMap, TopologyEdge
 
 IMAGE_CONTENT_TYPES = {
@@ -66,9 +67,10 @@ def _apply_metadata(submap: SubMap, meta: MapMetadata) -> None:
 
 @transaction.atomic
 def save_submap(
-    building: Building, code: str, loaded: LoadedMap, **fields: Any
+    building: Building, code: str, loaded: LoadedMap, *, replace: bool = False, **fields: Any
 ) -> tuple[SubMap, bool]:
-    """Store an uploaded map under ``building/code``, replacing the image of an existing one.
+    """Store an uploaded map under ``building/code``; an existing one has its map replaced
+    only when ``replace`` says so, else SubMapExistsError is raised and nothing changes.
 
     Returns the sub-map and whether it was created. ``fields`` sets name and node position.
     """
@@ -76,6 +78,8 @@ def save_submap(
     created = submap is None
     if submap is None:
         submap = SubMap(building=building, code=code)
+    elif not replace:
+        raise SubMapExistsError(submap.map_id)
     for name, value in fields.items():
         setattr(submap, name, value)
     submap.image = loaded.image_bytes
@@ -111,6 +115,21 @@ def _yaml_fields(meta: MapMetadata) -> dict[str, Any]:
         "free_thresh": meta.free_thresh,
         "negate": meta.negate,
         "mode": meta.mode,
+    }
+
+
+def preview_upload(building: Building, code: str | None, loaded: LoadedMap) -> dict[str, Any]:
+    """What uploading ``loaded`` under ``code`` would store, storing nothing (a dry run):
+    ``upload_preview``'s document with ``code``, ``map_id`` and ``replaces`` (whether a
+    sub-map of that code exists, so the real upload needs replace=true); code may be None
+    while a page previews files before a code is chosen."""
+    map_id = SubMap(building=building, code=code).map_id if code else None
+    return {
+        "dry_run": True,
+        "code": code,
+        "map_id": map_id,
+        "replaces": code is not None and building.submaps.filter(code=code).exists(),
+        **upload_preview(loaded, frame_id=map_id or ""),
     }
 
 

@@ -10,7 +10,7 @@ from django.db.models import QuerySet
 from django.http import HttpResponse, HttpResponseBase
 from django.utils.http import content_disposition_header, quote_etag
 from drf_spectacular.types import OpenApiTypes
-from drf_spectacular.utils import OpenApiParameter, extend_schema
+from drf_spectacular.utils import OpenApiParameter, OpenApiResponse, extend_schema
 from rest_framework import generics, status
 from rest_framework.exceptions import NotFound, PermissionDenied, ValidationError
 from rest_framework.parsers import FormParser, JSONParser, MultiPartParser
@@ -99,17 +99,32 @@ class SubMapList(generics.ListCreateAPIView):
         building = building_for(self.request, self.kwargs["building"])
         return building.submaps.defer("image").select_related("building")
 
-    @extend_schema(request=SubMapUploadSerializer, responses={201: SubMapSerializer})
+    @extend_schema(
+        request=SubMapUploadSerializer,
+        responses={
+            201: SubMapSerializer,
+            200: OpenApiResponse(
+                description="the map replaced (replace=true): the sub-map; or, with "
+                "dry_run=true, the preview of what would be stored"
+            ),
+            409: OpenApiResponse(description="the code exists and replace was not sent"),
+        },
+    )
     def post(self, request: Request, building: str) -> Response:
-        """Upload a map_server pair (or a zip of it); an existing code has its map replaced."""
+        """Upload a map_server pair (or a zip of it), or preview it (dry_run).
+
+        An existing code has its map replaced only with replace=true (else 409).
+        """
         target = building_for(request, building, Role.ADMIN)
         upload = SubMapUploadSerializer(data=request.data)
         upload.is_valid(raise_exception=True)
-        fields = {
-            k: v for k, v in upload.validated_data.items() if k in ("name", "node_x", "node_y")
-        }
+        data = upload.validated_data
+        loaded = upload.load()
+        if data["dry_run"]:
+            return Response(services.preview_upload(target, data.get("code"), loaded))
+        fields = {k: v for k, v in data.items() if k in ("name", "node_x", "node_y")}
         submap, created = services.save_submap(
-            target, upload.validated_data["code"], upload.load(), **fields
+            target, data["code"], loaded, replace=data["replace"], **fields
         )
         answer = status.HTTP_201_CREATED if created else status.HTTP_200_OK
         return Response(SubMapSerializer(submap).data, status=answer)

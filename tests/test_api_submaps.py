@@ -61,11 +61,24 @@ def test_uploading_an_existing_code_replaces_its_map_and_version(
     building: Building, admin: User
 ) -> None:
     first = post(admin, pair()).json()["version"]
-    response = post(admin, pair(image=SimpleUploadedFile("map.pgm", map_pgm(width=50))))
+    wider = SimpleUploadedFile("map.pgm", map_pgm(width=50))
+    response = post(admin, pair(image=wider, replace="true"))
     assert response.status_code == 200
     assert response.json()["width"] == 50
     assert response.json()["version"] != first
     assert SubMap.objects.count() == 1
+
+
+def test_uploading_an_existing_code_without_replace_is_refused_and_keeps_the_map(
+    building: Building, admin: User
+) -> None:
+    before = make_submap(building)
+    response = post(admin, pair(image=SimpleUploadedFile("map.pgm", map_pgm(width=50))))
+    assert response.status_code == 409
+    assert "boccioni_1/CorridorA already exists" in response.json()["code"][0]
+    assert "replace=true" in response.json()["code"][0]
+    assert SubMap.objects.get().version == before.version
+    assert post(admin, pair(replace="false")).status_code == 409
 
 
 BAD_UPLOADS: list[tuple[str, dict[str, Any], str]] = [

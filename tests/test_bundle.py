@@ -61,7 +61,7 @@ def test_it_answers_200_to_a_stale_etag(corridor: SubMap, token: str) -> None:
 
 
 def change_image(corridor: SubMap) -> None:
-    make_submap(corridor.building, code="CorridorA", image=map_pgm(width=41))
+    make_submap(corridor.building, code="CorridorA", image=map_pgm(width=41), replace=True)
 
 
 def change_yaml(corridor: SubMap) -> None:

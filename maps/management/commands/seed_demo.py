@@ -72,7 +72,7 @@ class Command(BaseCommand):
             existing = building.submaps.filter(code=sub.code).only("version").first()
             fields = {"name": sub.name, "node_x": sub.node_xy[0], "node_y": sub.node_xy[1]}
             if existing is None or existing.version != content_version(loaded.image_bytes, meta):
-                services.save_submap(building, sub.code, loaded, **fields)
+                services.save_submap(building, sub.code, loaded, replace=True, **fields)
             else:
                 building.submaps.filter(code=sub.code).update(**fields)
 
