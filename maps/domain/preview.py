@@ -9,7 +9,7 @@ rule.
 from __future__ import annotations
 
 import math
-from dataclasses import replace
+from dataclasses import asdict, replace
 from typing import Any, TypedDict
 
 import numpy as np
@@ -72,18 +72,14 @@ def upload_preview(
     grid ``downsampled`` to max_side, its resolution multiplied by ``preview_factor``.
     """
     small, factor = downsampled(loaded.grid, max_side)
-    meta = loaded.meta
-    coarse = replace(meta, resolution=meta.resolution * factor)
+    metadata = asdict(loaded.meta)
+    del metadata["image"]  # the same as image_name
+    coarse = replace(loaded.meta, resolution=loaded.meta.resolution * factor)
     return {
         "image_name": loaded.image_name,
         "width": loaded.width,
         "height": loaded.height,
-        "resolution": meta.resolution,
-        "origin": list(meta.origin),
-        "occupied_thresh": meta.occupied_thresh,
-        "free_thresh": meta.free_thresh,
-        "negate": meta.negate,
-        "mode": meta.mode,
+        **metadata,
         "counts": cell_counts(loaded.grid),
         "preview_factor": factor,
         "preview": occupancy_grid_message(small, coarse, frame_id),
