@@ -177,7 +177,7 @@ def _networkx(blocked: npt.NDArray[np.bool_], resolution: float) -> Timed:
 
     def octile(a: int, b: int) -> float:
         rows, cols = abs(a // width - b // width), abs(a % width - b % width)
-        return max(rows, cols) + (math.sqrt(2) - 1) * min(rows, cols)
+        return float(max(rows, cols) + (math.sqrt(2) - 1) * min(rows, cols))
 
     nodes: list[int] = []
 

@@ -17,7 +17,7 @@ from .exceptions import TagPayloadError
 from .models import Building, EnvironmentalTag, SubMap
 
 
-class BuildingSerializer(serializers.ModelSerializer):
+class BuildingSerializer(serializers.ModelSerializer[Building]):
     members = serializers.SlugRelatedField(
         slug_field="username", queryset=User.objects.all(), many=True, required=False
     )
@@ -34,7 +34,7 @@ class BuildingSerializer(serializers.ModelSerializer):
         return value
 
 
-class SubMapSerializer(serializers.ModelSerializer):
+class SubMapSerializer(serializers.ModelSerializer[SubMap]):
     map_id = serializers.CharField(read_only=True)
     origin = serializers.SerializerMethodField()
     links = serializers.SerializerMethodField()
@@ -70,7 +70,7 @@ class SubMapSerializer(serializers.ModelSerializer):
         return {name: reverse(f"submap-{name}", args=args) for name in names}
 
 
-class SubMapUploadSerializer(serializers.Serializer):
+class SubMapUploadSerializer(serializers.Serializer[Any]):
     """A map_server pair as ``image`` + ``yaml`` files, or a zip of both as ``archive``.
 
     ``replace`` lets the upload replace the map of an existing code; ``dry_run`` checks
@@ -116,7 +116,7 @@ class SubMapUploadSerializer(serializers.Serializer):
         return load_map_upload(data["yaml"].read(), {image.name: image.read()}, limit)
 
 
-class SubMapUpdateSerializer(serializers.Serializer):
+class SubMapUpdateSerializer(serializers.Serializer[Any]):
     """Metadata edits; cross-field rules (thresholds) are checked by the map file domain."""
 
     name = serializers.CharField(max_length=200, required=False, allow_blank=True)
@@ -132,7 +132,7 @@ class SubMapUpdateSerializer(serializers.Serializer):
     node_y = serializers.FloatField(required=False)
 
 
-class TagSerializer(serializers.ModelSerializer):
+class TagSerializer(serializers.ModelSerializer[EnvironmentalTag]):
     building = serializers.SlugRelatedField(slug_field="code", queryset=Building.objects.all())
     submap = serializers.CharField(source="submap.code")
     links_to = serializers.CharField(source="links_to.code")
@@ -209,20 +209,20 @@ class TagSerializer(serializers.ModelSerializer):
             raise serializers.ValidationError({"links_to": [str(exc)]}) from None
 
 
-class TopologyNodeSerializer(serializers.Serializer):
+class TopologyNodeSerializer(serializers.Serializer[Any]):
     code = serializers.CharField()
     name = serializers.CharField(read_only=True)
     x = serializers.FloatField()
     y = serializers.FloatField()
 
 
-class TopologyEdgeSerializer(serializers.Serializer):
+class TopologyEdgeSerializer(serializers.Serializer[Any]):
     a = serializers.CharField()
     b = serializers.CharField()
     cost = serializers.FloatField()
 
 
-class TopologySerializer(serializers.Serializer):
+class TopologySerializer(serializers.Serializer[Any]):
     nodes = TopologyNodeSerializer(many=True, required=False)
     edges = TopologyEdgeSerializer(many=True)
     crossings = serializers.ListField(
@@ -232,18 +232,18 @@ class TopologySerializer(serializers.Serializer):
     )
 
 
-class RouteStepSerializer(serializers.Serializer):
+class RouteStepSerializer(serializers.Serializer[Any]):
     map = serializers.CharField()
     map_id = serializers.CharField()
     tag = serializers.DictField(allow_null=True)
 
 
-class RouteSerializer(serializers.Serializer):
+class RouteSerializer(serializers.Serializer[Any]):
     building = serializers.CharField()
     steps = RouteStepSerializer(many=True)
 
 
-class CoverageSerializer(serializers.Serializer):
+class CoverageSerializer(serializers.Serializer[Any]):
     valid = serializers.BooleanField()
     uncrossable_edges = serializers.ListField(child=serializers.DictField())
     dangling_tags = serializers.ListField(child=serializers.DictField())

@@ -63,7 +63,7 @@ def submap_for(request: Request, building: str, code: str, need: Role = Role.VIE
 # Buildings
 
 
-class BuildingList(generics.ListCreateAPIView):
+class BuildingList(generics.ListCreateAPIView[Building]):
     serializer_class = BuildingSerializer
 
     def get_queryset(self) -> QuerySet[Building]:
@@ -76,7 +76,7 @@ class BuildingList(generics.ListCreateAPIView):
         building.members.add(self.request.user)
 
 
-class BuildingDetail(generics.RetrieveUpdateDestroyAPIView):
+class BuildingDetail(generics.RetrieveUpdateDestroyAPIView[Building]):
     serializer_class = BuildingSerializer
     lookup_field = "code"
     lookup_url_kwarg = "building"
@@ -89,7 +89,7 @@ class BuildingDetail(generics.RetrieveUpdateDestroyAPIView):
 # Sub-maps
 
 
-class SubMapList(generics.ListCreateAPIView):
+class SubMapList(generics.ListCreateAPIView[SubMap]):
     parser_classes = [MultiPartParser, FormParser]
 
     def get_serializer_class(self) -> Any:
@@ -311,7 +311,7 @@ def _step(building: Building, step: Any) -> dict[str, Any]:
 # Tags
 
 
-class TagList(generics.ListCreateAPIView):
+class TagList(generics.ListCreateAPIView[EnvironmentalTag]):
     serializer_class = TagSerializer
 
     def get_queryset(self) -> QuerySet[EnvironmentalTag]:
@@ -327,7 +327,7 @@ class TagList(generics.ListCreateAPIView):
         serializer.save()
 
 
-class TagDetail(generics.RetrieveUpdateDestroyAPIView):
+class TagDetail(generics.RetrieveUpdateDestroyAPIView[EnvironmentalTag]):
     serializer_class = TagSerializer
 
     def get_object(self) -> EnvironmentalTag:

@@ -33,7 +33,7 @@ def robots_for(user: Any) -> QuerySet[Robot]:
     return Robot.objects.filter(buildings__in=buildings_for(user)).distinct()
 
 
-class RobotList(generics.ListCreateAPIView):
+class RobotList(generics.ListCreateAPIView[Robot]):
     serializer_class = RobotSerializer
     permission_classes = [permissions.IsAuthenticated, IsAdmin]
 
@@ -50,7 +50,7 @@ class RobotList(generics.ListCreateAPIView):
         return Response(answer, status=status.HTTP_201_CREATED)
 
 
-class RobotDetail(generics.RetrieveUpdateDestroyAPIView):
+class RobotDetail(generics.RetrieveUpdateDestroyAPIView[Robot]):
     serializer_class = RobotSerializer
     permission_classes = [permissions.IsAuthenticated, IsAdmin]
     lookup_field = "name"

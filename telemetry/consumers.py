@@ -31,7 +31,7 @@ from telemetry.transport import SCOPE_KEY
 logger = logging.getLogger(__name__)
 
 
-class RosbridgeConsumer(AsyncWebsocketConsumer):
+class RosbridgeConsumer(AsyncWebsocketConsumer):  # type: ignore[misc]  # Channels has no types
     """One rosbridge v2 client: robot (by token) or person (by session, from our origin)."""
 
     # Connections need no channel of their own: fan-out is in-process, and scaled mode has

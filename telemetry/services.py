@@ -38,7 +38,7 @@ def _headers(scope: Mapping[str, Any]) -> dict[bytes, bytes]:
 
 def token_of(scope: Mapping[str, Any]) -> str | None:
     """Return the robot token from ``?token=`` or ``Authorization: Token ...``, if any."""
-    query = parse_qs(scope.get("query_string", b"").decode("latin-1"))
+    query: dict[str, list[str]] = parse_qs(scope.get("query_string", b"").decode("latin-1"))
     if query.get("token"):
         return query["token"][0]
     header = _headers(scope).get(b"authorization", b"").decode("latin-1").split()
@@ -67,11 +67,13 @@ async def authenticate(scope: Mapping[str, Any]) -> Identity | None:
     """
     token = token_of(scope)
     if token is not None:
-        return await database_sync_to_async(robot_identity)(token)
+        robot: Identity | None = await database_sync_to_async(robot_identity)(token)
+        return robot
     user = scope.get("user")
     if user is None or not user.is_authenticated or not origin_allowed(scope):
         return None
-    return await database_sync_to_async(person_identity)(user)
+    person: Identity | None = await database_sync_to_async(person_identity)(user)
+    return person
 
 
 def robot_identity(token: str) -> Identity | None:

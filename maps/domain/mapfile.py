@@ -333,7 +333,8 @@ def _normalised(image: Image.Image) -> Image.Image:
 def _byte_from_wide(values: npt.NDArray[Any]) -> Bytes:
     """Return 16-bit grey as bytes, round(v / 257), as image libraries scale it."""
     wide = np.clip(values, 0, 65535).astype(np.uint32)
-    return ((wide + 128) // 257).astype(np.uint8)
+    grey: Bytes = ((wide + 128) // 257).astype(np.uint8)
+    return grey
 
 
 def _luminance(rgb: Bytes) -> Bytes:
@@ -386,7 +387,8 @@ def _scaled(p: npt.NDArray[np.float32], meta: MapMetadata) -> Grid:
     value = (p - np.float32(meta.free_thresh)) / span * np.float32(100)
     whole = np.floor(value)
     # Not np.round (halves to even), nor floor(value + 0.5), which rounds 0.49999997 up.
-    return (whole + (value - whole >= 0.5)).astype(np.int8)
+    rounded: Grid = (whole + (value - whole >= 0.5)).astype(np.int8)
+    return rounded
 
 
 # Export and messages
@@ -468,7 +470,8 @@ _CELL_TEXT = np.array([f"{v},".encode() for v in range(-128, 128)], dtype="S5")
 def _cells_json(grid: npt.NDArray[Any]) -> bytes:
     cells = np.asarray(grid, dtype=np.int8).reshape(-1)
     text = _CELL_TEXT[cells.astype(np.int16) + 128].view(np.uint8)
-    return text[text != 0].tobytes()[:-1]
+    written: bytes = text[text != 0].tobytes()[:-1]
+    return written
 
 
 def _checked_grid(grid: npt.NDArray[Any]) -> Grid:
