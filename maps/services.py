@@ -138,8 +138,9 @@ def grid_of(submap: SubMap) -> np.ndarray:
     return _cached_grid(submap.pk, submap.version, bytes(submap.image), metadata_of(submap))
 
 
+# pk and version are the cache key only.
 @lru_cache(maxsize=32)
-def _cached_grid(pk: int, version: str, image: bytes, meta: MapMetadata) -> np.ndarray:
+def _cached_grid(pk: int, version: str, image: bytes, meta: MapMetadata) -> np.ndarray:  # noqa: ARG001
     grid = occupancy_from_image(open_map_image(image, settings.CLOUDNAV_MAX_MAP_PIXELS), meta)
     grid.setflags(write=False)
     return grid

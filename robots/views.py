@@ -11,6 +11,7 @@ from rest_framework.exceptions import NotFound
 from rest_framework.request import Request
 from rest_framework.response import Response
 from rest_framework.views import APIView
+from typing_extensions import override
 
 from maps.access import Role, buildings_for, global_role
 
@@ -22,6 +23,7 @@ from .serializers import RobotCreatedSerializer, RobotSerializer, TokenSerialize
 class IsAdmin(permissions.BasePermission):
     message = "Only admins manage robots."
 
+    @override
     def has_permission(self, request: Request, view: Any) -> bool:
         return global_role(request.user) >= Role.ADMIN
 

@@ -174,12 +174,12 @@ def _may_set_param(principal: Principal, name: str, owner: Owner | None) -> bool
 
 
 _RULES = {
-    "subscribe": lambda p, name, owner: rules.may_subscribe(p, owner),
-    "see": lambda p, name, owner: rules.may_see(p, owner),
+    "subscribe": lambda p, _name, owner: rules.may_subscribe(p, owner),
+    "see": lambda p, _name, owner: rules.may_see(p, owner),
     "publish": rules.may_publish,
     "advertise": rules.may_advertise_topic,
     "advertise_service": rules.may_advertise,
-    "call": lambda p, name, owner: rules.may_call(p, owner),
-    "drive": lambda p, name, owner: rules.may_drive(p, owner),
+    "call": lambda p, _name, owner: rules.may_call(p, owner),
+    "drive": lambda p, _name, owner: rules.may_drive(p, owner),
     "set_param": _may_set_param,
 }

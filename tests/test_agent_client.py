@@ -52,7 +52,7 @@ async def until(predicate: Callable[[], bool], what: str, deadline: float = DEAD
 def restart_on_same_port(servers: LiveServers, server: LiveServer, monkeypatch) -> LiveServer:
     """Stop ``server`` and start a fresh daphne (knowing nothing) on its port."""
     server.stop()
-    monkeypatch.setattr(fixtures_live, "free_port", lambda host="127.0.0.1": server.port)
+    monkeypatch.setattr(fixtures_live, "free_port", lambda _host="127.0.0.1": server.port)
     return servers.start()
 
 
@@ -148,7 +148,7 @@ async def test_service_calls_are_answered_by_id_or_fail_or_time_out(daphne_serve
 
 async def test_it_serves_its_services_to_an_operator_connection(daphne_server, tokens, running):
     client = RosbridgeClient(daphne_server.rosbridge_url(), tokens["r1"])
-    client.advertise_service("echo", "std_srvs/Trigger", lambda args: {"message": "yes"})
+    client.advertise_service("echo", "std_srvs/Trigger", lambda _args: {"message": "yes"})
     running(client)
     await asyncio.wait_for(client.wait_connected(), DEADLINE)
     await client.call_service("/rosapi/get_time")  # the advertisement was handled

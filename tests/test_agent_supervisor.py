@@ -176,7 +176,7 @@ async def test_a_tag_that_does_not_lead_on_is_read_but_not_entered(cloud):
 
 
 class _Silent:
-    async def publish(self, topic: str, msg: dict) -> bool:
+    async def publish(self, _topic: str, _msg: dict) -> bool:
         return True
 
 
