@@ -24,6 +24,16 @@ from robots.services import register_robot
 
 pytest_plugins = ["tests.fixtures_live"]
 
+# Fixtures that start real server, agent or browser processes: a test that asks for one,
+# directly or through another fixture, is marked ``live`` and left out of ``make unit``.
+LIVE_FIXTURES = frozenset({"daphne_server", "daphne_servers", "scaled_servers", "demo"})
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    for item in items:
+        if LIVE_FIXTURES.intersection(getattr(item, "fixturenames", ())):
+            item.add_marker(pytest.mark.live)
+
 
 def make_user(username: str, group: str | None = None, **kwargs: Any) -> User:
     kwargs.setdefault("password", "pw-" + username)
