@@ -28,9 +28,8 @@ import numpy.typing as npt
 from skimage.graph import route_through_array
 
 from maps.domain import planning
-from maps.domain.demo_building import DemoBuilding, DemoSubMap, DemoTag, demo_building
+from maps.domain.demo_building import DemoBuilding, DemoTag, demo_building, submap_grid
 from maps.domain.grid import centre_of
-from maps.domain.mapfile import MapMetadata, occupancy_from_image, open_map_image
 from maps.domain.topology import Edge, RouteStep, TagLink, route_between
 from robots.domain.se2 import Point
 
@@ -295,20 +294,6 @@ def _legs(building: DemoBuilding, route: Sequence[RouteStep]) -> list[Leg]:
 
 def _in_front(tag: DemoTag) -> Point:
     return tag.x + TAG_STANDOFF * math.cos(tag.yaw), tag.y + TAG_STANDOFF * math.sin(tag.yaw)
-
-
-def submap_grid(submap: DemoSubMap) -> Grid:
-    """Decode a demo sub-map's PGM into its occupancy grid, as the robot would."""
-    meta = MapMetadata(
-        image=f"{submap.code}.pgm",
-        resolution=submap.resolution,
-        origin=submap.origin,
-        occupied_thresh=submap.occupied_thresh,
-        free_thresh=submap.free_thresh,
-        negate=bool(submap.negate),
-    )
-    image = open_map_image(submap.pgm, max_pixels=submap.width * submap.height)
-    return occupancy_from_image(image, meta)
 
 
 # ---------------------------------------------------------------------------------------

@@ -16,7 +16,8 @@ import numpy as np
 import psutil
 import pytest
 
-from benchmarks.video import Camera, Stream, open_stream
+from telemetry.domain.camera_feed import Camera
+from telemetry.domain.http_stream import Stream, open_stream
 from telemetry.domain.multipart import PartReader
 from tests.conftest import make_building, make_robot
 

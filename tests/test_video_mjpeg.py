@@ -16,7 +16,8 @@ from typing import Any
 
 import pytest
 
-from benchmarks.video import Camera, Stream, camera_frames, open_stream
+from telemetry.domain.camera_feed import Camera, camera_frames
+from telemetry.domain.http_stream import Stream, open_stream
 from telemetry.domain.jpeg import decode
 from telemetry.domain.multipart import PartReader
 from tests.conftest import make_building, make_robot

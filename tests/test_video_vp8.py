@@ -14,7 +14,8 @@ from typing import Any
 import av
 import pytest
 
-from benchmarks.video import Camera, Stream, camera_frames, open_stream
+from telemetry.domain.camera_feed import Camera, camera_frames
+from telemetry.domain.http_stream import Stream, open_stream
 from telemetry.domain.webm import WebmReader
 from tests.conftest import make_building, make_robot
 

@@ -35,6 +35,7 @@ from functools import lru_cache
 import numpy as np
 import numpy.typing as npt
 
+from maps.domain.mapfile import MapMetadata, occupancy_from_image, open_map_image
 from robots.domain.se2 import ahead
 
 BUILDING_CODE = "boccioni_1"
@@ -320,6 +321,20 @@ def occupancy_to_pgm(grid: Grid) -> bytes:
     header = f"P5\n{width} {height}\n255\n".encode("ascii")
     # Image rows run top to bottom, grid rows bottom to top.
     return header + np.flipud(grey).astype(np.uint8).tobytes()
+
+
+def submap_grid(submap: DemoSubMap) -> Grid:
+    """Decode a demo sub-map's PGM into its occupancy grid, as a robot decodes a bundle."""
+    meta = MapMetadata(
+        image=f"{submap.code}.pgm",
+        resolution=submap.resolution,
+        origin=submap.origin,
+        occupied_thresh=submap.occupied_thresh,
+        free_thresh=submap.free_thresh,
+        negate=bool(submap.negate),
+    )
+    image = open_map_image(submap.pgm, max_pixels=submap.width * submap.height)
+    return occupancy_from_image(image, meta)
 
 
 # ---------------------------------------------------------------------------------------
