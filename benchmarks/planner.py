@@ -8,7 +8,7 @@ the demo building: hierarchical planning (the topology route, then a plan inside
 sub-map from where the robot enters to the tag leading on) against one plan on the
 whole building's grid.
 
-Run ``python manage.py bench planner`` or ``python -m benchmarks.planner`` (``--help``).
+Run ``python manage.py bench planner`` or ``python -m benchmarks planner`` (``--help``).
 Times exclude inflation (reported apart) and numba's one-off compile (reported apart).
 """
 
@@ -310,9 +310,3 @@ def _timed(action: Callable[[], object], repeat: int) -> list[float]:
 
 def _ms(started: float) -> str:
     return f"{(time.perf_counter() - started) * 1000:.0f}"
-
-
-if __name__ == "__main__":
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    add_arguments(parser)
-    run(parser.parse_args())

@@ -80,6 +80,7 @@ INSTALLED_APPS = [
     "maps",
     "robots",
     "telemetry",
+    "benchmarks",  # for its `bench` command only (see benchmarks/__init__.py)
 ]
 
 MIDDLEWARE = [
