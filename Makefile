@@ -19,9 +19,10 @@ demo: setup
 ## Set up, start Redis and PostgreSQL where none answers, lint, type-check and run every test.
 test: setup services lint typecheck pytest
 
-## The fast tests alone: no live server, browser, Redis or PostgreSQL (under two minutes).
+## The fast tests alone (under two minutes): no live server, browser, Redis or PostgreSQL,
+## nothing that commits to the database for other threads, nothing marked slow.
 unit:
-	$(BIN)/pytest -m "not live and not browser and not scaled and not slow"
+	$(BIN)/pytest -m "not live and not transactional and not browser and not scaled and not slow"
 
 ## ruff (lint, unused arguments, format), the import contracts, ESLint on static/js, and
 ## models without their migration.

@@ -25,14 +25,20 @@ from robots.services import register_robot
 pytest_plugins = ["tests.fixtures_live"]
 
 # Fixtures that start real server, agent or browser processes: a test that asks for one,
-# directly or through another fixture, is marked ``live`` and left out of ``make unit``.
+# directly or through another fixture, is marked ``live``. A test whose database writes
+# other threads must see (``transactional_db``: the in-process rosbridge and video tests)
+# is marked ``transactional``. ``make unit`` leaves both out.
 LIVE_FIXTURES = frozenset({"daphne_server", "daphne_servers", "scaled_servers", "demo"})
 
 
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     for item in items:
-        if LIVE_FIXTURES.intersection(getattr(item, "fixturenames", ())):
+        fixtures = set(getattr(item, "fixturenames", ()))
+        if fixtures & LIVE_FIXTURES:
             item.add_marker(pytest.mark.live)
+        database = item.get_closest_marker("django_db")
+        if "transactional_db" in fixtures or (database and database.kwargs.get("transaction")):
+            item.add_marker(pytest.mark.transactional)
 
 
 def make_user(username: str, group: str | None = None, **kwargs: Any) -> User:

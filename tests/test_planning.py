@@ -223,6 +223,7 @@ def test_inflation_blocks_the_cells_exactly_a_radius_away_at_any_resolution(
     assert not blocked[7, 8]  # sqrt(13) cells away
 
 
+@pytest.mark.slow
 def test_the_planner_benchmark_runs_on_a_small_grid(capsys: pytest.CaptureFixture[str]) -> None:
     options = {"size": 300, "seed": 3, "repeat": 1, "resolution": RES, "radius": 0.2}
     run_benchmark({**options, "skip_networkx": False})
