@@ -10,11 +10,11 @@ import numpy.typing as npt
 import pytest
 from skimage.graph import route_through_array
 
-from benchmarks.planner import obstacle_course
 from benchmarks.planner import run as run_benchmark
 from maps.domain import planning
 from maps.domain.demo_building import demo_building, submap_grid
 from maps.domain.grid import cell_of, centre_of
+from maps.domain.obstacle_course import obstacle_course
 from maps.domain.planning import (
     Costmap,
     InObstacleError,
