@@ -26,11 +26,6 @@ def corridor(building: Building) -> SubMap:
     return corridor
 
 
-@pytest.fixture
-def token(building: Building) -> str:
-    return make_robot(name="r1", buildings=[building])[1]
-
-
 def fetch(token: str, etag: str | None = None) -> Any:
     headers = {"If-None-Match": etag} if etag else {}
     return client_for(token).get(URL, headers=headers)
