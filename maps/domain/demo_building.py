@@ -323,9 +323,9 @@ def occupancy_to_pgm(grid: Grid) -> bytes:
     return header + np.flipud(grey).astype(np.uint8).tobytes()
 
 
-def submap_grid(submap: DemoSubMap) -> Grid:
-    """Decode a demo sub-map's PGM into its occupancy grid, as a robot decodes a bundle."""
-    meta = MapMetadata(
+def submap_metadata(submap: DemoSubMap) -> MapMetadata:
+    """Return a demo sub-map's map_server metadata, its PGM named after its code."""
+    return MapMetadata(
         image=f"{submap.code}.pgm",
         resolution=submap.resolution,
         origin=submap.origin,
@@ -333,8 +333,12 @@ def submap_grid(submap: DemoSubMap) -> Grid:
         free_thresh=submap.free_thresh,
         negate=bool(submap.negate),
     )
+
+
+def submap_grid(submap: DemoSubMap) -> Grid:
+    """Decode a demo sub-map's PGM into its occupancy grid, as a robot decodes a bundle."""
     image = open_map_image(submap.pgm, max_pixels=submap.width * submap.height)
-    return occupancy_from_image(image, meta)
+    return occupancy_from_image(image, submap_metadata(submap))
 
 
 # ---------------------------------------------------------------------------------------
