@@ -4,7 +4,7 @@ BIN := .venv/bin
 export CLOUDNAV_TEST_REDIS_URL ?= redis://127.0.0.1:6379/9
 export CLOUDNAV_TEST_POSTGRES_URL ?= postgres://postgres:postgres@127.0.0.1:5432/postgres
 
-.PHONY: setup services demo test lint typecheck pytest bench format
+.PHONY: setup services demo test unit lint typecheck pytest bench format
 
 setup:
 	bash scripts/setup.sh
@@ -19,16 +19,29 @@ demo: setup
 ## Set up, start Redis and PostgreSQL where none answers, lint, type-check and run every test.
 test: setup services lint typecheck pytest
 
+## The fast tests alone (under two minutes): no live server, browser, Redis or PostgreSQL,
+## nothing that commits to the database for other threads, nothing marked slow.
+unit:
+	$(BIN)/pytest -m "not live and not transactional and not browser and not scaled and not slow"
+
+## ruff (lint, unused arguments, format), the import contracts, ESLint on static/js, and
+## models without their migration.
 lint:
 	$(BIN)/ruff check .
 	$(BIN)/ruff format --check .
 	$(BIN)/lint-imports
+	node_modules/.bin/eslint --max-warnings 0 static/js tests/js
+	$(PY) manage.py makemigrations --check --dry-run
 
+## mypy, strict on the source (pyproject.toml).
 typecheck:
 	$(BIN)/mypy .
 
+# The coverage floor is stated in the README.
+COVERAGE_FLOOR := 60
+
 pytest:
-	$(BIN)/pytest
+	$(BIN)/pytest --cov --cov-report=term --cov-fail-under=$(COVERAGE_FLOOR)
 
 format:
 	$(BIN)/ruff format .

@@ -8,7 +8,7 @@ the demo building: hierarchical planning (the topology route, then a plan inside
 sub-map from where the robot enters to the tag leading on) against one plan on the
 whole building's grid.
 
-Run ``python manage.py bench planner`` or ``python -m benchmarks.planner`` (``--help``).
+Run ``python manage.py bench planner`` or ``python -m benchmarks planner`` (``--help``).
 Times exclude inflation (reported apart) and numba's one-off compile (reported apart).
 """
 
@@ -28,16 +28,15 @@ import numpy.typing as npt
 from skimage.graph import route_through_array
 
 from maps.domain import planning
-from maps.domain.demo_building import DemoBuilding, DemoSubMap, DemoTag, demo_building
+from maps.domain.demo_building import DemoBuilding, DemoTag, demo_building, submap_grid
 from maps.domain.grid import centre_of
-from maps.domain.mapfile import MapMetadata, occupancy_from_image, open_map_image
+from maps.domain.obstacle_course import obstacle_course
 from maps.domain.topology import Edge, RouteStep, TagLink, route_between
 from robots.domain.se2 import Point
 
 Grid = npt.NDArray[np.int8]
 Cells = list[tuple[int, int]]
 
-OBSTACLE = 100
 GOAL_SUBMAP = "Office7"
 TAG_STANDOFF = 0.6
 """Metres in front of a tag where a leg of the hierarchical plan ends."""
@@ -70,42 +69,6 @@ def run(options: argparse.Namespace | Mapping[str, Any]) -> None:
 
 # ---------------------------------------------------------------------------------------
 # Part one: corner to corner on an obstacle course
-
-
-def obstacle_course(size: int, seed: int) -> Grid:
-    """Return a reproducible ``size`` x ``size`` occupancy grid (0 free, 100 occupied).
-
-    Seeded random rectangles, then three walls across each axis that cut the grid into
-    16 rooms, with one gap at a random place in each wall between two crossings (so a
-    path must find the gaps), and the two corners kept clear for start and goal. The
-    gaps' approaches are cleared, but rectangles may still wall a corner off: check a
-    new seed.
-    """
-    rng = np.random.default_rng(seed)
-    grid = np.zeros((size, size), dtype=np.int8)
-    for _ in range(size * size // 6700):
-        height, width = rng.integers(size // 100, size // 12, 2)
-        row, col = rng.integers(0, size, 2)
-        grid[row : row + height, col : col + width] = OBSTACLE
-    thick, gap, room = max(size // 160, 1), max(size // 25, 2), size // 4
-    for at in range(room, size, room):
-        grid[:, at : at + thick] = OBSTACLE
-        grid[at : at + thick, :] = OBSTACLE
-    for at in range(room, size, room):
-        for first in range(0, size - room + 1, room):
-            # A gap and its approaches on both sides, so that no rectangle plugs it.
-            across, along = slice(at - gap, at + thick + gap), _gap(rng, first, room, gap)
-            grid[along, across] = 0
-            grid[across, _gap(rng, first, room, gap)] = 0
-    corner = size // 25
-    grid[:corner, :corner] = grid[-corner:, -corner:] = 0
-    return grid
-
-
-def _gap(rng: np.random.Generator, first: int, room: int, gap: int) -> slice:
-    """A gap's span in the stretch of wall from ``first`` that is ``room`` long."""
-    opening = int(rng.integers(first + 2 * gap, first + room - 3 * gap))
-    return slice(opening, opening + gap)
 
 
 @dataclass(frozen=True)
@@ -177,7 +140,7 @@ def _networkx(blocked: npt.NDArray[np.bool_], resolution: float) -> Timed:
 
     def octile(a: int, b: int) -> float:
         rows, cols = abs(a // width - b // width), abs(a % width - b % width)
-        return max(rows, cols) + (math.sqrt(2) - 1) * min(rows, cols)
+        return float(max(rows, cols) + (math.sqrt(2) - 1) * min(rows, cols))
 
     nodes: list[int] = []
 
@@ -297,20 +260,6 @@ def _in_front(tag: DemoTag) -> Point:
     return tag.x + TAG_STANDOFF * math.cos(tag.yaw), tag.y + TAG_STANDOFF * math.sin(tag.yaw)
 
 
-def submap_grid(submap: DemoSubMap) -> Grid:
-    """Decode a demo sub-map's PGM into its occupancy grid, as the robot would."""
-    meta = MapMetadata(
-        image=f"{submap.code}.pgm",
-        resolution=submap.resolution,
-        origin=submap.origin,
-        occupied_thresh=submap.occupied_thresh,
-        free_thresh=submap.free_thresh,
-        negate=bool(submap.negate),
-    )
-    image = open_map_image(submap.pgm, max_pixels=submap.width * submap.height)
-    return occupancy_from_image(image, meta)
-
-
 # ---------------------------------------------------------------------------------------
 
 
@@ -325,9 +274,3 @@ def _timed(action: Callable[[], object], repeat: int) -> list[float]:
 
 def _ms(started: float) -> str:
     return f"{(time.perf_counter() - started) * 1000:.0f}"
-
-
-if __name__ == "__main__":
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    add_arguments(parser)
-    run(parser.parse_args())

@@ -12,30 +12,28 @@ viewer (p50, p99), the encoder's share of a core (from the relay's statistics) a
 server's CPU. The second paper's Table I measured web_video_server at 687 KB/s for MJPEG
 at quality 90 and 291 KB/s for VP8 at its default bitrate.
 
-The stream client here (``open_stream``) is also what the video tests read streams with.
+The robot's camera and the viewers' stream client are the application's
+(``telemetry.domain.camera_feed``, ``telemetry.domain.http_stream``), shared with the tests.
 """
 
 from __future__ import annotations
 
 import argparse
 import asyncio
-import base64
 import bisect
 import json
-import socket
 import time
 import urllib.parse
 import urllib.request
 from dataclasses import dataclass, field
 from typing import Any
 
-import cbor2
-import cv2
 import numpy as np
 import psutil
-import websockets
 
 from benchmarks.rosbridge import Server, start_server
+from telemetry.domain.camera_feed import Camera, camera_frames
+from telemetry.domain.http_stream import open_stream
 from telemetry.domain.multipart import PartReader
 from telemetry.domain.video_stats import percentile
 from telemetry.domain.webm import WebmReader
@@ -89,72 +87,6 @@ def _server(options: dict[str, Any]) -> Server:
 # ---------------------------------------------------------------- the camera
 
 
-def camera_frames(width: int, height: int, quality: int, count: int = 150) -> list[bytes]:
-    """Return ``count`` JPEGs of a camera-like scene: a textured room with a moving object
-    and sensor noise, so both codecs work as hard as on a real camera."""
-    rng = np.random.default_rng(7)
-    ys, xs = np.mgrid[0:height, 0:width]
-    room = (110 + 60 * np.sin(xs / 37.0) * np.cos(ys / 23.0)).astype(np.float32)
-    texture = rng.normal(0, 5, (height, width)).astype(np.float32)
-    base = np.clip(np.dstack([room + texture, room * 0.9, room * 0.8 + texture]), 0, 255)
-    base = base.astype(np.uint8)
-    frames = []
-    for i in range(count):
-        image = base.copy()
-        x = int(width / 2 + width / 3 * np.sin(2 * np.pi * i / count))
-        cv2.circle(image, (x, height // 2), height // 6, (40, 60, 200), -1)
-        cv2.putText(image, f"{i:03d}", (10, 30), cv2.FONT_HERSHEY_SIMPLEX, 1, (250, 250, 250), 2)
-        noise = rng.normal(0, 1.5, image.shape)
-        noisy = np.clip(image.astype(np.float32) + noise, 0, 255).astype(np.uint8)
-        frames.append(cv2.imencode(".jpg", noisy, [cv2.IMWRITE_JPEG_QUALITY, quality])[1].tobytes())
-    return frames
-
-
-def image_message(jpeg: bytes, stamp: float) -> dict[str, Any]:
-    """Return a JPEG ``sensor_msgs/CompressedImage`` stamped ``stamp`` (Unix seconds)."""
-    sec = int(stamp)
-    return {
-        "header": {
-            "frame_id": "camera",
-            "stamp": {"sec": sec, "nanosec": int((stamp - sec) * 1e9)},
-        },
-        "format": "jpeg",
-        "data": jpeg,
-    }
-
-
-class Camera:
-    """A robot's camera publishing over rosbridge: JSON with base64 data, or CBOR frames
-    with the bytes as they are (both are rosbridge's)."""
-
-    def __init__(self, ws: websockets.ClientConnection, cbor: bool = False) -> None:
-        self.ws = ws
-        self.cbor = cbor
-
-    @classmethod
-    async def connect(cls, rosbridge_url: str, cbor: bool = False) -> Camera:
-        """Connect (the URL carries the robot's token) and advertise the camera topic."""
-        ws = await websockets.connect(rosbridge_url, compression=None, max_size=None)
-        advertise = {"op": "advertise", "topic": "camera/image/compressed"}
-        await ws.send(json.dumps({**advertise, "type": "sensor_msgs/CompressedImage"}))
-        return cls(ws, cbor)
-
-    async def send(self, jpeg: bytes, stamp: float | None = None) -> float:
-        """Publish one frame; return its stamp (now, unless given)."""
-        stamp = time.time() if stamp is None else stamp
-        msg = image_message(jpeg, stamp)
-        frame = {"op": "publish", "topic": "camera/image/compressed", "msg": msg}
-        if self.cbor:
-            await self.ws.send(cbor2.dumps(frame))
-        else:
-            msg["data"] = base64.b64encode(jpeg).decode("ascii")
-            await self.ws.send(json.dumps(frame))
-        return stamp
-
-    async def close(self) -> None:
-        await self.ws.close()
-
-
 async def publish(
     server: Server, frames: list[bytes], rate: float, until: float, stamps: list[float]
 ) -> None:
@@ -172,57 +104,6 @@ async def publish(
 
 
 # ---------------------------------------------------------------- the viewers
-
-
-@dataclass
-class Stream:
-    """An open HTTP response: its status, headers (lower-case names) and body reader."""
-
-    status: int
-    headers: dict[str, str]
-    reader: asyncio.StreamReader
-    writer: asyncio.StreamWriter
-
-    def close(self) -> None:
-        self.writer.close()
-
-
-async def open_stream(
-    base_url: str,
-    path: str,
-    cookie: str | None = None,
-    token: str | None = None,
-    receive_buffer: int | None = None,
-) -> Stream:
-    """GET ``path`` over HTTP/1.0 and return once the response headers are in.
-
-    ``token`` goes in an ``Authorization: Token`` header; ``receive_buffer`` shrinks the
-    socket's receive buffer (to play a slow viewer). Raises OSError if it cannot connect.
-    """
-    parts = urllib.parse.urlsplit(base_url)
-    host, port = parts.hostname or "127.0.0.1", parts.port or 80
-    sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
-    if receive_buffer is not None:
-        sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, receive_buffer)
-    sock.setblocking(False)
-    await asyncio.get_running_loop().sock_connect(sock, (host, port))
-    reader, writer = await asyncio.open_connection(sock=sock, limit=2**22)
-    lines = [f"GET {path} HTTP/1.0", f"Host: {host}:{port}"]
-    lines += [f"Cookie: {cookie}"] if cookie else []
-    lines += [f"Authorization: Token {token}"] if token else []
-    writer.write(("\r\n".join(lines) + "\r\n\r\n").encode("latin-1"))
-    status, headers = _response_head(await reader.readuntil(b"\r\n\r\n"))
-    return Stream(status, headers, reader, writer)
-
-
-def _response_head(head: bytes) -> tuple[int, dict[str, str]]:
-    """Return the status and the headers (lower-case names) of a response's head."""
-    status_line, *header_lines = head.decode("latin-1").split("\r\n")
-    headers = {}
-    for header in filter(None, header_lines):
-        name, _, value = header.partition(":")
-        headers[name.strip().lower()] = value.strip()
-    return int(status_line.split()[1]), headers
 
 
 @dataclass

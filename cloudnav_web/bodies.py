@@ -114,8 +114,8 @@ class _Gated:
     """Marks the gated request class."""
 
 
-def _gated(base: type) -> type:
-    class GatedRequest(base, _Gated):
+def _gated(base: type[http.Request]) -> type[http.Request]:
+    class GatedRequest(base, _Gated):  # type: ignore[valid-type,misc]
         """daphne's request, deciding on its body before keeping it (see the module)."""
 
         refusal: Refusal | None = None

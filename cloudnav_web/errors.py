@@ -14,6 +14,7 @@ from maps.exceptions import (
     MappingError,
     NoRouteError,
     NoSuchVersion,
+    SubMapExistsError,
     TagPayloadError,
     TopologyError,
     VersionConflict,
@@ -21,11 +22,13 @@ from maps.exceptions import (
 
 
 def exception_handler(exc: Exception, context: dict[str, Any]) -> Response | None:
-    """Answer map store errors with 400 (404 for no route or version; 409 for a change on
-    a version no longer current, or a mapping session that cannot do what was asked) and
-    field errors; defer the rest."""
+    """Answer map store errors with 400 (404 for no route or version; 409 for an upload
+    that would replace a map unasked, a change on a version no longer current, or a
+    mapping session that cannot do what was asked) and field errors; defer the rest."""
     if isinstance(exc, NoRouteError):
         return Response({exc.field: [exc.message]}, status=status.HTTP_404_NOT_FOUND)
+    if isinstance(exc, SubMapExistsError):
+        return Response({exc.field: [exc.message]}, status=status.HTTP_409_CONFLICT)
     if isinstance(exc, MapFileError | TopologyError):
         return Response({exc.field: [exc.message]}, status=status.HTTP_400_BAD_REQUEST)
     if isinstance(exc, NoSuchVersion):

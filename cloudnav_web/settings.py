@@ -10,6 +10,11 @@ import os
 from pathlib import Path
 
 import dj_database_url
+import django_stubs_ext
+
+# Lets the classes django-stubs makes generic take their type at runtime too, as in
+# ``admin.ModelAdmin[Building]`` (mypy runs in strict mode).
+django_stubs_ext.monkeypatch()
 
 BASE_DIR = Path(__file__).resolve().parent.parent
 
@@ -75,6 +80,7 @@ INSTALLED_APPS = [
     "maps",
     "robots",
     "telemetry",
+    "benchmarks",  # for its `bench` command only (see benchmarks/__init__.py)
 ]
 
 MIDDLEWARE = [

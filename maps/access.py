@@ -48,7 +48,8 @@ def buildings_for(principal: Any) -> QuerySet[Building]:
     """Return the buildings a user or robot may see at all."""
     robot = robot_of(principal)
     if robot is not None:
-        return robot.buildings.all()
+        assigned: QuerySet[Building] = robot.buildings.all()
+        return assigned
     role = global_role(principal)
     if role is Role.NONE:
         return Building.objects.none()

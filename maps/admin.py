@@ -6,13 +6,13 @@ from .models import Building, EnvironmentalTag, SubMap, TopologyEdge
 
 
 @admin.register(Building)
-class BuildingAdmin(admin.ModelAdmin):
+class BuildingAdmin(admin.ModelAdmin[Building]):
     list_display = ["code", "name", "zip_code"]
     filter_horizontal = ["members"]
 
 
 @admin.register(SubMap)
-class SubMapAdmin(admin.ModelAdmin):
+class SubMapAdmin(admin.ModelAdmin[SubMap]):
     list_display = ["building", "code", "name", "width", "height", "resolution", "mode"]
     list_filter = ["building"]
     exclude = ["image"]
@@ -20,11 +20,11 @@ class SubMapAdmin(admin.ModelAdmin):
 
 
 @admin.register(EnvironmentalTag)
-class EnvironmentalTagAdmin(admin.ModelAdmin):
+class EnvironmentalTagAdmin(admin.ModelAdmin[EnvironmentalTag]):
     list_display = ["building", "marker_id", "submap", "links_to", "x", "y", "yaw"]
     list_filter = ["building"]
 
 
 @admin.register(TopologyEdge)
-class TopologyEdgeAdmin(admin.ModelAdmin):
+class TopologyEdgeAdmin(admin.ModelAdmin[TopologyEdge]):
     list_display = ["building", "a", "b", "cost"]

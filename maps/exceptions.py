@@ -1,4 +1,4 @@
-"""Errors of the map store's domain; DRF's exception handler maps them to HTTP 400/404."""
+"""Errors of the map store's domain; DRF's exception handler maps them to HTTP 400/404/409."""
 
 from __future__ import annotations
 
@@ -14,6 +14,19 @@ class MapFileError(MapStoreError):
         super().__init__(f"{field}: {message}")
         self.field = field
         self.message = message
+
+
+class SubMapExistsError(MapStoreError):
+    """An upload names the code of a stored sub-map without saying it may replace its map."""
+
+    field = "code"
+
+    def __init__(self, map_id: str) -> None:
+        self.message = (
+            f"{map_id} already exists; send replace=true to replace its map "
+            "(robots get the new one on their next bundle request)."
+        )
+        super().__init__(f"{self.field}: {self.message}")
 
 
 class TopologyError(MapStoreError):

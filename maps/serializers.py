@@ -18,7 +18,7 @@ from .exceptions import TagPayloadError
 from .models import Building, EnvironmentalTag, SubMap, SubMapVersion
 
 
-class BuildingSerializer(serializers.ModelSerializer):
+class BuildingSerializer(serializers.ModelSerializer[Building]):
     members = serializers.SlugRelatedField(
         slug_field="username", queryset=User.objects.all(), many=True, required=False
     )
@@ -35,7 +35,7 @@ class BuildingSerializer(serializers.ModelSerializer):
         return value
 
 
-class SubMapSerializer(serializers.ModelSerializer):
+class SubMapSerializer(serializers.ModelSerializer[SubMap]):
     map_id = serializers.CharField(read_only=True)
     origin = serializers.SerializerMethodField()
     links = serializers.SerializerMethodField()
@@ -73,21 +73,34 @@ class SubMapSerializer(serializers.ModelSerializer):
         return {**links, "versions": reverse("version-list", args=args)}
 
 
-class SubMapUploadSerializer(serializers.Serializer):
-    """A map_server pair as ``image`` + ``yaml`` files, or a zip of both as ``archive``."""
+class SubMapUploadSerializer(serializers.Serializer[Any]):
+    """A map_server pair as ``image`` + ``yaml`` files, or a zip of both as ``archive``.
 
-    code = serializers.RegexField(r"^[A-Za-z][A-Za-z0-9_]*$", max_length=40)
+    ``replace`` lets the upload replace the map of an existing code; ``dry_run`` checks
+    and converts the upload as storing it would, stores nothing and answers a preview
+    (then ``code`` may be left out).
+    """
+
+    code = serializers.RegexField(r"^[A-Za-z][A-Za-z0-9_]*$", max_length=40, required=False)
     name = serializers.CharField(max_length=200, required=False, allow_blank=True)
     image = serializers.FileField(required=False)
     yaml = serializers.FileField(required=False)
     archive = serializers.FileField(required=False)
     node_x = serializers.FloatField(required=False)
     node_y = serializers.FloatField(required=False)
+    replace = serializers.BooleanField(
+        default=False, help_text="Replace the map of an existing code (else 409)."
+    )
+    dry_run = serializers.BooleanField(
+        default=False, help_text="Check and preview the upload; store nothing."
+    )
     note = serializers.CharField(
         max_length=500, required=False, allow_blank=True, help_text="Why: kept in the history"
     )
 
     def validate(self, attrs: dict[str, Any]) -> dict[str, Any]:
+        if "code" not in attrs and not attrs["dry_run"]:
+            raise serializers.ValidationError({"code": ["This field is required."]})
         has_pair = "image" in attrs or "yaml" in attrs
         if "archive" in attrs and has_pair:
             raise serializers.ValidationError({"archive": ["Send an archive or a pair, not both."]})
@@ -109,7 +122,7 @@ class SubMapUploadSerializer(serializers.Serializer):
         return load_map_upload(data["yaml"].read(), {image.name: image.read()}, limit)
 
 
-class SubMapUpdateSerializer(serializers.Serializer):
+class SubMapUpdateSerializer(serializers.Serializer[Any]):
     """Metadata edits; cross-field rules (thresholds) are checked by the map file domain."""
 
     name = serializers.CharField(max_length=200, required=False, allow_blank=True)
@@ -125,7 +138,7 @@ class SubMapUpdateSerializer(serializers.Serializer):
     node_y = serializers.FloatField(required=False)
 
 
-class TagSerializer(serializers.ModelSerializer):
+class TagSerializer(serializers.ModelSerializer[EnvironmentalTag]):
     building = serializers.SlugRelatedField(slug_field="code", queryset=Building.objects.all())
     submap = serializers.CharField(source="submap.code")
     links_to = serializers.CharField(source="links_to.code")
@@ -202,10 +215,10 @@ class TagSerializer(serializers.ModelSerializer):
             raise serializers.ValidationError({"links_to": [str(exc)]}) from None
 
 
-class VersionSerializer(serializers.ModelSerializer):
+class VersionSerializer(serializers.ModelSerializer[SubMapVersion]):
     """One version of a sub-map, without its image (see ``links``)."""
 
-    author: serializers.SlugRelatedField = serializers.SlugRelatedField(
+    author: serializers.SlugRelatedField[Any] = serializers.SlugRelatedField(
         slug_field="username", read_only=True
     )
     map_ref = serializers.SerializerMethodField()
@@ -243,7 +256,7 @@ class VersionSerializer(serializers.ModelSerializer):
         return {name: reverse(f"version-{name}", args=args) for name in names}
 
 
-class VersionComparisonSerializer(serializers.Serializer):
+class VersionComparisonSerializer(serializers.Serializer[Any]):
     """The query (``from``, ``to``: version numbers) and answer of a comparison."""
 
     to = serializers.IntegerField(min_value=1)
@@ -267,20 +280,20 @@ class VersionComparisonSerializer(serializers.Serializer):
         return {"from": parsed.validated_data["from"], "to": parsed.validated_data["to"]}
 
 
-class TopologyNodeSerializer(serializers.Serializer):
+class TopologyNodeSerializer(serializers.Serializer[Any]):
     code = serializers.CharField()
     name = serializers.CharField(read_only=True)
     x = serializers.FloatField()
     y = serializers.FloatField()
 
 
-class TopologyEdgeSerializer(serializers.Serializer):
+class TopologyEdgeSerializer(serializers.Serializer[Any]):
     a = serializers.CharField()
     b = serializers.CharField()
     cost = serializers.FloatField()
 
 
-class TopologySerializer(serializers.Serializer):
+class TopologySerializer(serializers.Serializer[Any]):
     nodes = TopologyNodeSerializer(many=True, required=False)
     edges = TopologyEdgeSerializer(many=True)
     crossings = serializers.ListField(
@@ -290,18 +303,18 @@ class TopologySerializer(serializers.Serializer):
     )
 
 
-class RouteStepSerializer(serializers.Serializer):
+class RouteStepSerializer(serializers.Serializer[Any]):
     map = serializers.CharField()
     map_id = serializers.CharField()
     tag = serializers.DictField(allow_null=True)
 
 
-class RouteSerializer(serializers.Serializer):
+class RouteSerializer(serializers.Serializer[Any]):
     building = serializers.CharField()
     steps = RouteStepSerializer(many=True)
 
 
-class CoverageSerializer(serializers.Serializer):
+class CoverageSerializer(serializers.Serializer[Any]):
     valid = serializers.BooleanField()
     uncrossable_edges = serializers.ListField(child=serializers.DictField())
     dangling_tags = serializers.ListField(child=serializers.DictField())

@@ -22,12 +22,13 @@ from .domain.mapfile import (
     open_map_image,
     validate_metadata,
 )
+from .domain.preview import upload_preview
 from .domain.tagart import TagArt
 from .domain.tagpayload import TagPayload, encode_payload
 from .domain.topology import Coverage, Edge, RouteStep, TagLink, route_between, tag_coverage
 from .domain.topology import validate_graph as validate_topology
 from .domain.versions import Reason, map_ref
-from .exceptions import TopologyError
+from .exceptions import SubMapExistsError, TopologyError
 from .models import Building, EnvironmentalTag, MapFile, SubMap, SubMapVersion, TopologyEdge
 
 IMAGE_CONTENT_TYPES = {
@@ -89,13 +90,16 @@ def save_submap(
     code: str,
     loaded: LoadedMap,
     *,
+    replace: bool = False,
     author: Any = None,
     note: str = "",
     reason: Reason = Reason.UPLOAD,
     **fields: Any,
 ) -> tuple[SubMap, bool]:
-    """Store a map under ``building/code``; an existing sub-map gets it as a new version
-    (``reason``, by ``author`` saying ``note``) unless it holds that very map already.
+    """Store a map under ``building/code``. An existing one has its map replaced only when
+    ``replace`` says so (else SubMapExistsError is raised and nothing changes), as a new
+    version (``reason``, by ``author`` saying ``note``) unless it holds that very map
+    already.
 
     Returns the sub-map and whether it was created. ``fields`` sets name and node position.
     """
@@ -103,6 +107,8 @@ def save_submap(
     created = submap is None
     if submap is None:
         submap = SubMap(building=building, code=code)
+    elif not replace:
+        raise SubMapExistsError(submap.map_id)
     before = submap.version
     for name, value in fields.items():
         setattr(submap, name, value)
@@ -185,14 +191,30 @@ def _yaml_fields(meta: MapMetadata) -> dict[str, Any]:
     }
 
 
+def preview_upload(building: Building, code: str | None, loaded: LoadedMap) -> dict[str, Any]:
+    """What uploading ``loaded`` under ``code`` would store, storing nothing (a dry run):
+    ``upload_preview``'s document with ``code``, ``map_id`` and ``replaces`` (whether a
+    sub-map of that code exists, so the real upload needs replace=true); code may be None
+    while a page previews files before a code is chosen."""
+    map_id = SubMap(building=building, code=code).map_id if code else None
+    return {
+        "dry_run": True,
+        "code": code,
+        "map_id": map_id,
+        "replaces": code is not None and building.submaps.filter(code=code).exists(),
+        **upload_preview(loaded, frame_id=map_id or ""),
+    }
+
+
 def grid_of(submap: MapFile) -> np.ndarray:
     """Return the occupancy grid (row 0 = bottom row) of a sub-map or one of its versions,
     converted once per content version."""
     return _cached_grid(submap.version, bytes(submap.image), metadata_of(submap))
 
 
+# version (the content hash) is the cache key only.
 @lru_cache(maxsize=32)
-def _cached_grid(version: str, image: bytes, meta: MapMetadata) -> np.ndarray:
+def _cached_grid(version: str, image: bytes, meta: MapMetadata) -> np.ndarray:  # noqa: ARG001
     grid = occupancy_from_image(open_map_image(image, settings.CLOUDNAV_MAX_MAP_PIXELS), meta)
     grid.setflags(write=False)
     return grid

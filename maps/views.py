@@ -8,9 +8,9 @@ from typing import Any
 
 from django.db.models import QuerySet
 from django.http import HttpResponse, HttpResponseBase
-from django.utils.http import quote_etag
+from django.utils.http import content_disposition_header, quote_etag
 from drf_spectacular.types import OpenApiTypes
-from drf_spectacular.utils import OpenApiParameter, extend_schema
+from drf_spectacular.utils import OpenApiParameter, OpenApiResponse, extend_schema
 from rest_framework import generics, status
 from rest_framework.exceptions import NotFound, PermissionDenied, ValidationError
 from rest_framework.parsers import FormParser, JSONParser, MultiPartParser
@@ -65,7 +65,7 @@ def submap_for(request: Request, building: str, code: str, need: Role = Role.VIE
 # Buildings
 
 
-class BuildingList(generics.ListCreateAPIView):
+class BuildingList(generics.ListCreateAPIView[Building]):
     serializer_class = BuildingSerializer
 
     def get_queryset(self) -> QuerySet[Building]:
@@ -78,7 +78,7 @@ class BuildingList(generics.ListCreateAPIView):
         building.members.add(self.request.user)
 
 
-class BuildingDetail(generics.RetrieveUpdateDestroyAPIView):
+class BuildingDetail(generics.RetrieveUpdateDestroyAPIView[Building]):
     serializer_class = BuildingSerializer
     lookup_field = "code"
     lookup_url_kwarg = "building"
@@ -91,7 +91,7 @@ class BuildingDetail(generics.RetrieveUpdateDestroyAPIView):
 # Sub-maps
 
 
-class SubMapList(generics.ListCreateAPIView):
+class SubMapList(generics.ListCreateAPIView[SubMap]):
     parser_classes = [MultiPartParser, FormParser]
 
     def get_serializer_class(self) -> Any:
@@ -101,21 +101,37 @@ class SubMapList(generics.ListCreateAPIView):
         building = building_for(self.request, self.kwargs["building"])
         return building.submaps.defer("image").select_related("building")
 
-    @extend_schema(request=SubMapUploadSerializer, responses={201: SubMapSerializer})
+    @extend_schema(
+        request=SubMapUploadSerializer,
+        responses={
+            201: SubMapSerializer,
+            200: OpenApiResponse(
+                description="the map replaced (replace=true): the sub-map; or, with "
+                "dry_run=true, the preview of what would be stored"
+            ),
+            409: OpenApiResponse(description="the code exists and replace was not sent"),
+        },
+    )
     def post(self, request: Request, building: str) -> Response:
-        """Upload a map_server pair (or a zip of it); an existing code has its map replaced."""
+        """Upload a map_server pair (or a zip of it), or preview it (dry_run).
+
+        An existing code has its map replaced only with replace=true (else 409).
+        """
         target = building_for(request, building, Role.ADMIN)
         upload = SubMapUploadSerializer(data=request.data)
         upload.is_valid(raise_exception=True)
-        fields = {
-            k: v for k, v in upload.validated_data.items() if k in ("name", "node_x", "node_y")
-        }
+        data = upload.validated_data
+        loaded = upload.load()
+        if data["dry_run"]:
+            return Response(services.preview_upload(target, data.get("code"), loaded))
+        fields = {k: v for k, v in data.items() if k in ("name", "node_x", "node_y")}
         submap, created = services.save_submap(
             target,
-            upload.validated_data["code"],
-            upload.load(),
+            data["code"],
+            loaded,
+            replace=data["replace"],
             author=request.user,
-            note=upload.validated_data.get("note", ""),
+            note=data.get("note", ""),
             **fields,
         )
         answer = status.HTTP_201_CREATED if created else status.HTTP_200_OK
@@ -154,7 +170,10 @@ def image_response(map_file: MapFile) -> HttpResponse:
     response = HttpResponse(
         bytes(map_file.image), content_type=services.image_content_type(map_file)
     )
-    response["Content-Disposition"] = f'inline; filename="{map_file.image_name}"'
+    # Names stored before control characters were refused may hold CR or LF.
+    response["Content-Disposition"] = (
+        content_disposition_header(False, map_file.image_name) or "inline"
+    )
     response["ETag"] = quote_etag(map_file.version)
     return response
 
@@ -402,7 +421,7 @@ def _step(building: Building, step: Any) -> dict[str, Any]:
 # Tags
 
 
-class TagList(generics.ListCreateAPIView):
+class TagList(generics.ListCreateAPIView[EnvironmentalTag]):
     serializer_class = TagSerializer
 
     def get_queryset(self) -> QuerySet[EnvironmentalTag]:
@@ -418,7 +437,7 @@ class TagList(generics.ListCreateAPIView):
         serializer.save()
 
 
-class TagDetail(generics.RetrieveUpdateDestroyAPIView):
+class TagDetail(generics.RetrieveUpdateDestroyAPIView[EnvironmentalTag]):
     serializer_class = TagSerializer
 
     def get_object(self) -> EnvironmentalTag:

@@ -6,6 +6,7 @@ from typing import Any
 
 from rest_framework import authentication, exceptions
 from rest_framework.request import Request
+from typing_extensions import override
 
 from .models import Robot
 from .services import robot_for_token
@@ -46,5 +47,6 @@ class RobotTokenAuthentication(authentication.BaseAuthentication):
             raise exceptions.AuthenticationFailed("Unknown robot token.")
         return RobotPrincipal(robot), robot
 
+    @override
     def authenticate_header(self, request: Request) -> str:
         return self.keyword

@@ -10,6 +10,7 @@ from rest_framework import permissions, serializers
 from rest_framework.request import Request
 from rest_framework.response import Response
 from rest_framework.views import APIView
+from typing_extensions import override
 
 from maps.access import Role, buildings_for, global_role, robot_of
 from maps.models import Building
@@ -33,6 +34,7 @@ class FleetEntrySerializer(serializers.Serializer[Any]):
 class SeesFleet(permissions.BasePermission):
     message = "Only people with a role, and robots, see the fleet."
 
+    @override
     def has_permission(self, request: Request, view: Any) -> bool:
         principal = request.user
         return robot_of(principal) is not None or global_role(principal) >= Role.VIEWER

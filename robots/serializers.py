@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 from rest_framework import serializers
 
 from maps.access import buildings_for
@@ -10,7 +12,7 @@ from maps.models import Building
 from .models import Robot
 
 
-class RobotSerializer(serializers.ModelSerializer):
+class RobotSerializer(serializers.ModelSerializer[Robot]):
     buildings = serializers.SlugRelatedField(
         slug_field="code", queryset=Building.objects.all(), many=True, required=False
     )
@@ -38,6 +40,6 @@ class RobotCreatedSerializer(RobotSerializer):
         fields = [*RobotSerializer.Meta.fields, "token"]
 
 
-class TokenSerializer(serializers.Serializer):
+class TokenSerializer(serializers.Serializer[Any]):
     name = serializers.CharField(read_only=True)
     token = serializers.CharField(read_only=True)

@@ -11,6 +11,7 @@ from rest_framework.exceptions import NotFound
 from rest_framework.request import Request
 from rest_framework.response import Response
 from rest_framework.views import APIView
+from typing_extensions import override
 
 from maps.access import Role, buildings_for, global_role
 
@@ -22,6 +23,7 @@ from .serializers import RobotCreatedSerializer, RobotSerializer, TokenSerialize
 class IsAdmin(permissions.BasePermission):
     message = "Only admins manage robots."
 
+    @override
     def has_permission(self, request: Request, view: Any) -> bool:
         return global_role(request.user) >= Role.ADMIN
 
@@ -33,7 +35,7 @@ def robots_for(user: Any) -> QuerySet[Robot]:
     return Robot.objects.filter(buildings__in=buildings_for(user)).distinct()
 
 
-class RobotList(generics.ListCreateAPIView):
+class RobotList(generics.ListCreateAPIView[Robot]):
     serializer_class = RobotSerializer
     permission_classes = [permissions.IsAuthenticated, IsAdmin]
 
@@ -50,7 +52,7 @@ class RobotList(generics.ListCreateAPIView):
         return Response(answer, status=status.HTTP_201_CREATED)
 
 
-class RobotDetail(generics.RetrieveUpdateDestroyAPIView):
+class RobotDetail(generics.RetrieveUpdateDestroyAPIView[Robot]):
     serializer_class = RobotSerializer
     permission_classes = [permissions.IsAuthenticated, IsAdmin]
     lookup_field = "name"

@@ -171,7 +171,7 @@ def _plan(
 
 
 @lru_cache(maxsize=16)
-def _costmap(pk: int, version: str, radius: float) -> Costmap:
+def _costmap(pk: int, version: str, radius: float) -> Costmap:  # noqa: ARG001 (the cache key)
     """One version of a sub-map, inflated for a robot of ``radius`` (the version keys
     the cache, so an edited map is inflated afresh)."""
     submap = SubMap.objects.get(pk=pk)

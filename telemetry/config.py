@@ -21,7 +21,7 @@ T = TypeVar("T")
 
 
 def setting(name: str, default: T, cast: Callable[[str], T]) -> T:
-    value = getattr(settings, name, None)
+    value: T | None = getattr(settings, name, None)
     if value is not None:
         return value
     raw = os.environ.get(name)

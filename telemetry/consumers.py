@@ -14,6 +14,7 @@ from typing import Any
 
 from channels.exceptions import StopConsumer
 from channels.generic.websocket import AsyncWebsocketConsumer
+from typing_extensions import override
 
 from telemetry import replies
 from telemetry.connection import Connection
@@ -31,7 +32,7 @@ from telemetry.transport import SCOPE_KEY
 logger = logging.getLogger(__name__)
 
 
-class RosbridgeConsumer(AsyncWebsocketConsumer):
+class RosbridgeConsumer(AsyncWebsocketConsumer):  # type: ignore[misc]  # Channels has no types
     """One rosbridge v2 client: robot (by token) or person (by session, from our origin)."""
 
     # Connections need no channel of their own: fan-out is in-process, and scaled mode has
@@ -70,6 +71,7 @@ class RosbridgeConsumer(AsyncWebsocketConsumer):
         else:
             await super().dispatch(message)
 
+    @override
     async def websocket_connect(self, message: dict[str, Any]) -> None:
         identity = await authenticate(self.scope)
         if identity is None:
@@ -104,6 +106,7 @@ class RosbridgeConsumer(AsyncWebsocketConsumer):
         data = message.get("text")
         await self.handle(data if data is not None else message.get("bytes") or b"")
 
+    @override
     async def websocket_disconnect(self, message: dict[str, Any]) -> None:
         if self.conn is not None:
             self.fragments.clear()

@@ -149,7 +149,7 @@ async def get_param_names(call: ServiceCall) -> Json:
     return {"names": [n for n, _ in listed]}
 
 
-async def get_time(call: ServiceCall) -> Json:
+async def get_time(_call: ServiceCall) -> Json:
     return {"time": now_stamp()}
 
 

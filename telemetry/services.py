@@ -38,7 +38,7 @@ def _headers(scope: Mapping[str, Any]) -> dict[bytes, bytes]:
 
 def token_of(scope: Mapping[str, Any]) -> str | None:
     """Return the robot token from ``?token=`` or ``Authorization: Token ...``, if any."""
-    query = parse_qs(scope.get("query_string", b"").decode("latin-1"))
+    query: dict[str, list[str]] = parse_qs(scope.get("query_string", b"").decode("latin-1"))
     if query.get("token"):
         return query["token"][0]
     header = _headers(scope).get(b"authorization", b"").decode("latin-1").split()
@@ -67,11 +67,13 @@ async def authenticate(scope: Mapping[str, Any]) -> Identity | None:
     """
     token = token_of(scope)
     if token is not None:
-        return await database_sync_to_async(robot_identity)(token)
+        robot: Identity | None = await database_sync_to_async(robot_identity)(token)
+        return robot
     user = scope.get("user")
     if user is None or not user.is_authenticated or not origin_allowed(scope):
         return None
-    return await database_sync_to_async(person_identity)(user)
+    person: Identity | None = await database_sync_to_async(person_identity)(user)
+    return person
 
 
 def robot_identity(token: str) -> Identity | None:
@@ -172,12 +174,12 @@ def _may_set_param(principal: Principal, name: str, owner: Owner | None) -> bool
 
 
 _RULES = {
-    "subscribe": lambda p, name, owner: rules.may_subscribe(p, owner),
-    "see": lambda p, name, owner: rules.may_see(p, owner),
+    "subscribe": lambda p, _name, owner: rules.may_subscribe(p, owner),
+    "see": lambda p, _name, owner: rules.may_see(p, owner),
     "publish": rules.may_publish,
     "advertise": rules.may_advertise_topic,
     "advertise_service": rules.may_advertise,
-    "call": lambda p, name, owner: rules.may_call(p, owner),
-    "drive": lambda p, name, owner: rules.may_drive(p, owner),
+    "call": lambda p, _name, owner: rules.may_call(p, owner),
+    "drive": lambda p, _name, owner: rules.may_drive(p, owner),
     "set_param": _may_set_param,
 }

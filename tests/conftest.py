@@ -8,8 +8,10 @@ Builders take keyword arguments and fill the rest with ``kwargs.setdefault``.
 from __future__ import annotations
 
 import io
+from collections.abc import AsyncIterator
 from typing import Any
 
+import httpx
 import numpy as np
 import pytest
 from django.contrib.auth.models import Group, User
@@ -23,6 +25,22 @@ from robots.models import Robot
 from robots.services import register_robot
 
 pytest_plugins = ["tests.fixtures_live"]
+
+# Fixtures that start real server, agent or browser processes: a test that asks for one,
+# directly or through another fixture, is marked ``live``. A test whose database writes
+# other threads must see (``transactional_db``: the in-process rosbridge and video tests)
+# is marked ``transactional``. ``make unit`` leaves both out.
+LIVE_FIXTURES = frozenset({"daphne_server", "daphne_servers", "scaled_servers", "demo"})
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    for item in items:
+        fixtures = set(getattr(item, "fixturenames", ()))
+        if fixtures & LIVE_FIXTURES:
+            item.add_marker(pytest.mark.live)
+        database = item.get_closest_marker("django_db")
+        if "transactional_db" in fixtures or (database and database.kwargs.get("transaction")):
+            item.add_marker(pytest.mark.transactional)
 
 
 def make_user(username: str, group: str | None = None, **kwargs: Any) -> User:
@@ -110,6 +128,26 @@ def outsider(db: None) -> User:
 @pytest.fixture
 def building(admin: User, operator: User, viewer: User) -> Building:
     return make_building(members=[admin, operator, viewer])
+
+
+@pytest.fixture
+def token(building: Building) -> str:
+    """The token of robot ``r1``, a member of ``building``."""
+    return make_robot(name="r1", buildings=[building])[1]
+
+
+@pytest.fixture
+async def cloud(demo_token: str) -> AsyncIterator[httpx.AsyncClient]:
+    """HTTP to the real application, in-process, with the demo robot's token
+    (``demo_token``, in ``tests.fixtures_live``)."""
+    from cloudnav_web.asgi import application
+
+    async with httpx.AsyncClient(
+        transport=httpx.ASGITransport(app=application),
+        base_url="http://testserver",
+        headers={"Authorization": f"Token {demo_token}"},
+    ) as http:
+        yield http
 
 
 def client_for(principal: User | str | None) -> APIClient:

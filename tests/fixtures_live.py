@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import inspect
 import io
 import itertools
 import json
@@ -278,6 +279,43 @@ def seed_demo_token(tokens: Path, robot: str) -> str:
 
     call_command("seed_demo", "--robots", "1", "--tokens-file", str(tokens), stdout=io.StringIO())
     return str(json.loads(tokens.read_text())[robot])
+
+
+async def until(
+    check: Callable[[], bool | Awaitable[bool]], what: str = "the condition", wait: float = 5.0
+) -> None:
+    """Poll ``check`` (a function or a coroutine function) until it holds; fail naming
+    ``what`` after ``wait`` seconds."""
+    give_up = time.monotonic() + wait
+    while True:
+        held = check()
+        if inspect.isawaitable(held):
+            held = await held
+        if held:
+            return
+        assert time.monotonic() < give_up, f"timed out waiting for {what}"
+        await asyncio.sleep(0.02)
+
+
+def video_stats(url: str, token: str, timeout: float = 10.0) -> list[dict[str, Any]]:
+    """The live server's video relays, as ``/api/video/stats`` lists them to robot ``token``."""
+    request = urllib.request.Request(
+        url + "/api/video/stats", headers={"Authorization": f"Token {token}"}
+    )
+    with urllib.request.urlopen(request, timeout=timeout) as response:
+        return list(json.load(response)["streams"])
+
+
+@pytest.fixture
+def demo_token(transactional_db: None, tmp_path: Path) -> str:
+    """The demo building, seeded with one robot (``robot_0``): that robot's token."""
+    return seed_demo_token(tmp_path / "tokens.json", "robot_0")
+
+
+@pytest.fixture
+def operator_headers(daphne_server: LiveServer, demo_token: str) -> dict[str, str]:
+    """Handshake headers of the demo operator's browser session, on the seeded demo."""
+    return operator_handshake(daphne_server)
 
 
 def operator_handshake(server: LiveServer) -> dict[str, str]:

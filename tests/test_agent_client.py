@@ -15,7 +15,7 @@ from robots.agent.client import Backoff, NotConnected, RosbridgeClient, ServiceE
 from telemetry.domain.messages import pose_stamped, string_message
 from tests import fixtures_live
 from tests.conftest import make_robot
-from tests.fixtures_live import LiveServer, LiveServers
+from tests.fixtures_live import LiveServer, LiveServers, until
 
 FAST = Backoff(initial=0.1, factor=2.0, maximum=0.5)
 DEADLINE = 15.0
@@ -41,18 +41,10 @@ async def running() -> AsyncIterator[Callable[[RosbridgeClient], RosbridgeClient
         await asyncio.wait_for(task, 5)
 
 
-async def until(predicate: Callable[[], bool], what: str, deadline: float = DEADLINE) -> None:
-    """Wait for ``predicate`` to hold, polling; fail naming ``what`` after ``deadline``."""
-    give_up = time.monotonic() + deadline
-    while not predicate():
-        assert time.monotonic() < give_up, f"timed out waiting for {what}"
-        await asyncio.sleep(0.02)
-
-
 def restart_on_same_port(servers: LiveServers, server: LiveServer, monkeypatch) -> LiveServer:
     """Stop ``server`` and start a fresh daphne (knowing nothing) on its port."""
     server.stop()
-    monkeypatch.setattr(fixtures_live, "free_port", lambda host="127.0.0.1": server.port)
+    monkeypatch.setattr(fixtures_live, "free_port", lambda _host="127.0.0.1": server.port)
     return servers.start()
 
 
@@ -81,14 +73,14 @@ async def test_it_reconnects_after_a_restart_and_sends_no_stale_pose(
     running(client)
     stop = asyncio.Event()
     publisher = asyncio.create_task(publish_poses(client, stop))
-    await until(lambda: len(received) >= 3, "poses before the restart")
+    await until(lambda: len(received) >= 3, "poses before the restart", DEADLINE)
 
     went_down = time.time()
     restart_on_same_port(daphne_servers, server, monkeypatch)
-    await until(lambda: client.connections == 2, "the reconnection")
+    await until(lambda: client.connections == 2, "the reconnection", DEADLINE)
     reconnected = time.time()
     count = len(received)
-    await until(lambda: len(received) >= count + 3, "poses after the restart")
+    await until(lambda: len(received) >= count + 3, "poses after the restart", DEADLINE)
     stop.set()
     await publisher
 
@@ -108,7 +100,7 @@ async def test_a_latched_message_is_sent_again_to_a_restarted_server(
     assert await client.publish("map_id", string_message("boccioni_1/Atrium1"))
 
     restarted = restart_on_same_port(daphne_servers, server, monkeypatch)
-    await until(lambda: client.connections == 2, "the reconnection")
+    await until(lambda: client.connections == 2, "the reconnection", DEADLINE)
     await client.call_service("/rosapi/get_time")  # the declarations were handled
     async with websockets.connect(restarted.rosbridge_url(tokens["r2"])) as observer:
         await observer.send(json.dumps({"op": "subscribe", "topic": "/r1/map_id"}))
@@ -148,7 +140,7 @@ async def test_service_calls_are_answered_by_id_or_fail_or_time_out(daphne_serve
 
 async def test_it_serves_its_services_to_an_operator_connection(daphne_server, tokens, running):
     client = RosbridgeClient(daphne_server.rosbridge_url(), tokens["r1"])
-    client.advertise_service("echo", "std_srvs/Trigger", lambda args: {"message": "yes"})
+    client.advertise_service("echo", "std_srvs/Trigger", lambda _args: {"message": "yes"})
     running(client)
     await asyncio.wait_for(client.wait_connected(), DEADLINE)
     await client.call_service("/rosapi/get_time")  # the advertisement was handled

@@ -9,7 +9,6 @@ import json
 import math
 import time
 from collections.abc import AsyncIterator, Callable
-from pathlib import Path
 from typing import Any
 
 import pytest
@@ -18,7 +17,7 @@ import websockets
 from robots.agent.fleet import FleetOptions, FleetRobot, build_robot, run_fleet
 from robots.agent.sim.world import demo_world
 from robots.domain.params import RobotConfig
-from tests.fixtures_live import LiveServer, operator_handshake, seed_demo_token
+from tests.fixtures_live import LiveServer
 
 pytestmark = pytest.mark.django_db(transaction=True)
 
@@ -29,25 +28,15 @@ PREEMPTED, ACTIVE = 2, 1
 
 
 @pytest.fixture
-def token(tmp_path: Path) -> str:
-    return seed_demo_token(tmp_path / "tokens.json", ROBOT)
-
-
-@pytest.fixture
-def operator_headers(daphne_server: LiveServer, token: str) -> dict[str, str]:
-    return operator_handshake(daphne_server)
-
-
-@pytest.fixture
 async def online(
-    daphne_server: LiveServer, token: str
+    daphne_server: LiveServer, demo_token: str
 ) -> AsyncIterator[Callable[[float], FleetRobot]]:
     """``online(time_scale)``: the robot running in this process, connected to daphne."""
     running: list[asyncio.Task[None]] = []
 
     def start(time_scale: float) -> FleetRobot:
         options = FleetOptions(daphne_server.url, start=START, particles=200, robot=RobotConfig())
-        member = build_robot(ROBOT, token, demo_world(daphne_server.url), options)
+        member = build_robot(ROBOT, demo_token, demo_world(daphne_server.url), options)
         running.append(asyncio.create_task(run_fleet([member], time_scale)))
         return member
 

@@ -4,16 +4,10 @@ estimate, and ``map_id`` says the version held."""
 
 from __future__ import annotations
 
-import io
-import json
-from collections.abc import AsyncIterator
-from pathlib import Path
 from typing import Any
 
-import httpx
 import pytest
 from asgiref.sync import sync_to_async
-from django.core.management import call_command
 
 from maps import versions
 from maps.domain.demo_building import demo_building
@@ -24,25 +18,6 @@ from robots.agent.supervisor import BundleCache, MapsSupervisor
 from robots.domain.params import RobotConfig
 
 pytestmark = pytest.mark.django_db(transaction=True)
-
-
-@pytest.fixture
-def token(transactional_db: None, tmp_path: Path) -> str:
-    tokens = tmp_path / "tokens.json"
-    call_command("seed_demo", "--robots", "1", "--tokens-file", str(tokens), stdout=io.StringIO())
-    return str(json.loads(tokens.read_text())["robot_0"])
-
-
-@pytest.fixture
-async def cloud(token: str) -> AsyncIterator[httpx.AsyncClient]:
-    from cloudnav_web.asgi import application
-
-    async with httpx.AsyncClient(
-        transport=httpx.ASGITransport(app=application),
-        base_url="http://testserver",
-        headers={"Authorization": f"Token {token}"},
-    ) as http:
-        yield http
 
 
 class Recorder:

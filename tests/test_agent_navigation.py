@@ -7,17 +7,13 @@ robot; the robot itself never reads it.
 
 from __future__ import annotations
 
-import io
-import json
 import math
-from collections.abc import AsyncIterator, Callable
-from pathlib import Path
+from collections.abc import Callable
 from typing import Any
 
 import httpx
 import numpy as np
 import pytest
-from django.core.management import call_command
 
 from robots.agent.robot import PoseTracker, Robot, SimHardware, particle_filter
 from robots.agent.sim.world import Box, Cylinder, World, demo_world
@@ -43,26 +39,6 @@ class Recorder:
 
     def on(self, topic: str) -> list[dict[str, Any]]:
         return [msg for name, msg in self.sent if name == topic]
-
-
-@pytest.fixture
-def token(transactional_db: None, tmp_path: Path) -> str:
-    tokens = tmp_path / "tokens.json"
-    call_command("seed_demo", "--robots", "1", "--tokens-file", str(tokens), stdout=io.StringIO())
-    return str(json.loads(tokens.read_text())["robot_0"])
-
-
-@pytest.fixture
-async def cloud(token: str) -> AsyncIterator[httpx.AsyncClient]:
-    """HTTP to the real application, in-process, with the robot's token."""
-    from cloudnav_web.asgi import application
-
-    transport = httpx.ASGITransport(app=application)
-    headers = {"Authorization": f"Token {token}"}
-    async with httpx.AsyncClient(
-        transport=transport, base_url="http://testserver", headers=headers
-    ) as http:
-        yield http
 
 
 def make_robot(

@@ -2,12 +2,7 @@
 
 from __future__ import annotations
 
-import io
-import json
-from pathlib import Path
-
 import pytest
-from django.core.management import call_command
 
 from maps import services as map_services
 from maps.domain.planning import plan_path
@@ -20,13 +15,6 @@ CORRIDOR_A = "boccioni_1/CorridorA"
 START, GOAL = {"x": 5.0, "y": 23.2}, {"x": 16.0, "y": 22.6}
 
 
-@pytest.fixture
-def token(tmp_path: Path) -> str:
-    tokens = tmp_path / "tokens.json"
-    call_command("seed_demo", "--robots", "1", "--tokens-file", str(tokens), stdout=io.StringIO())
-    return str(json.loads(tokens.read_text())["robot_0"])
-
-
 def planned_here(map_code: str, start: dict, goal: dict) -> list[tuple[float, float]]:
     """What the domain planner gives for the same request, computed in the test."""
     submap = SubMap.objects.get(building__code="boccioni_1", code=map_code)
@@ -35,10 +23,10 @@ def planned_here(map_code: str, start: dict, goal: dict) -> list[tuple[float, fl
     return plan_path(grid, (start["x"], start["y"]), (goal["x"], goal["y"]), 0.05, origin)
 
 
-async def test_it_plans_as_the_agents_planner_does(rosbridge, token):
+async def test_it_plans_as_the_agents_planner_does(rosbridge, demo_token):
     from asgiref.sync import sync_to_async
 
-    robot = await rosbridge(token=token)
+    robot = await rosbridge(token=demo_token)
     answer = await robot.call(
         "/cloudnav/plan_path", {"map_id": CORRIDOR_A, "start": START, "goal": GOAL}
     )
@@ -50,8 +38,8 @@ async def test_it_plans_as_the_agents_planner_does(rosbridge, token):
     assert answer["values"]["length"] == pytest.approx(11.0, abs=0.8)
 
 
-async def test_a_goal_off_the_map_or_in_a_wall_fails_the_call(rosbridge, token):
-    robot = await rosbridge(token=token)
+async def test_a_goal_off_the_map_or_in_a_wall_fails_the_call(rosbridge, demo_token):
+    robot = await rosbridge(token=demo_token)
     for goal in ({"x": 100.0, "y": 0.0}, {"x": 10.0, "y": 20.8}):  # off; behind a wall
         answer = await robot.call(
             "cloudnav/plan_path", {"map_id": CORRIDOR_A, "start": START, "goal": goal}
@@ -60,8 +48,8 @@ async def test_a_goal_off_the_map_or_in_a_wall_fails_the_call(rosbridge, token):
         assert "goal" in answer["values"]
 
 
-async def test_bad_arguments_fail_the_call(rosbridge, token):
-    robot = await rosbridge(token=token)
+async def test_bad_arguments_fail_the_call(rosbridge, demo_token):
+    robot = await rosbridge(token=demo_token)
     for args in (
         {"map_id": CORRIDOR_A, "start": START},
         {"map_id": CORRIDOR_A, "start": {"x": "a"}, "goal": GOAL},
@@ -71,7 +59,7 @@ async def test_bad_arguments_fail_the_call(rosbridge, token):
         assert answer["result"] is False
 
 
-async def test_it_rejects_outsider(rosbridge, token):
+async def test_it_rejects_outsider(rosbridge, demo_token):
     from asgiref.sync import sync_to_async
 
     stranger = (await sync_to_async(make_robot)(name="stranger"))[1]  # in no building

@@ -4,18 +4,13 @@ again, and routes that agree with the server's route endpoint."""
 
 from __future__ import annotations
 
-import io
 import itertools
-import json
 import math
 import re
-from collections.abc import AsyncIterator
-from pathlib import Path
 
 import httpx
 import numpy as np
 import pytest
-from django.core.management import call_command
 
 from maps.domain.demo_building import PAPER_ROUTE, demo_building
 from maps.models import EnvironmentalTag
@@ -39,34 +34,14 @@ CORRIDOR_A = "boccioni_1/CorridorA"
 BUNDLE_LINE = re.compile(r'"GET /api/buildings/boccioni_1/maps/(\w+)/bundle" (\d{3})')
 
 
-@pytest.fixture
-def token(transactional_db: None, tmp_path: Path) -> str:
-    tokens = tmp_path / "tokens.json"
-    call_command("seed_demo", "--robots", "1", "--tokens-file", str(tokens), stdout=io.StringIO())
-    return str(json.loads(tokens.read_text())["robot_0"])
-
-
-@pytest.fixture
-async def cloud(token: str) -> AsyncIterator[httpx.AsyncClient]:
-    """HTTP to the real application, in-process, with the robot's token."""
-    from cloudnav_web.asgi import application
-
-    async with httpx.AsyncClient(
-        transport=httpx.ASGITransport(app=application),
-        base_url="http://testserver",
-        headers={"Authorization": f"Token {token}"},
-    ) as http:
-        yield http
-
-
 def over_the_network(server: LiveServer, token: str) -> httpx.AsyncClient:
     return httpx.AsyncClient(base_url=server.url, headers={"Authorization": f"Token {token}"})
 
 
 async def test_a_held_map_is_asked_for_conditionally_and_never_downloaded_again(
-    daphne_server: LiveServer, token: str
+    daphne_server: LiveServer, demo_token: str
 ):
-    async with over_the_network(daphne_server, token) as http:
+    async with over_the_network(daphne_server, demo_token) as http:
         cache = BundleCache(http)
         first = await cache.load(CORRIDOR_A)
         again = await cache.load(CORRIDOR_A)
@@ -76,8 +51,8 @@ async def test_a_held_map_is_asked_for_conditionally_and_never_downloaded_again(
     assert BUNDLE_LINE.findall(daphne_server.log()) == [("CorridorA", "200"), ("CorridorA", "304")]
 
 
-async def test_a_held_map_is_used_while_the_server_is_away(daphne_server: LiveServer, token):
-    async with over_the_network(daphne_server, token) as http:
+async def test_a_held_map_is_used_while_the_server_is_away(daphne_server: LiveServer, demo_token):
+    async with over_the_network(daphne_server, demo_token) as http:
         cache = BundleCache(http)
         held = await cache.load(CORRIDOR_A)
         daphne_server.stop()
@@ -176,7 +151,7 @@ async def test_a_tag_that_does_not_lead_on_is_read_but_not_entered(cloud):
 
 
 class _Silent:
-    async def publish(self, topic: str, msg: dict) -> bool:
+    async def publish(self, _topic: str, _msg: dict) -> bool:
         return True
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import io
+import json
 import zipfile
 from typing import Any
 
@@ -60,11 +61,24 @@ def test_uploading_an_existing_code_replaces_its_map_and_version(
     building: Building, admin: User
 ) -> None:
     first = post(admin, pair()).json()["version"]
-    response = post(admin, pair(image=SimpleUploadedFile("map.pgm", map_pgm(width=50))))
+    wider = SimpleUploadedFile("map.pgm", map_pgm(width=50))
+    response = post(admin, pair(image=wider, replace="true"))
     assert response.status_code == 200
     assert response.json()["width"] == 50
     assert response.json()["version"] != first
     assert SubMap.objects.count() == 1
+
+
+def test_uploading_an_existing_code_without_replace_is_refused_and_keeps_the_map(
+    building: Building, admin: User
+) -> None:
+    before = make_submap(building)
+    response = post(admin, pair(image=SimpleUploadedFile("map.pgm", map_pgm(width=50))))
+    assert response.status_code == 409
+    assert "boccioni_1/CorridorA already exists" in response.json()["code"][0]
+    assert "replace=true" in response.json()["code"][0]
+    assert SubMap.objects.get().version == before.version
+    assert post(admin, pair(replace="false")).status_code == 409
 
 
 BAD_UPLOADS: list[tuple[str, dict[str, Any], str]] = [
@@ -159,6 +173,42 @@ def test_it_refuses_a_zip_member_escaping_the_archive(
     assert response.status_code == 400
     assert "archive" in response.json()
     assert not SubMap.objects.exists()
+
+
+CONTROL_NAMES = ["map\r\n.pgm", "map\n.pgm", "map\r.pgm", "map\x1b.pgm"]
+
+
+@pytest.mark.parametrize("name", CONTROL_NAMES, ids=repr)
+def test_it_refuses_a_zip_member_name_with_a_control_character(
+    building: Building, admin: User, name: str
+) -> None:
+    archive = zipped({"map.yaml": map_yaml(image=json.dumps(name)), name: map_pgm()})
+    response = post(admin, {"code": "CorridorA", "archive": archive})
+    assert response.status_code == 400
+    assert "control character" in response.json()["archive"][0]
+    assert not SubMap.objects.exists()
+
+
+@pytest.mark.parametrize("name", CONTROL_NAMES, ids=repr)
+def test_it_serves_the_image_of_a_name_stored_with_a_control_character(
+    building: Building, viewer: User, name: str
+) -> None:
+    make_submap(building)
+    SubMap.objects.update(image_name=name)
+    response = client_for(viewer).get(f"{URL}CorridorA/image")
+    assert response.status_code == 200
+    assert response.content == map_pgm()
+    disposition = response["Content-Disposition"]
+    assert disposition.startswith("inline; filename")
+    assert all(char.isprintable() for char in disposition)
+
+
+def test_the_image_keeps_its_name_in_the_content_disposition(
+    building: Building, viewer: User
+) -> None:
+    make_submap(building)
+    response = client_for(viewer).get(f"{URL}CorridorA/image")
+    assert response["Content-Disposition"] == 'inline; filename="map.pgm"'
 
 
 def test_a_bad_replacement_keeps_the_old_map(building: Building, admin: User) -> None:

@@ -167,6 +167,65 @@ def test_an_admin_previews_a_submap_before_storing_it(
     assert stored["data"] == np.ascontiguousarray(grid).reshape(-1).tolist()
 
 
+def expected_counts(yaml: bytes, name: str, image: bytes) -> dict[str, int]:
+    grid = load_map_upload(yaml, {name: image}, 10**6).grid
+    return {
+        "free": int((grid == 0).sum()),
+        "occupied": int((grid == 100).sum()),
+        "unknown": int((grid == -1).sum()),
+        "other": int(((grid > 0) & (grid < 100)).sum()),
+    }
+
+
+def test_an_admin_sees_the_servers_preview_and_is_asked_before_replacing_a_map(
+    context: BrowserContext, demo: Demo, tmp_path: Path
+) -> None:
+    """A TIFF (no browser decodes it) under the code of a live sub-map: the server's dry
+    run draws it and names a bad field; storing asks first, and only a yes replaces."""
+    pixels = Image.open(io.BytesIO(rgba_map())).convert("L")
+    (tmp_path / "lab.tif").write_bytes(encode_tiff(pixels))
+    (tmp_path / "bad.yaml").write_bytes(map_yaml(image="lab.tif", resolution=-1))
+    (tmp_path / "lab.yaml").write_bytes(map_yaml(image="lab.tif"))
+    grid_url = demo.url(f"/api/buildings/{BUILDING}/maps/CorridorC/grid")
+    page = open_as(context, demo, "admin", f"/buildings/{BUILDING}/upload/")
+    live = page.request.get(grid_url).json()["info"]
+
+    page.fill("input[name=code]", "CorridorC")
+    page.set_input_files("input[name=image]", str(tmp_path / "lab.tif"))
+    page.set_input_files("input[name=yaml]", str(tmp_path / "bad.yaml"))
+    expect(page.locator("#upload-messages .alert.error")).to_contain_text("resolution")
+    page.set_input_files("input[name=yaml]", str(tmp_path / "lab.yaml"))
+    counts = page.locator("#preview-counts")
+    expected = expected_counts((tmp_path / "lab.yaml").read_bytes(), "lab.tif", encode_tiff(pixels))
+    expect(counts).to_have_attribute("data-free", str(expected["free"]))
+    for kind, count in expected.items():
+        assert counts.get_attribute(f"data-{kind}") == str(count), kind
+    expect(page.locator("#upload-messages .alert.warn")).to_contain_text(
+        f"{BUILDING}/CorridorC exists"
+    )
+    assert "null" not in (counts.text_content() or "")
+    screenshot(page, "upload-preview-replaces")
+
+    page.click("#upload-submit")
+    dialog = page.locator("dialog#replace-dialog")
+    expect(dialog).to_contain_text(f"{BUILDING}/CorridorC already exists")
+    screenshot(page, "upload-confirm-replace")
+    dialog.get_by_role("button", name="Keep the stored map").click()
+    expect(page.locator("#upload-messages .alert.info")).to_contain_text("Not stored")
+    assert page.request.get(grid_url).json()["info"]["width"] == live["width"]
+
+    page.click("#upload-submit")
+    page.locator("dialog#replace-dialog").get_by_role("button", name="Replace it").click()
+    expect(page.locator("#upload-messages .alert.ok")).to_contain_text(f"{BUILDING}/CorridorC")
+    assert page.request.get(grid_url).json()["info"]["width"] == 64
+
+
+def encode_tiff(image: Image.Image) -> bytes:
+    out = io.BytesIO()
+    image.save(out, "TIFF")
+    return out.getvalue()
+
+
 def test_an_admin_places_a_tag_and_prints_it(context: BrowserContext, demo: Demo) -> None:
     page = open_as(context, demo, "admin", f"/buildings/{BUILDING}/maps/CorridorC/")
     expect(page.locator("#map-wrap")).to_have_attribute("data-loaded", "CorridorC")

@@ -5,8 +5,6 @@ from __future__ import annotations
 
 import math
 import re
-import urllib.error
-import urllib.request
 from pathlib import Path
 
 import pytest
@@ -31,7 +29,6 @@ GOAL = (8.0, 23.2, 0.0)
 FAR_GOAL = (16.0, 23.2, 0.0)
 BEYOND_THE_WALL = (10.0, 26.4, 0.0)  # 1.8 m north of Corridor A, outside the building
 ATRIUM_1 = (20.0, 23.2, 0.0)  # between the door and the central pillar
-CAMERA_TOPIC = f"/{ROBOT}/camera/image/compressed"
 SOMETHING = re.compile(r".+")
 
 
@@ -179,24 +176,10 @@ def test_the_camera_shows_frames_from_the_robot(
     screenshot(page, "robot-camera")
 
 
-def relays_exist(demo: Demo) -> bool:
-    """Whether the server has the video relays (issue 5): anything but a 404 at /stream."""
-    url = demo.url(f"/stream?topic={CAMERA_TOPIC}&type=mjpeg")
-    try:
-        with urllib.request.urlopen(url, timeout=5):
-            return True
-    except urllib.error.HTTPError as error:
-        return error.code != 404
-    except TimeoutError:
-        return True  # a stream that started answering
-
-
 @pytest.mark.parametrize("mode", ["mjpeg", "vp8"])
 def test_the_camera_plays_the_video_relays(
     mode: str, context: BrowserContext, demo: Demo, agent: Path
 ) -> None:
-    if not relays_exist(demo):
-        pytest.skip("the server has no /stream video relay yet (issue 5)")
     page = robot_page(context, demo)
     page.click(f"#camera-modes button[data-mode={mode}]")
     expect(page.locator("#camera-frame")).to_have_attribute("data-mode", mode)

@@ -26,11 +26,6 @@ def corridor(building: Building) -> SubMap:
     return corridor
 
 
-@pytest.fixture
-def token(building: Building) -> str:
-    return make_robot(name="r1", buildings=[building])[1]
-
-
 def fetch(token: str, etag: str | None = None) -> Any:
     headers = {"If-None-Match": etag} if etag else {}
     return client_for(token).get(URL, headers=headers)
@@ -61,7 +56,7 @@ def test_it_answers_200_to_a_stale_etag(corridor: SubMap, token: str) -> None:
 
 
 def change_image(corridor: SubMap) -> None:
-    make_submap(corridor.building, code="CorridorA", image=map_pgm(width=41))
+    make_submap(corridor.building, code="CorridorA", image=map_pgm(width=41), replace=True)
 
 
 def change_yaml(corridor: SubMap) -> None:

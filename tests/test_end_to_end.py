@@ -26,7 +26,7 @@ import pytest
 import websockets
 
 from maps.domain.demo_building import PAPER_ROUTE
-from tests.fixtures_live import LiveServer, agent_process, operator_handshake, seed_demo_token
+from tests.fixtures_live import LiveServer, agent_process
 
 pytestmark = [pytest.mark.django_db(transaction=True), pytest.mark.slow]
 
@@ -42,20 +42,10 @@ BUNDLE = re.compile(r'"GET /api/buildings/([^/]+)/maps/([^/]+)/bundle" (\d{3})')
 
 
 @pytest.fixture
-def token(tmp_path: Path) -> str:
-    return seed_demo_token(tmp_path / "tokens.json", ROBOT)
-
-
-@pytest.fixture
-def operator_headers(daphne_server: LiveServer, token: str) -> dict[str, str]:
-    return operator_handshake(daphne_server)
-
-
-@pytest.fixture
-def agent(daphne_server: LiveServer, token: str, tmp_path: Path) -> Iterator[Path]:
+def agent(daphne_server: LiveServer, demo_token: str, tmp_path: Path) -> Iterator[Path]:
     """``python -m robots.agent`` in its own process; yields its log file."""
     options = ["--time-scale", str(TIME_SCALE), "--camera-rate", "1"]
-    with agent_process(daphne_server.url, token, tmp_path / "agent.log", *options) as log:
+    with agent_process(daphne_server.url, demo_token, tmp_path / "agent.log", *options) as log:
         yield log
 
 

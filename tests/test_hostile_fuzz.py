@@ -19,7 +19,6 @@ from typing import Any
 import cbor2
 import pytest
 
-from tests.conftest import make_robot
 from tests.hostile import LiveRosbridge, cbor_frame, cbor_tag, server_memory, shared_reference_bomb
 
 FRAMES_PER_FORMAT = 150
@@ -193,11 +192,6 @@ class Generator:
             b"\x81" * 10_000 + b"\x00",
         ]
         return rng.choice(options)
-
-
-@pytest.fixture
-def token(building):
-    return make_robot(name="r1", buildings=[building])[1]
 
 
 @pytest.mark.parametrize("binary", [False, True], ids=["json", "cbor"])

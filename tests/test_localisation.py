@@ -86,6 +86,7 @@ def scan_at(pose: Pose) -> dict[str, object]:
 # --- tracking --------------------------------------------------------------------------
 
 
+@pytest.mark.slow
 def test_a_start_from_a_tag_stays_within_about_15_cm_driving_the_corridor() -> None:
     start, covariance = tag_start(ATRIUM_TAG, 1.2)
     particle_filter = corridor_filter()
@@ -98,6 +99,7 @@ def test_a_start_from_a_tag_stays_within_about_15_cm_driving_the_corridor() -> N
     assert max(errors) < 0.2
 
 
+@pytest.mark.slow
 def test_a_start_half_a_metre_off_converges() -> None:
     truth = (6.0, 23.0, 0.0)
     particle_filter = corridor_filter()
@@ -144,6 +146,7 @@ def test_between_updates_the_particles_follow_odometry() -> None:
 # --- resampling ------------------------------------------------------------------------
 
 
+@pytest.mark.slow
 def test_resampling_keeps_the_particle_count_within_its_bounds() -> None:
     particle_filter = corridor_filter(particles=200, min_particles=50, max_particles=3000)
     particle_filter.reset_uniform()
@@ -170,6 +173,7 @@ def test_kld_sampling_keeps_few_for_a_tight_cloud_and_many_for_a_spread_one() ->
 # --- global localisation ---------------------------------------------------------------
 
 
+@pytest.mark.slow
 def test_a_uniform_start_converges_in_a_small_distinctive_room() -> None:
     # A cut corner, a notch and a post: no pose looks like another once the robot moves.
     grid = room(4.0, 3.0, [(2.6, 2.0, 4.0, 3.0), (1.6, 0.0, 1.9, 0.4), (0.0, 2.2, 0.5, 2.5)])
@@ -187,6 +191,7 @@ def test_a_uniform_start_converges_in_a_small_distinctive_room() -> None:
         assert max(follow(particle_filter, ticks)[-10:]) < 0.1
 
 
+@pytest.mark.slow
 def test_in_a_symmetric_corridor_a_uniform_start_ends_at_the_truth_or_its_mirror_image() -> None:
     """The paper's point about global initialisation: in a corridor that looks the same
     from both ends, driving does not tell the two apart, and the filter settles on either
@@ -216,6 +221,7 @@ def test_in_a_symmetric_corridor_a_uniform_start_ends_at_the_truth_or_its_mirror
 # --- maps ------------------------------------------------------------------------------
 
 
+@pytest.mark.slow
 def test_swapping_to_the_next_sub_map_keeps_the_pose_and_goes_on_tracking() -> None:
     start, covariance = tag_start(ATRIUM_TAG, 1.2)
     particle_filter = corridor_filter()
@@ -269,6 +275,7 @@ def test_the_mean_heading_is_circular_across_half_a_turn() -> None:
     assert particle_filter.covariance()[2, 2] == pytest.approx(0.05**2, rel=0.2)
 
 
+@pytest.mark.slow
 def test_amcls_sum_of_cubes_model_tracks_but_more_loosely() -> None:
     start, covariance = tag_start(ATRIUM_TAG, 1.2)
     spreads = {}
@@ -324,6 +331,7 @@ def test_one_update_of_500_particles_and_60_beams_takes_a_few_milliseconds() -> 
 # --- the experiment --------------------------------------------------------------------
 
 
+@pytest.mark.slow
 def test_the_experiment_prints_table_3_beside_the_papers_headings(
     capsys: pytest.CaptureFixture[str],
 ) -> None:

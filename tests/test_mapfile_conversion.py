@@ -310,6 +310,7 @@ def test_it_loads_map_saver_pgms_as_their_bytes_in_raw_mode() -> None:
 # Speed
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("mode", "bands"), [("L", 1), ("RGB", 3), ("RGBA", 4)])
 def test_it_converts_a_4000_by_4000_map_in_well_under_a_second(mode: str, bands: int) -> None:
     pixels = np.random.default_rng(0).integers(0, 256, (4000, 4000, bands), dtype=np.uint8)

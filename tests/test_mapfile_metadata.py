@@ -183,6 +183,7 @@ def test_it_refuses_yaml_that_is_not_a_mapping(text: bytes) -> None:
     assert yaml_refused(text) == "yaml"
 
 
+@pytest.mark.slow
 def test_it_refuses_yaml_nested_deeper_than_the_parser_can_follow() -> None:
     assert yaml_refused(b"[" * 100_000) == "yaml"
 

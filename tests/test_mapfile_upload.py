@@ -149,6 +149,22 @@ def test_it_refuses_a_member_name_that_escapes_the_archive(name: str) -> None:
     assert repr(name) in error.message
 
 
+# zipfile cuts a member's name at NUL, so only a pair's image name can hold one.
+CONTROL_NAMES = ["map\r\n.pgm", "map\n.pgm", "map\t.pgm", "map\u2028.pgm", "\u202emap.pgm"]
+
+
+@pytest.mark.parametrize("name", CONTROL_NAMES, ids=repr)
+def test_it_refuses_a_member_name_with_a_control_character(name: str) -> None:
+    error = archive_refused(make_zip({"map.yaml": make_yaml(image=name), name: PGM}))
+    assert error.field == "archive"
+    assert repr(name) in error.message
+
+
+@pytest.mark.parametrize("name", [*CONTROL_NAMES, "map\x00.pgm"], ids=repr)
+def test_it_refuses_an_uploaded_image_name_with_a_control_character(name: str) -> None:
+    assert upload_refused(make_yaml(image=name), {name: PGM}).field == "image"
+
+
 def test_it_refuses_a_zip_bomb_by_its_declared_sizes() -> None:
     archive = make_zip(
         {"map.yaml": make_yaml(), "map.pgm": PGM, "bomb.bin": bytes(2 * 1024 * 1024)}

@@ -57,6 +57,7 @@ def test_its_transform_maps_the_marker_centre_to_the_camera_frame() -> None:
     assert base[2] == pytest.approx(tag_of(world, ENTRANCE).height, abs=0.01)
 
 
+@pytest.mark.slow
 def test_it_resolves_the_two_pose_ambiguity_over_time() -> None:
     # IPPE alone, at 1.7 m nearly head-on: the per-frame best solution flips between the
     # two mirror poses; remembering the last choice keeps the yaw from jumping.
@@ -67,6 +68,7 @@ def test_it_resolves_the_two_pose_ambiguity_over_time() -> None:
     assert max(abs(j) for j in np.diff(steady)) < 4
 
 
+@pytest.mark.slow
 def test_its_upright_fit_keeps_the_yaw_within_a_few_degrees() -> None:
     tag = tag_of(demo_world(), ENTRANCE)
     errors = slide_past(tag, 1.5, TagDetector(read_qr=False))

@@ -10,11 +10,11 @@ import numpy.typing as npt
 import pytest
 from skimage.graph import route_through_array
 
-from benchmarks.planner import obstacle_course, submap_grid
 from benchmarks.planner import run as run_benchmark
 from maps.domain import planning
-from maps.domain.demo_building import demo_building
+from maps.domain.demo_building import demo_building, submap_grid
 from maps.domain.grid import cell_of, centre_of
+from maps.domain.obstacle_course import obstacle_course
 from maps.domain.planning import (
     Costmap,
     InObstacleError,
@@ -223,6 +223,7 @@ def test_inflation_blocks_the_cells_exactly_a_radius_away_at_any_resolution(
     assert not blocked[7, 8]  # sqrt(13) cells away
 
 
+@pytest.mark.slow
 def test_the_planner_benchmark_runs_on_a_small_grid(capsys: pytest.CaptureFixture[str]) -> None:
     options = {"size": 300, "seed": 3, "repeat": 1, "resolution": RES, "radius": 0.2}
     run_benchmark({**options, "skip_networkx": False})

@@ -4,15 +4,9 @@ from __future__ import annotations
 
 import pytest
 
-from tests.conftest import make_robot
 from tests.fixtures_live import Refused
 
 pytestmark = pytest.mark.django_db(transaction=True)
-
-
-@pytest.fixture
-def token(building):
-    return make_robot(buildings=[building])[1]
 
 
 async def test_it_admits_a_robot_by_query_token(rosbridge, token):

@@ -129,7 +129,7 @@ class Timers:
     def __init__(self):
         self.pending = []
 
-    def __call__(self, delay, callback):
+    def __call__(self, _delay, callback):
         self.pending.append(callback)
         return self
 

@@ -3,7 +3,6 @@ at /api/fleet/."""
 
 from __future__ import annotations
 
-import asyncio
 import math
 import time
 from typing import Any
@@ -14,6 +13,7 @@ from rest_framework.test import APIClient
 
 from robots.models import RobotState
 from tests.conftest import make_building, make_robot
+from tests.fixtures_live import until
 
 pytestmark = pytest.mark.django_db(transaction=True)
 
@@ -38,10 +38,7 @@ def state_of(robot):
 
 async def eventually(check, wait=5.0):
     """Poll ``check`` (run in a thread with database access) until it is true or time runs out."""
-    deadline = time.monotonic() + wait
-    while not await database_sync_to_async(check)():
-        assert time.monotonic() < deadline, "the condition never held"
-        await asyncio.sleep(0.02)
+    await until(database_sync_to_async(check), "the condition", wait)
 
 
 async def test_a_connected_robot_is_online_and_offline_when_it_leaves(rosbridge, robot):

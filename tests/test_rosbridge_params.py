@@ -9,14 +9,7 @@ from __future__ import annotations
 
 import pytest
 
-from tests.conftest import make_robot
-
 pytestmark = pytest.mark.django_db(transaction=True)
-
-
-@pytest.fixture
-def token(building):
-    return make_robot(name="r1", buildings=[building])[1]
 
 
 async def value_of(client, name):

@@ -4,14 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from tests.conftest import make_robot
-
 pytestmark = pytest.mark.django_db(transaction=True)
-
-
-@pytest.fixture
-def token(building):
-    return make_robot(name="r1", buildings=[building])[1]
 
 
 async def test_a_call_reaches_the_advertiser_and_the_answer_comes_back(rosbridge, token, operator):

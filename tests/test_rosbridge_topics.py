@@ -8,7 +8,6 @@ from typing import Any
 import pytest
 
 from telemetry.domain.limits import ConnectionLimits
-from tests.conftest import make_robot
 
 pytestmark = pytest.mark.django_db(transaction=True)
 
@@ -22,11 +21,6 @@ POSE = {
 
 
 MIN_FRAGMENT = ConnectionLimits().min_fragment_size
-
-
-@pytest.fixture
-def token(building):
-    return make_robot(name="r1", buildings=[building])[1]
 
 
 async def test_a_robot_publishes_its_pose_to_an_operator(rosbridge, token, operator):

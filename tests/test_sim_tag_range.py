@@ -21,6 +21,7 @@ def quick(quick_results: list[RangeResult]) -> dict[RangeCase, float | None]:
     return {result.case: result.distance for result in quick_results}
 
 
+@pytest.mark.slow
 def test_the_marker_reads_farther_than_the_qr_code(quick: dict[RangeCase, float | None]) -> None:
     marker, qr = quick[RangeCase(0.06, 0.0, None)], quick[RangeCase(0.06, 0.0, 3)]
     assert qr is not None
@@ -28,6 +29,7 @@ def test_the_marker_reads_farther_than_the_qr_code(quick: dict[RangeCase, float 
     assert 0.3 < qr < marker < 3.5
 
 
+@pytest.mark.slow
 def test_range_shrinks_with_the_view_angle(quick: dict[RangeCase, float | None]) -> None:
     for kind in (None, 3):
         head_on, slanted = quick[RangeCase(0.06, 0.0, kind)], quick[RangeCase(0.06, 60.0, kind)]
@@ -36,6 +38,7 @@ def test_range_shrinks_with_the_view_angle(quick: dict[RangeCase, float | None])
         assert slanted < head_on
 
 
+@pytest.mark.slow
 def test_a_bigger_marker_reads_from_farther() -> None:
     small = max_range(RangeCase(0.04, 0.0, None)).distance
     big = max_range(RangeCase(0.08, 0.0, None)).distance
@@ -50,6 +53,7 @@ def test_the_padded_payload_needs_exactly_its_qr_version(version: int) -> None:
     assert low < len(padded_payload(version)) <= high
 
 
+@pytest.mark.slow
 def test_the_command_prints_both_tables_beside_the_papers_figures(
     quick_results: list[RangeResult],
     capsys: pytest.CaptureFixture[str],

@@ -30,6 +30,7 @@ def brute_force_range(world: World, x: float, y: float, angle: float, reach: flo
     return math.inf
 
 
+@pytest.mark.slow
 def test_its_rays_end_where_a_fine_march_meets_a_wall() -> None:
     world = demo_world().with_obstacles(Cylinder(8.0, 23.0, 0.3))
     rng = np.random.default_rng(1)

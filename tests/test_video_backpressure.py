@@ -8,17 +8,16 @@ frames then go through its stream while a healthy viewer reads every one.
 from __future__ import annotations
 
 import asyncio
-import json
-import urllib.request
 
 import cv2
 import numpy as np
 import psutil
 import pytest
 
-from benchmarks.video import Camera, Stream, open_stream
+from telemetry.domain.camera_feed import Camera
+from telemetry.domain.http_stream import Stream, open_stream
 from telemetry.domain.multipart import PartReader
-from tests.conftest import make_building, make_robot
+from tests.fixtures_live import video_stats
 
 pytestmark = pytest.mark.django_db(transaction=True)
 
@@ -42,17 +41,7 @@ def rss(pid: int) -> int:
 
 
 def skipped(url: str, token: str) -> int:
-    request = urllib.request.Request(
-        url + "/api/video/stats", headers={"Authorization": f"Token {token}"}
-    )
-    with urllib.request.urlopen(request, timeout=10) as response:
-        streams = json.load(response)["streams"]
-    return sum(s["frames_skipped"] for s in streams if s["type"] == "mjpeg")
-
-
-@pytest.fixture
-def token() -> str:
-    return make_robot(name="r1", buildings=[make_building()])[1]
+    return sum(s["frames_skipped"] for s in video_stats(url, token) if s["type"] == "mjpeg")
 
 
 async def stamps(stream: Stream, reader: PartReader) -> list[float]:

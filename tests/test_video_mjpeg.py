@@ -8,18 +8,17 @@ part: its framing, each part's headers, and the robot's own bytes inside.
 from __future__ import annotations
 
 import asyncio
-import json
-import urllib.request
-from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
 from typing import Any
 
 import pytest
 
-from benchmarks.video import Camera, Stream, camera_frames, open_stream
+from telemetry.domain.camera_feed import Camera, camera_frames
+from telemetry.domain.http_stream import Stream, open_stream
 from telemetry.domain.jpeg import decode
 from telemetry.domain.multipart import PartReader
 from tests.conftest import make_building, make_robot
+from tests.fixtures_live import until, video_stats
 
 pytestmark = pytest.mark.django_db(transaction=True)
 
@@ -40,10 +39,7 @@ class Site:
         return await open_stream(self.url, f"{path}?{query}", token=self.token)
 
     def stats(self) -> list[dict[str, Any]]:
-        auth = {"Authorization": f"Token {self.token}"}
-        request = urllib.request.Request(self.url + "/api/video/stats", headers=auth)
-        with urllib.request.urlopen(request, timeout=WAIT) as response:
-            return list(json.load(response)["streams"])
+        return video_stats(self.url, self.token, WAIT)
 
 
 @pytest.fixture
@@ -68,13 +64,6 @@ async def read_parts(
             assert data, "the stream ended"
             parts += reader.feed(data)
     return parts
-
-
-async def until(check: Callable[[], Awaitable[bool]], wait: float = WAIT) -> None:
-    """Poll ``check`` (a server's statistics: nothing to await there) until it holds."""
-    async with asyncio.timeout(wait):
-        while not await check():  # noqa: ASYNC110
-            await asyncio.sleep(0.05)
 
 
 async def test_it_relays_the_robots_own_jpeg_bytes_part_by_part(site, jpegs):
@@ -137,7 +126,7 @@ async def test_viewers_asking_the_same_size_and_quality_share_one_reencode(site,
     async def stopped() -> bool:
         return all(s["type"] == "source" for s in await asyncio.to_thread(site.stats))
 
-    await until(stopped)  # the re-encode stopped with its last viewer
+    await until(stopped, "the re-encode to stop", WAIT)  # it stops with its last viewer
 
 
 async def test_ros_compressed_takes_the_base_topic_as_web_video_server_does(site, jpegs):

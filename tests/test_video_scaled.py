@@ -10,7 +10,8 @@ import asyncio
 
 import pytest
 
-from benchmarks.video import Camera, camera_frames, open_stream
+from telemetry.domain.camera_feed import Camera, camera_frames
+from telemetry.domain.http_stream import open_stream
 from telemetry.domain.multipart import PartReader
 from telemetry.domain.webm import WebmReader
 

@@ -6,17 +6,16 @@ from __future__ import annotations
 
 import asyncio
 import io
-import json
 import time
-import urllib.request
 from typing import Any
 
 import av
 import pytest
 
-from benchmarks.video import Camera, Stream, camera_frames, open_stream
+from telemetry.domain.camera_feed import Camera, camera_frames
+from telemetry.domain.http_stream import Stream, open_stream
 from telemetry.domain.webm import WebmReader
-from tests.conftest import make_building, make_robot
+from tests.fixtures_live import video_stats
 
 pytestmark = pytest.mark.django_db(transaction=True)
 
@@ -25,22 +24,13 @@ QUERY = f"/stream?topic={TOPIC}&type=vp8&gop=10"
 WAIT = 10.0
 
 
-@pytest.fixture
-def token() -> str:
-    return make_robot(name="r1", buildings=[make_building()])[1]
-
-
 @pytest.fixture(scope="module")
 def jpegs() -> list[bytes]:
     return camera_frames(320, 240, quality=90, count=30)
 
 
 def stats(url: str, token: str) -> list[dict[str, Any]]:
-    request = urllib.request.Request(
-        url + "/api/video/stats", headers={"Authorization": f"Token {token}"}
-    )
-    with urllib.request.urlopen(request, timeout=WAIT) as response:
-        return [s for s in json.load(response)["streams"] if s["type"] == "vp8"]
+    return [s for s in video_stats(url, token, WAIT) if s["type"] == "vp8"]
 
 
 class Recording:

@@ -35,6 +35,7 @@ from functools import lru_cache
 import numpy as np
 import numpy.typing as npt
 
+from maps.domain.mapfile import MapMetadata, occupancy_from_image, open_map_image
 from robots.domain.se2 import ahead
 
 BUILDING_CODE = "boccioni_1"
@@ -339,6 +340,24 @@ def occupancy_to_pgm(grid: Grid) -> bytes:
     header = f"P5\n{width} {height}\n255\n".encode("ascii")
     # Image rows run top to bottom, grid rows bottom to top.
     return header + np.flipud(grey).astype(np.uint8).tobytes()
+
+
+def submap_metadata(submap: DemoSubMap) -> MapMetadata:
+    """Return a demo sub-map's map_server metadata, its PGM named after its code."""
+    return MapMetadata(
+        image=f"{submap.code}.pgm",
+        resolution=submap.resolution,
+        origin=submap.origin,
+        occupied_thresh=submap.occupied_thresh,
+        free_thresh=submap.free_thresh,
+        negate=bool(submap.negate),
+    )
+
+
+def submap_grid(submap: DemoSubMap) -> Grid:
+    """Decode a demo sub-map's PGM into its occupancy grid, as a robot decodes a bundle."""
+    image = open_map_image(submap.pgm, max_pixels=submap.width * submap.height)
+    return occupancy_from_image(image, submap_metadata(submap))
 
 
 # ---------------------------------------------------------------------------------------

@@ -16,6 +16,7 @@ import numbers
 import posixpath
 import re
 import reprlib
+import unicodedata
 import warnings
 import zipfile
 from collections.abc import Collection, Mapping
@@ -57,6 +58,8 @@ IMAGE_FORMATS = ("PPM", "PNG", "BMP", "GIF", "JPEG", "TIFF", "WEBP")
 _WIDE_GREY_MODES = frozenset({"I", "I;16", "I;16B", "I;16L", "I;16N"})
 _GREY_MODES = frozenset({"1", "L", "LA", "La"})
 _DRIVE_LETTER = re.compile(r"^[A-Za-z]:")
+# Unicode categories of control and format characters, and line and paragraph separators.
+_CONTROL_CATEGORIES = frozenset({"Cc", "Cf", "Zl", "Zp"})
 
 
 @dataclass(frozen=True)
@@ -330,7 +333,8 @@ def _normalised(image: Image.Image) -> Image.Image:
 def _byte_from_wide(values: npt.NDArray[Any]) -> Bytes:
     """Return 16-bit grey as bytes, round(v / 257), as image libraries scale it."""
     wide = np.clip(values, 0, 65535).astype(np.uint32)
-    return ((wide + 128) // 257).astype(np.uint8)
+    grey: Bytes = ((wide + 128) // 257).astype(np.uint8)
+    return grey
 
 
 def _luminance(rgb: Bytes) -> Bytes:
@@ -383,7 +387,8 @@ def _scaled(p: npt.NDArray[np.float32], meta: MapMetadata) -> Grid:
     value = (p - np.float32(meta.free_thresh)) / span * np.float32(100)
     whole = np.floor(value)
     # Not np.round (halves to even), nor floor(value + 0.5), which rounds 0.49999997 up.
-    return (whole + (value - whole >= 0.5)).astype(np.int8)
+    rounded: Grid = (whole + (value - whole >= 0.5)).astype(np.int8)
+    return rounded
 
 
 # Export and messages
@@ -465,7 +470,8 @@ _CELL_TEXT = np.array([f"{v},".encode() for v in range(-128, 128)], dtype="S5")
 def _cells_json(grid: npt.NDArray[Any]) -> bytes:
     cells = np.asarray(grid, dtype=np.int8).reshape(-1)
     text = _CELL_TEXT[cells.astype(np.int16) + 128].view(np.uint8)
-    return text[text != 0].tobytes()[:-1]
+    written: bytes = text[text != 0].tobytes()[:-1]
+    return written
 
 
 def _checked_grid(grid: npt.NDArray[Any]) -> Grid:
@@ -501,7 +507,8 @@ def load_map_upload(yaml_bytes: bytes, images: Mapping[str, bytes], max_pixels: 
     them by its path relative to the YAML (normalised, so ``./x.pgm`` is ``x.pgm``), or
     by base name when the upload names a file without folders. Every error surfaces
     here as MapFileError: "yaml" and the metadata keys as parse_map_yaml raises them;
-    "image" for an image not in the upload, unreadable, or over max_pixels.
+    "image" for an image not in the upload, unreadable, over max_pixels, or whose name
+    holds a control character.
     """
     meta = parse_map_yaml(yaml_bytes)
     name = _uploaded_image_name(meta.image, images)
@@ -515,7 +522,8 @@ def load_map_archive(
 
     The YAML's image path resolves against the YAML's folder and must stay inside the
     archive. Raises MapFileError("archive", ...) for data that is not a zip, a member
-    name that could escape a folder (absolute, ``..``, backslash, drive letter), members
+    name that could escape a folder (absolute, ``..``, backslash, drive letter) or holds
+    a control character (CR, LF, NUL, ...), members
     declaring or inflating to more than max_total_bytes, an unreadable member, or not
     exactly one YAML; "image" for an image path outside the archive or not in it; and
     load_map_upload's errors otherwise.
@@ -531,10 +539,12 @@ def load_map_archive(
 
 def _loaded(meta: MapMetadata, path: str, image_bytes: bytes, max_pixels: int) -> LoadedMap:
     """Decode and convert now, so that every error surfaces at upload time."""
-    image = open_map_image(image_bytes, max_pixels)
-    grid = occupancy_from_image(image, meta)
     # The map is stored with its YAML beside the image, so the reference is the base name.
     name = posixpath.basename(path)
+    if _has_control_character(name):
+        raise MapFileError("image", f"{name!r} has a control character in its name")
+    image = open_map_image(image_bytes, max_pixels)
+    grid = occupancy_from_image(image, meta)
     return LoadedMap(
         meta=replace(meta, image=name),
         image_bytes=image_bytes,
@@ -587,6 +597,14 @@ def _check_member_name(name: str) -> None:
     # We never extract, but an unsafe name betrays a hostile archive: refuse it whole.
     if name.startswith("/") or "\\" in name or _DRIVE_LETTER.match(name) or ".." in name.split("/"):
         raise MapFileError("archive", f"member {name!r} escapes the archive")
+    if _has_control_character(name):
+        raise MapFileError("archive", f"member {name!r} has a control character in its name")
+
+
+def _has_control_character(name: str) -> bool:
+    """Whether name holds a control, format or line-breaking character (CR, LF, NUL, ...),
+    which would break the headers and files the name is later written into."""
+    return any(unicodedata.category(char) in _CONTROL_CATEGORIES for char in name)
 
 
 def _only_yaml(members: Mapping[str, zipfile.ZipInfo]) -> str:

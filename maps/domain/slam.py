@@ -168,7 +168,8 @@ class _Field:
         y = poses[:, 1:2] + sin * points[:, 0] + cos * points[:, 1]
         col = (x - self.origin[0]) / self.resolution - 0.5
         row = (y - self.origin[1]) / self.resolution - 0.5
-        return _bilinear(self.values, row, col).mean(axis=1)
+        scores: Floats = _bilinear(self.values, row, col).mean(axis=1)
+        return scores
 
 
 def _bilinear(values: Floats, row: Floats, col: Floats) -> Floats:
@@ -596,7 +597,7 @@ def _covers(field: _Field, pose: Pose, margin: float) -> bool:
     height, width = field.values.shape
     x0, y0 = field.origin
     res = field.resolution
-    return (
+    return bool(
         x0 + margin <= pose[0] <= x0 + width * res - margin
         and y0 + margin <= pose[1] <= y0 + height * res - margin
     )

@@ -27,7 +27,7 @@ from ..views import building_for
 from . import sessions, upkeep
 
 
-class StartSerializer(serializers.Serializer):
+class StartSerializer(serializers.Serializer[Any]):
     robot = serializers.CharField()
     building = serializers.CharField()
     code = serializers.RegexField(r"^[A-Za-z][A-Za-z0-9_]*$", max_length=40)
@@ -36,10 +36,10 @@ class StartSerializer(serializers.Serializer):
     )
 
 
-class SessionSerializer(serializers.ModelSerializer):
+class SessionSerializer(serializers.ModelSerializer[MappingSession]):
     robot = serializers.CharField(source="robot.name")
     building = serializers.CharField(source="building.code")
-    started_by: serializers.SlugRelatedField = serializers.SlugRelatedField(
+    started_by: serializers.SlugRelatedField[Any] = serializers.SlugRelatedField(
         slug_field="username", read_only=True
     )
     map_id = serializers.SerializerMethodField()
@@ -205,8 +205,8 @@ class SessionPublish(APIView):
 # Proposed changes (map upkeep)
 
 
-class ProposalSerializer(serializers.ModelSerializer):
-    decided_by: serializers.SlugRelatedField = serializers.SlugRelatedField(
+class ProposalSerializer(serializers.ModelSerializer[ChangeProposal]):
+    decided_by: serializers.SlugRelatedField[Any] = serializers.SlugRelatedField(
         slug_field="username", read_only=True
     )
 

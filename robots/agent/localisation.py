@@ -211,7 +211,8 @@ class ParticleFilter:
         itself a fair sample, which KLD-sampling needs)."""
         cumulative = np.cumsum(self._weights)
         picks = np.searchsorted(cumulative, self.rng.random(count) * cumulative[-1])
-        return np.minimum(picks, len(self._weights) - 1)
+        drawn: NDArray[np.intp] = np.minimum(picks, len(self._weights) - 1)
+        return drawn
 
     # --- estimate ----------------------------------------------------------------------
 

@@ -443,7 +443,8 @@ def _intersection(first: Line, second: Line) -> Matrix:
     if abs(np.linalg.det(matrix)) < 1e-9:
         return np.full(2, np.nan)
     t = np.linalg.solve(matrix, q - p)
-    return p + t[0] * u
+    crossing: Matrix = p + t[0] * u
+    return crossing
 
 
 def _ippe_solutions(corners: NDArray[np.float32], size: float, matrix: Matrix) -> list[Solution]:
@@ -515,7 +516,8 @@ def _reprojection(parameters: Matrix, objects: Matrix, corners: Matrix, matrix: 
     points = objects @ _upright_rotation(parameters[0]).T + parameters[1:]
     depth = np.maximum(points[:, 2:3], 1e-6)
     projected = points[:, :2] / depth * (matrix[0, 0], matrix[1, 1]) + (matrix[0, 2], matrix[1, 2])
-    return (projected - corners).ravel()
+    residuals: Matrix = (projected - corners).ravel()
+    return residuals
 
 
 def _fit_upright(start: Matrix, objects: Matrix, corners: Matrix, matrix: Matrix) -> Solution:
@@ -550,7 +552,8 @@ def _read_one(crop: Image | None) -> str | None:
 def _code_centre(code: zxingcpp.Barcode) -> NDArray[np.float64]:
     position = code.position
     corners = (position.top_left, position.top_right, position.bottom_right, position.bottom_left)
-    return np.array([[p.x, p.y] for p in corners], np.float64).mean(axis=0)
+    centre: NDArray[np.float64] = np.array([[p.x, p.y] for p in corners], np.float64).mean(axis=0)
+    return centre
 
 
 def _with_text(detection: TagDetection, text: str | None) -> TagDetection:

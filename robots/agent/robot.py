@@ -287,7 +287,7 @@ class Robot:
         except BundleError as error:
             logger.warning("initial pose in %s ignored: %s", map_id, error)
 
-    def on_cancel(self, args: Any) -> Json:
+    def on_cancel(self, _args: Any) -> Json:
         """The ``cancel_goal`` service: preempt the active goal."""
         cancelled = self.navigator.cancel()
         return {"success": cancelled, "message": "cancelled" if cancelled else "no active goal"}

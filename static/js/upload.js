@@ -1,77 +1,83 @@
-// Sub-map upload: the free, occupied and unknown cells are computed here from the chosen
-// files, with the rule the server applies, and shown before anything is stored.
+// Sub-map upload: the chosen files go to the server as a dry run (its own checks and
+// conversion, nothing stored), and the page draws the preview and the field errors it
+// answers. Storing under a code that exists asks before replacing a live map.
 
 import { ApiError, api, urls } from "./api.js";
-import { quaternionOfYaw } from "./geometry.js";
-import { decodeImage, occupancyGrid, parseMapYaml, readZip } from "./mapfile.js";
 import { MapView } from "./mapview.js";
-import { el, pageConfig } from "./page.js";
+import { askToConfirm, el, pageConfig } from "./page.js";
 
 const $ = (id) => document.getElementById(id);
 const config = pageConfig();
 const form = $("upload-form");
 const view = new MapView($("preview-canvas"));
 let kind = "pair";
+let asked = 0; // previews asked so far: only the latest one's answer is drawn
 
-async function readFile(input) {
-  const file = input.files[0];
-  return file ? { name: file.name, bytes: new Uint8Array(await file.arrayBuffer()) } : null;
-}
+const fileFields = () => (kind === "archive" ? ["archive"] : ["image", "yaml"]);
 
-/** {yaml text, image name and bytes} of the chosen files, or null while some are missing. */
-async function chosenPair() {
-  if (kind === "archive") {
-    const archive = await readFile(form.archive);
-    if (!archive) return null;
-    const files = await readZip(archive.bytes);
-    const yamlName = Object.keys(files).find((name) => /\.ya?ml$/i.test(name));
-    if (!yamlName) throw new Error("the archive holds no YAML file");
-    const yaml = new TextDecoder().decode(files[yamlName]);
-    const imageName = parseMapYaml(yaml).image.split("/").pop();
-    if (!files[imageName]) throw new Error(`the archive has no ${imageName}, which the YAML names`);
-    return { yaml, image: { name: imageName, bytes: files[imageName] } };
-  }
-  const [image, yaml] = await Promise.all([readFile(form.image), readFile(form.yaml)]);
-  if (!image || !yaml) return null;
-  return { yaml: new TextDecoder().decode(yaml.bytes), image };
+/** The form's code, name and chosen files as a multipart body, with `extra` fields. */
+function uploadBody(extra = {}) {
+  const body = new FormData();
+  if (form.code.value) body.append("code", form.code.value);
+  if (form.name.value) body.append("name", form.name.value);
+  for (const field of fileFields()) if (form[field].files[0]) body.append(field, form[field].files[0]);
+  for (const [key, value] of Object.entries(extra)) body.append(key, value);
+  return body;
 }
 
 async function preview() {
-  notify("", "");
+  const ticket = ++asked;
+  if (fileFields().some((field) => !form[field].files[0])) {
+    notify("", "");
+    return;
+  }
   try {
-    const pair = await chosenPair();
-    if (!pair) return;
-    const meta = parseMapYaml(pair.yaml);
-    const grid = occupancyGrid(await decodeImage(pair.image.name, pair.image.bytes), meta);
-    const [x, y, yaw] = meta.origin;
-    grid.info.origin = { position: { x, y, z: 0 }, orientation: quaternionOfYaw(yaw) };
-    view.setGrid(grid);
+    const answer = await api.post(urls.submaps(config.building), uploadBody({ dry_run: "true" }));
+    if (ticket !== asked) return;
+    view.setGrid(answer.preview);
     $("preview-empty").hidden = true;
-    showCounts(grid);
-    showMeta(meta, grid.info);
+    showCounts(answer);
+    showMeta(answer);
+    notify(answer.replaces ? "warn" : "", answer.replaces ? `${answer.map_id} exists: storing these files will replace its map.` : "");
   } catch (error) {
-    notify("error", `No preview: ${error.message}`);
+    if (ticket !== asked) return;
+    forgetFigures();
+    notify("error", "No preview: the server would refuse these files:", errorLines(error));
   }
 }
 
-function showCounts(grid) {
-  const total = grid.info.width * grid.info.height;
+/** Clear the counts and metadata of an earlier preview, which no longer hold. */
+function forgetFigures() {
   const box = $("preview-counts");
-  const percent = (n) => `${((100 * n) / total).toFixed(1)}%`;
+  for (const key of Object.keys(box.dataset)) delete box.dataset[key];
+  box.replaceChildren();
+  $("preview-meta").replaceChildren();
+  $("preview-size").textContent = "";
+}
+
+function errorLines(error) {
+  return error instanceof ApiError ? error.messages : [error.message];
+}
+
+function showCounts({ counts, width, height }) {
+  const box = $("preview-counts");
+  const percent = (n) => `${((100 * n) / (width * height)).toFixed(1)}%`;
   const item = (label, n, color) => el("span", { class: `count-${label}` }, el("i", { class: "swatch", style: `background:${color};border:1px solid #ccc` }), `${label} `, el("strong", {}, n.toLocaleString()), ` (${percent(n)})`);
-  const { free, occupied, unknown, other } = grid.counts;
+  const { free, occupied, unknown, other } = counts;
   Object.assign(box.dataset, { free, occupied, unknown, other });
   box.replaceChildren(
     item("free", free, "#fff"), item("occupied", occupied, "#1c2333"), item("unknown", unknown, "#c9ced9"),
-    other ? item("scaled", other, "#8f96a3") : null,
+    ...(other ? [item("scaled", other, "#8f96a3")] : []),
   );
 }
 
-function showMeta(meta, info) {
-  $("preview-size").textContent = `${info.width}×${info.height} cells · ${(info.width * meta.resolution).toFixed(2)} × ${(info.height * meta.resolution).toFixed(2)} m`;
+function showMeta(answer) {
+  const { width, height, resolution } = answer;
+  const shrunk = answer.preview_factor > 1 ? ` · drawn at 1:${answer.preview_factor}` : "";
+  $("preview-size").textContent = `${width}×${height} cells · ${(width * resolution).toFixed(2)} × ${(height * resolution).toFixed(2)} m${shrunk}`;
   const rows = [
-    ["resolution", `${meta.resolution} m`], ["origin", meta.origin.join(", ")], ["mode", meta.mode],
-    ["occupied ≥", meta.occupied_thresh], ["free ≤", meta.free_thresh], ["negate", meta.negate ? "yes" : "no"],
+    ["resolution", `${resolution} m`], ["origin", answer.origin.join(", ")], ["mode", answer.mode],
+    ["occupied ≥", answer.occupied_thresh], ["free ≤", answer.free_thresh], ["negate", answer.negate ? "yes" : "no"],
   ];
   $("preview-meta").replaceChildren(...rows.flatMap(([key, value]) => [el("dt", {}, key), el("dd", {}, String(value))]));
 }
@@ -81,19 +87,41 @@ function notify(kindOf, text, lines = [], link = null) {
     lines.length ? el("ul", {}, ...lines.map((line) => el("li", {}, line))) : null)] : []));
 }
 
+/** Whether to replace the live map of the form's code (the server answered 409). */
+function confirmReplace() {
+  const mapId = `${config.building}/${form.code.value}`;
+  return askToConfirm({
+    id: "replace-dialog",
+    title: `Replace the map of ${mapId}?`,
+    text: `${mapId} already exists. Storing these files replaces its map; robots get the new one on their next bundle request. Its tags stay.`,
+    confirm: "Replace it",
+    cancel: "Keep the stored map",
+  });
+}
+
+async function store(extra = {}) {
+  const stored = await api.post(urls.submaps(config.building), uploadBody(extra));
+  const href = `/buildings/${config.building}/maps/${stored.code}/`;
+  notify("ok", `Stored ${stored.map_id}. `, [], el("a", { href, id: "stored-link" }, "Open it"));
+}
+
+/** Store the form's files; the map of a code that exists is replaced only if they say so. */
+async function storeAsking() {
+  try {
+    return await store();
+  } catch (error) {
+    if (!(error instanceof ApiError && error.status === 409)) throw error;
+  }
+  if (await confirmReplace()) return store({ replace: "true" });
+  notify("info", `Not stored: ${config.building}/${form.code.value} keeps its map.`);
+}
+
 async function submit(event) {
   event.preventDefault();
-  const body = new FormData();
-  body.append("code", form.code.value);
-  if (form.name.value) body.append("name", form.name.value);
-  const fields = kind === "archive" ? ["archive"] : ["image", "yaml"];
-  for (const field of fields) if (form[field].files[0]) body.append(field, form[field].files[0]);
   try {
-    const stored = await api.post(urls.submaps(config.building), body);
-    const href = `/buildings/${config.building}/maps/${stored.code}/`;
-    notify("ok", `Stored ${stored.map_id}. `, [], el("a", { href, id: "stored-link" }, "Open it"));
+    await storeAsking();
   } catch (error) {
-    notify("error", "The server refused this sub-map:", error instanceof ApiError ? error.messages : [error.message]);
+    notify("error", "The server refused this sub-map:", errorLines(error));
   }
 }
 
@@ -108,5 +136,5 @@ function chooseKind(next) {
 for (const button of $("upload-kind").querySelectorAll("button")) {
   button.addEventListener("click", () => chooseKind(button.dataset.kind));
 }
-for (const name of ["image", "yaml", "archive"]) form[name].addEventListener("change", preview);
+for (const name of ["image", "yaml", "archive", "code"]) form[name].addEventListener("change", preview);
 form.addEventListener("submit", submit);

@@ -208,8 +208,8 @@ class TopicBus:
         self,
         scheduler: Scheduler,
         clock: Callable[[], float] = time.monotonic,
-        type_hint: Callable[[str], str | None] = lambda name: None,
-        latch_hint: Callable[[str], bool] = lambda name: False,
+        type_hint: Callable[[str], str | None] = lambda _name: None,
+        latch_hint: Callable[[str], bool] = lambda _name: False,
         limits: ConnectionLimits | None = None,
     ) -> None:
         self.scheduler = scheduler
@@ -330,7 +330,7 @@ class TopicBus:
             subscription.offer(out, now)
 
     def receive_remote(
-        self, name: str, type_name: str | None, msg: dict[str, Json], latched: bool
+        self, name: str, _type_name: str | None, msg: dict[str, Json], latched: bool
     ) -> None:
         """Fan out a message published on another server process to local subscribers."""
         topic = self._topics.get(name)

@@ -36,7 +36,7 @@ from telemetry.hub import Hub, fleet_type
 
 # The rosbridge server's own identity rules, so a robot or a person is the same principal
 # over HTTP as over its WebSocket (their scope-based entry point checks a WebSocket origin).
-from telemetry.services import owner_named, person_identity, robot_identity
+from telemetry.services import Identity, owner_named, person_identity, robot_identity
 
 CAMERA = "camera/image/compressed"
 
@@ -65,14 +65,14 @@ async def principal_of(request: HttpRequest) -> Principal:
     nothing. Raises NotAuthenticated without a credential or for an unknown token."""
     token = token_of(request)
     if token is not None:
-        identity = await database_sync_to_async(robot_identity)(token)
+        identity: Identity | None = await database_sync_to_async(robot_identity)(token)
         if identity is None:
             raise NotAuthenticated("unknown robot token")
         return identity.principal
     user = await request.auser()
     if not user.is_authenticated:
         raise NotAuthenticated("sign in, or give a robot token")
-    person = await database_sync_to_async(person_identity)(user)
+    person: Identity | None = await database_sync_to_async(person_identity)(user)
     if person is None:
         return Principal(label=f"user:{user.get_username()}", robot=None, buildings=frozenset())
     return person.principal

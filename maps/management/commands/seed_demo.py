@@ -18,8 +18,8 @@ from django.core.management.base import BaseCommand, CommandParser
 from django.db import transaction
 
 from maps import services
-from maps.domain.demo_building import DemoBuilding, demo_building
-from maps.domain.mapfile import MapMetadata, content_version, load_map_upload, map_yaml_text
+from maps.domain.demo_building import DemoBuilding, demo_building, submap_metadata
+from maps.domain.mapfile import content_version, load_map_upload, map_yaml_text
 from maps.domain.topology import Edge
 from maps.models import Building, EnvironmentalTag
 from robots.models import Robot
@@ -60,14 +60,7 @@ class Command(BaseCommand):
 
     def _submaps(self, building: Building, demo: DemoBuilding) -> None:
         for sub in demo.submaps:
-            meta = MapMetadata(
-                image=f"{sub.code}.pgm",
-                resolution=sub.resolution,
-                origin=sub.origin,
-                occupied_thresh=sub.occupied_thresh,
-                free_thresh=sub.free_thresh,
-                negate=bool(sub.negate),
-            )
+            meta = submap_metadata(sub)
             loaded = load_map_upload(map_yaml_text(meta).encode(), {meta.image: sub.pgm}, 10**8)
             existing = building.submaps.filter(code=sub.code).only("version").first()
             fields: dict[str, Any] = {
@@ -76,7 +69,7 @@ class Command(BaseCommand):
                 "node_y": sub.node_xy[1],
             }
             if existing is None or existing.version != content_version(loaded.image_bytes, meta):
-                services.save_submap(building, sub.code, loaded, **fields)
+                services.save_submap(building, sub.code, loaded, replace=True, **fields)
             else:
                 building.submaps.filter(code=sub.code).update(**fields)
 

@@ -48,7 +48,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from maps.domain.demo_building import DemoBuilding, DemoTag, demo_building
-from maps.domain.mapfile import MapMetadata, occupancy_from_image, open_map_image
+from maps.domain.demo_building import submap_grid as decoded_grid
 from robots.agent.likelihood import Grid
 from robots.agent.localisation import ParticleFilter, odometry_delta
 from robots.agent.perception import TagDetector
@@ -145,17 +145,7 @@ def submap_grid(building: DemoBuilding, code: str) -> tuple[Grid, float, Pose]:
     """The occupancy grid, resolution and origin of sub-map ``code``, decoded from its
     map_server PGM as a robot decodes a downloaded bundle."""
     submap = next(s for s in building.submaps if s.code == code)
-    meta = MapMetadata(
-        image=f"{code}.pgm",
-        resolution=submap.resolution,
-        origin=submap.origin,
-        occupied_thresh=submap.occupied_thresh,
-        free_thresh=submap.free_thresh,
-        negate=bool(submap.negate),
-        mode="trinary",
-    )
-    image = open_map_image(submap.pgm, submap.width * submap.height)
-    return occupancy_from_image(image, meta), submap.resolution, submap.origin
+    return decoded_grid(submap), submap.resolution, submap.origin
 
 
 def tag_estimate(world: World, tag: DemoTag, pose: Pose, seed: int) -> PoseEstimate:

@@ -147,7 +147,7 @@ class Camera:
 
     def _unoccluded(
         self, tag: SimTag, eye: Pose, walls: Floats, box: tuple[int, int, int, int]
-    ) -> Floats:
+    ) -> NDArray[np.float32]:
         """Per column of ``box``, 1.0 where the tag's plane is not behind the column's wall."""
         ex, ey, yaw = eye
         angles = yaw - self._column_angles[box[0] : box[2]]
@@ -157,7 +157,8 @@ class Camera:
         with np.errstate(divide="ignore"):
             along = to_plane / facing
         visible = (along > 0) & (along <= walls[box[0] : box[2]] + TAG_DEPTH_TOLERANCE)
-        return visible.astype(np.float32)
+        unoccluded: NDArray[np.float32] = visible.astype(np.float32)
+        return unoccluded
 
     # --- sensor ------------------------------------------------------------------------
 

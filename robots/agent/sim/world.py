@@ -324,7 +324,8 @@ def _lookup(padded: Cells, rows: Floats, cols: Floats) -> NDArray[np.bool_]:
     height, width = padded.shape
     safe_rows = np.clip(np.nan_to_num(rows, posinf=0, neginf=0), 0, height - 1).astype(np.intp)
     safe_cols = np.clip(np.nan_to_num(cols, posinf=0, neginf=0), 0, width - 1).astype(np.intp)
-    return padded[safe_rows, safe_cols] != FREE
+    blocked: NDArray[np.bool_] = padded[safe_rows, safe_cols] != FREE
+    return blocked
 
 
 def _exposed_face(padded: Cells, rays: _Rays) -> NDArray[np.bool_]:
