@@ -2,7 +2,8 @@
 sub-map from robots navigating normally, proposals for admins, and accepting them.
 
 ``UpkeepRunner`` taps every connected robot's ``pose`` (its estimate, ``frame_id`` = the
-Map ID) and ``scan``; a scan is queued with the robot's latest pose (a bounded queue:
+Map ID) and ``scan``; a scan taken ``MIN_MOVE`` from the last one is queued with the
+robot's latest pose (a bounded queue:
 the oldest is dropped when the worker falls behind), and a worker thread adds it to the
 evidence (``maps.domain.upkeep.Evidence``) of that sub-map's current version, which
 uses only scans whose pose the stored map confirms. A robot leaving the sub-map, or
@@ -45,6 +46,9 @@ logger = logging.getLogger(__name__)
 
 POLL = 2.0
 QUEUE_SCANS = 50
+MIN_MOVE = 0.2
+"""Metres (or radians / 2) a robot moves between the scans taken: evidence needs views
+from places, not every scan, and the relay's robots may scan fast in simulated time."""
 PASS_SECONDS = 60.0
 SAVE_EVERY = 5.0
 
@@ -59,6 +63,7 @@ Queued = tuple[str, str, tuple[float, float, float], dict[str, Any]]
 class _Robot:
     name: str
     pose: tuple[str, tuple[float, float, float]] | None = None
+    taken: tuple[str, tuple[float, float, float]] | None = None  # where the last scan was
     callbacks: list[tuple[str, Any]] = field(default_factory=list)
 
 
@@ -129,8 +134,9 @@ class UpkeepRunner:
 
     def _on_scan(self, robot: _Robot) -> Any:
         def on_scan(msg: dict[str, Any]) -> None:
-            if robot.pose is None:
+            if robot.pose is None or not _moved(robot.taken, robot.pose):
                 return
+            robot.taken = robot.pose
             if len(self.queue) == self.queue.maxlen:
                 self.dropped += 1
             self.queue.append((robot.name, robot.pose[0], robot.pose[1], msg))
@@ -185,6 +191,17 @@ class UpkeepRunner:
             proposal = held.evidence.proposal()
             if not proposal.empty:
                 store_proposal(held.submap_pk, held.revision, proposal, held.evidence.scans)
+
+
+def _moved(
+    before: tuple[str, tuple[float, float, float]] | None,
+    now: tuple[str, tuple[float, float, float]],
+) -> bool:
+    if before is None or before[0] != now[0]:
+        return True
+    (x0, y0, a0), (x1, y1, a1) = before[1], now[1]
+    turned = abs(math.remainder(a1 - a0, math.tau))
+    return math.hypot(x1 - x0, y1 - y0) + turned / 2 >= MIN_MOVE
 
 
 def store_proposal(submap_pk: int, revision: int, proposal: Proposal, scans: int) -> None:
