@@ -48,7 +48,7 @@ def corridor_with_a_cabinet(demo: Demo) -> None:
     )
     loaded = load_map_upload(map_yaml_text(meta).encode(), {meta.image: out.getvalue()}, 10**8)
     building = Building.objects.get(code=BUILDING)
-    services.save_submap(building, "CorridorA", loaded, note="a cabinet moved in")
+    services.save_submap(building, "CorridorA", loaded, replace=True, note="a cabinet moved in")
 
 
 @pytest.fixture
