@@ -31,5 +31,5 @@ if [ -f robots/agent/__main__.py ]; then
   pids+=($!)
 fi
 
-echo "CloudNav is running at $CLOUDNAV_PUBLIC_URL (sign in as admin / ${CLOUDNAV_DEMO_PASSWORD:-admin-demo}). Ctrl-C stops it."
+echo "CloudNav is running at $CLOUDNAV_PUBLIC_URL (sign in as admin / ${CLOUDNAV_DEMO_PASSWORD:-admin-demo}, or the password you gave admin since). Ctrl-C stops it."
 wait -n "${pids[@]}"
