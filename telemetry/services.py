@@ -13,7 +13,7 @@ from urllib.parse import parse_qs, urlsplit
 
 from channels.db import database_sync_to_async
 from django.conf import settings
-from django.http.request import validate_host
+from django.http.request import split_domain_port, validate_host
 
 from maps.access import Role, buildings_for, global_role, role_in
 from robots.authentication import RobotPrincipal
@@ -48,14 +48,42 @@ def token_of(scope: Mapping[str, Any]) -> str | None:
 
 
 def origin_allowed(scope: Mapping[str, Any]) -> bool:
-    """True if the handshake's ``Origin`` is this site (a host in ``ALLOWED_HOSTS``).
+    """True if the handshake's ``Origin`` is this site, as the browser saw it.
 
-    A session cookie rides along with any page's WebSocket, so a session is only trusted
-    from our own pages; tokens are not ambient and need no origin.
+    That is the scheme, host and port the request came to (``Host``, a host in
+    ``ALLOWED_HOSTS``; ``ws`` is ``http``, ``wss`` is ``https``), or one of
+    ``CSRF_TRUSTED_ORIGINS`` (the public origin, behind a proxy that ends TLS). A session
+    cookie rides along with any page's WebSocket, so a session is only trusted from our
+    own pages; tokens are not ambient and need no origin.
     """
-    origin = _headers(scope).get(b"origin", b"").decode("latin-1")
-    host = urlsplit(origin).hostname if origin else None
-    return host is not None and validate_host(host, settings.ALLOWED_HOSTS)
+    headers = _headers(scope)
+    origin = _origin_of(headers.get(b"origin", b"").decode("latin-1"))
+    if origin is None:
+        return False
+    if origin in {_origin_of(trusted) for trusted in settings.CSRF_TRUSTED_ORIGINS}:
+        return True
+    host = headers.get(b"host", b"").decode("latin-1")
+    domain, _ = split_domain_port(host)
+    if not domain or not validate_host(domain, settings.ALLOWED_HOSTS):
+        return False
+    scheme = "https" if scope.get("scheme") in ("wss", "https") else "http"
+    return origin == _origin_of(f"{scheme}://{host}")
+
+
+_DEFAULT_PORTS = {"http": 80, "https": 443}
+
+
+def _origin_of(url: str) -> tuple[str, str, int] | None:
+    """Return ``url``'s (scheme, host, port), the port made explicit; None if it has none."""
+    try:
+        parts = urlsplit(url)
+        scheme, host = parts.scheme.lower(), parts.hostname
+        port = parts.port or _DEFAULT_PORTS.get(scheme)
+    except ValueError:  # a port that is not a number, a broken IPv6 literal
+        return None
+    if not host or port is None:
+        return None
+    return scheme, host, port
 
 
 async def authenticate(scope: Mapping[str, Any]) -> Identity | None:

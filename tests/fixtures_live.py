@@ -126,7 +126,8 @@ async def rosbridge() -> AsyncIterator[Connect]:
     """Open rosbridge connections through the real ASGI application; all closed at the end.
 
     ``await rosbridge(token=...)`` (query string), ``header_token=...`` (Authorization),
-    ``user=...`` (session, with an ``origin`` defaulting to ours), ``path=...``.
+    ``user=...`` (session, with an ``origin`` defaulting to ours), ``path=...``, ``host=...``
+    (the ``Host`` header, ``testserver`` unless given).
     Raises Refused when the handshake is refused.
     """
     from channels.db import database_sync_to_async
@@ -141,8 +142,9 @@ async def rosbridge() -> AsyncIterator[Connect]:
         user: User | None = None,
         origin: str | None = "http://testserver",
         path: str = "/rosbridge",
+        host: str = "testserver",
     ) -> RosClient:
-        headers: list[tuple[bytes, bytes]] = []
+        headers: list[tuple[bytes, bytes]] = [(b"host", host.encode())]
         if token is not None:
             path += f"?token={token}"
         if header_token is not None:
