@@ -138,8 +138,8 @@ class RosbridgeConsumer(AsyncWebsocketConsumer):  # type: ignore[misc]  # Channe
         if not self.access.granted("publish", name):
             await self.access.require("publish", name)
         conn = self._conn
-        if conn.principal.robot is None and name.endswith(_CMD_VEL_SUFFIX):
-            self.hub.check_command(conn, name, op.msg)
+        if name.endswith(_CMD_VEL_SUFFIX):
+            await self.hub.check_command(conn, name, op.msg)
         self.hub.publish(conn, name, op.msg, op.latch, self._frame_size)
 
     async def on_subscribe(self, op: protocol.Subscribe) -> None:

@@ -202,12 +202,19 @@ class Hub:
 
     # ------------------------------------------------------------ teleop
 
-    def check_command(self, conn: Connection, name: str, msg: dict[str, Json]) -> None:
-        """Let a person's ``cmd_vel`` through only from the robot's teleop lock holder.
+    async def check_command(self, conn: Connection, name: str, msg: dict[str, Json]) -> None:
+        """Let a ``cmd_vel`` through only from the robot's teleop lock holder, or from the
+        robot's own token while nobody holds the lock (in any server process).
 
-        Raises NotAllowed otherwise; on success renews the lock and re-arms the watchdog.
+        Raises NotAllowed otherwise; a holder's command renews the lock and re-arms the
+        watchdog.
         """
         robot = names.first_segment(name)
+        if conn.principal.robot is not None:
+            holder = await self.teleop.holder(robot)
+            if holder:
+                raise NotAllowed(f"{robot} is driven by {holder}, who holds its teleop lock")
+            return
         if not self.teleop.accepts(robot, conn.key):
             raise NotAllowed(f"{conn.principal.label} does not hold the teleop lock of {robot}")
         self.teleop.commanded(robot, moving=_moving(msg))

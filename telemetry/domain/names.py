@@ -9,12 +9,15 @@ from __future__ import annotations
 
 import hashlib
 import re
+from typing import TypeGuard
 
 from telemetry.exceptions import InvalidName
 
 # One token of a ROS 2 name: a letter or underscore, then letters, digits, underscores.
 _NAME = re.compile(r"^/?[A-Za-z_][A-Za-z0-9_]*(/[A-Za-z_][A-Za-z0-9_]*)*/?$")
 MAX_NAME_LENGTH = 256
+# A robot's name: one such token (as ``robots.models.Robot.name`` holds it).
+_SEGMENT = re.compile(r"[A-Za-z_][A-Za-z0-9_]{0,63}")
 
 ROSAPI = "/rosapi"
 CLOUDNAV = "/cloudnav"
@@ -61,6 +64,11 @@ def absolute(name: str, namespace: str = "") -> str:
     if namespace and name.split("/", 1)[0] not in GLOBAL_NAMESPACES:
         return f"{namespace}/{name}"
     return "/" + name
+
+
+def is_robot_name(text: object) -> TypeGuard[str]:
+    """True if ``text`` can be a robot's name: one ROS name token of at most 64 characters."""
+    return isinstance(text, str) and _SEGMENT.fullmatch(text) is not None
 
 
 def robot_namespace(robot: str) -> str:
