@@ -4,8 +4,9 @@ Browsers authenticate with their Django session (``AuthMiddlewareStack``); the r
 consumer checks their origin and robot tokens itself. ``TransportProbe`` sits outermost so
 the consumer can reach daphne's own ``send`` (see ``telemetry.transport``). Under daphne,
 ``bodies.install`` refuses request bodies that are too large, or come without credentials
-that hold, before daphne keeps them, and ``shutdown.install`` makes SIGTERM finish every task and
-thread before the process exits.
+that hold, before daphne keeps them; ``redaction.install`` keeps robot tokens out of
+daphne's access log; ``shutdown.install`` makes SIGTERM finish every task and thread
+before the process exits.
 """
 
 from __future__ import annotations
@@ -20,11 +21,12 @@ django_asgi_app = get_asgi_application()
 from channels.auth import AuthMiddlewareStack  # noqa: E402
 from channels.routing import ProtocolTypeRouter, URLRouter  # noqa: E402
 
-from cloudnav_web import bodies, shutdown  # noqa: E402
+from cloudnav_web import bodies, redaction, shutdown  # noqa: E402
 from telemetry.routing import websocket_urlpatterns  # noqa: E402
 from telemetry.transport import TransportProbe  # noqa: E402
 
 bodies.install()
+redaction.install()
 shutdown.install()
 application = ProtocolTypeRouter(
     {
