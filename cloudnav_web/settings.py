@@ -31,9 +31,12 @@ def env_list(name: str, default: str) -> list[str]:
 
 
 DEBUG = env_bool("DEBUG", False)
-# The embedded default key is only for a local demo; a real deployment sets SECRET_KEY.
-SECRET_KEY = os.environ.get("SECRET_KEY", "cloudnav-embedded-demo-key-change-me-in-production")
-ALLOWED_HOSTS = env_list("ALLOWED_HOSTS", "127.0.0.1,localhost,[::1],testserver")
+# The demo (``make demo``, the benchmarks' servers) says so; outside it the server refuses
+# to start with the public default key (``cloudnav_web.deployment``).
+CLOUDNAV_DEMO = env_bool("CLOUDNAV_DEMO", False)
+DEMO_SECRET_KEY = "cloudnav-embedded-demo-key-change-me-in-production"
+SECRET_KEY = os.environ.get("SECRET_KEY", DEMO_SECRET_KEY)
+ALLOWED_HOSTS = env_list("ALLOWED_HOSTS", "127.0.0.1,localhost,[::1]")
 CSRF_TRUSTED_ORIGINS = env_list(
     "CSRF_TRUSTED_ORIGINS", "http://127.0.0.1:8000,http://localhost:8000"
 )

@@ -10,6 +10,8 @@ HOST=${HOST:-127.0.0.1}
 PORT=${PORT:-8000}
 ROBOTS=${ROBOTS:-3}
 export CLOUDNAV_PUBLIC_URL=${CLOUDNAV_PUBLIC_URL:-http://$HOST:$PORT}
+# The demo may run with the public default SECRET_KEY; nothing else may (README, Production).
+export CLOUDNAV_DEMO=1
 
 $PY manage.py seed_demo --robots "$ROBOTS"
 
