@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 from django.db.models import Prefetch, QuerySet
@@ -60,11 +61,17 @@ def fleet_entry(robot: Robot) -> dict[str, Any]:
         "buildings": [b.code for b in robot.buildings.all()],
         "online": bool(state and is_online(state)),
         "map_id": state.map_id if state else "",
-        "x": state.x if state else None,
-        "y": state.y if state else None,
-        "yaw": state.yaw if state else None,
+        "x": _finite(state.x) if state else None,
+        "y": _finite(state.y) if state else None,
+        "yaw": _finite(state.yaw) if state else None,
         "last_seen": state.last_seen if state else None,
     }
+
+
+def _finite(value: float | None) -> float | None:
+    """A stored coordinate as JSON can carry it: NaN and infinity (kept by a server that
+    did not yet refuse them) read as unknown, never as a 500 for everyone."""
+    return value if value is not None and math.isfinite(value) else None
 
 
 class FleetList(APIView):
