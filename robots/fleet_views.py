@@ -54,11 +54,14 @@ def visible_robots(principal: Any, building: str | None) -> QuerySet[Robot]:
     )
 
 
-def fleet_entry(robot: Robot) -> dict[str, Any]:
+def fleet_entry(robot: Robot, visible: set[str] | None = None) -> dict[str, Any]:
+    """The fleet entry of ``robot``; ``buildings`` names only those of ``visible`` (codes
+    the requester sees) when given, so no other tenant's building is shown."""
     state: RobotState | None = getattr(robot, "state", None)
+    codes = [b.code for b in robot.buildings.all()]
     return {
         "robot": robot.name,
-        "buildings": [b.code for b in robot.buildings.all()],
+        "buildings": codes if visible is None else [c for c in codes if c in visible],
         "online": bool(state and is_online(state)),
         "map_id": state.map_id if state else "",
         "x": _finite(state.x) if state else None,
@@ -85,5 +88,6 @@ class FleetList(APIView):
     )
     def get(self, request: Request) -> Response:
         robots = visible_robots(request.user, request.query_params.get("building"))
-        entries = [fleet_entry(robot) for robot in robots]
+        visible = set(buildings_for(request.user).values_list("code", flat=True))
+        entries = [fleet_entry(robot, visible) for robot in robots]
         return Response(FleetEntrySerializer(entries, many=True).data)
