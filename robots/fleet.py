@@ -68,6 +68,11 @@ class FleetTracker:
             entry.online = False
             self._touch(robot_pk, entry, urgent=True)
 
+    def forget(self, robot_pk: int) -> None:
+        """Drop a deleted robot's state: it has no row to write any more."""
+        self._entries.pop(robot_pk, None)
+        self._dirty.discard(robot_pk)
+
     def pose(self, robot_pk: int, pose: Pose2D) -> None:
         """Keep a pose; one with a coordinate that is not finite is ignored, and a frame
         that is no storable Map ID keeps the pose without it (``valid_pose``)."""

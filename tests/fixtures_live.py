@@ -496,12 +496,14 @@ def scaled_postgres_url() -> str:
 class ScaledCluster:
     """Server processes sharing Redis and PostgreSQL, and the people and robots seeded there.
 
-    ``tokens``: robot name -> token; ``cookies``: username -> session cookie header value.
+    ``tokens``: robot name -> token; ``cookies``: username -> session cookie header value;
+    ``database_url``: the database they share.
     """
 
     servers: list[LiveServer]
     tokens: dict[str, str]
     cookies: dict[str, str]
+    database_url: str = ""
 
 
 def run_manage(database_url: str, *args: str) -> str:
@@ -596,6 +598,6 @@ def scaled_servers(
             servers = start_daphnes(count, tmp_path, database_url, {"REDIS_URL": redis_url})
             for server in servers:
                 stack.callback(server.stop)  # before the drop
-            return ScaledCluster(servers, seeded["tokens"], seeded["cookies"])
+            return ScaledCluster(servers, seeded["tokens"], seeded["cookies"], database_url)
 
         yield start

@@ -71,6 +71,42 @@ def is_robot_name(text: object) -> TypeGuard[str]:
     return isinstance(text, str) and _SEGMENT.fullmatch(text) is not None
 
 
+# Names no robot owns live in a realm: one building's (``-b{pk}``), or ``NO_BUILDING`` for
+# connections of no building (no tenant's). A realm is a first segment no client can write
+# (ROS tokens never start with '-'), which channel-layer groups and Redis keys accept.
+REALM_MARK = "-"
+NO_BUILDING = REALM_MARK + "none"
+
+
+def building_realm(pk: int) -> str:
+    return f"{REALM_MARK}b{pk}"
+
+
+def in_realm(realm: str, name: str) -> str:
+    """Return ``name`` (absolute) as it lives in ``realm``: ``/-b3/announcements``."""
+    return f"/{realm}{name}"
+
+
+def realm_of(name: str) -> str | None:
+    """Return the realm of a name made by ``in_realm``, None for any other name."""
+    segment = first_segment(name)
+    return segment if segment.startswith(REALM_MARK) else None
+
+
+def outside_realm(name: str) -> str:
+    """Return a realm's name as its clients write it (``/-b3/a`` -> ``/a``)."""
+    realm = realm_of(name)
+    return name[len(realm) + 1 :] if realm is not None else name
+
+
+_REALMS = re.compile(r"/" + re.escape(REALM_MARK) + r"[a-z0-9]+(?=/)")
+
+
+def without_realms(text: str) -> str:
+    """Return ``text`` (an error message) with every name in it as its client writes it."""
+    return _REALMS.sub("", text)
+
+
 def robot_namespace(robot: str) -> str:
     return "/" + robot
 
