@@ -189,18 +189,19 @@ class Hub:
             robots = await database_sync_to_async(robot_records)(change.robots)
         for pk, record in robots.items():
             self.registry.update(pk, record.owner if record is not None else None)
-        for client in list(self.clients.values()):
-            if revoked(client.conn.principal, change, robots):
-                await self._revoke(client, "its credentials were revoked")
+        doomed = [c for c in self.clients.values() if revoked(c.conn.principal, change, robots)]
+        if robots:  # first, so whoever sees a connection close sees the new grants too
+            for client in list(self.clients.values()):
+                if client not in doomed:
+                    await self._decide_again(client)
+        for client in doomed:
+            await self._revoke(client, "its credentials were revoked")
         for pk in [pk for pk, record in robots.items() if record is None]:
             self.fleet.forget(pk)  # a deleted robot's row went with it
         for watcher in list(self.watchers):
             if revoked(watcher.principal, change, robots) or not self._may_watch(watcher, robots):
                 watcher.ended.set()
                 self.watchers.discard(watcher)
-        if robots:
-            for client in list(self.clients.values()):
-                await self._decide_again(client)
 
     async def _revoke(self, client: Client, reason: str) -> None:
         await self.leave(client.conn)

@@ -228,7 +228,9 @@ async def test_unlinking_a_robot_withdraws_the_subscriptions_it_granted(
     watcher = await rosbridge(user=operator)
     await watcher.send(op="subscribe", topic="/r1/pose", type="geometry_msgs/PoseStamped")
     await watcher.sync()
+    before = await rosbridge(token=token)
     await database_sync_to_async(robot_record.buildings.remove)(building)
+    assert await closed_soon(before)  # applied: grants are decided before anything closes
     robot = await rosbridge(token=token)
     await robot.send(op="publish", topic="pose", msg=POSE)
     await robot.sync()
@@ -483,3 +485,50 @@ async def test_in_scaled_mode_revocation_closes_connections_on_every_process(
     await bystander.send('{"op": "call_service", "id": "t", "service": "/rosapi/get_time"}')
     assert '"t"' in await asyncio.wait_for(bystander.recv(), 3)
     await bystander.close()
+
+
+# ---------------------------------------------------------------- realms and withdrawal, as units
+
+
+def test_a_realm_is_a_segment_no_client_can_write() -> None:
+    from telemetry.domain import names
+    from telemetry.exceptions import InvalidName
+
+    inside = names.in_realm(names.building_realm(3), "/announcements")
+    assert inside == "/-b3/announcements"
+    assert names.realm_of(inside) == "-b3"
+    assert names.outside_realm(inside) == "/announcements"
+    assert names.realm_of("/r1/pose") is None
+    assert names.without_realms(f"Service {inside} does not exist") == (
+        "Service /announcements does not exist"
+    )
+    with pytest.raises(InvalidName):
+        names.absolute(inside)
+    assert names.topic_group(inside).replace(".", "").replace("-", "").isalnum()
+
+
+def test_the_bus_withdraws_one_subscription_or_publication() -> None:
+    from telemetry.domain.bus import SubscribeParams, TopicBus
+
+    class Timer:
+        def cancel(self) -> None:
+            pass
+
+    class Peer:
+        key = "p"
+
+        def __init__(self) -> None:
+            self.got: list[Any] = []
+
+        def deliver(self, wire: Any) -> None:
+            self.got.append(wire)
+
+    bus, peer = TopicBus(scheduler=lambda _delay, _callback: Timer()), Peer()
+    bus.subscribe(peer, "/a", "std_msgs/String", SubscribeParams(), "s1", spelling="a")
+    bus.advertise(peer, "/b", "std_msgs/String")
+    assert sorted(bus.holdings(peer), key=str) == [("/a", "a"), ("/b", None)]
+    bus.withdraw(peer, "/a", "a")
+    bus.withdraw(peer, "/b", None)
+    assert bus.holdings(peer) == []
+    assert bus.get("/a") is None
+    assert bus.get("/b") is None
