@@ -126,6 +126,7 @@ def demo_server(options: dict[str, Any]) -> Iterator[tuple[str, dict[str, str]]]
         env = {
             **os.environ,
             "DJANGO_SETTINGS_MODULE": "cloudnav_web.settings",
+            "CLOUDNAV_DEMO": "1",  # a scratch server of the demo building
             "DATABASE_URL": f"sqlite:///{scratch}/bench.sqlite3",
             "REDIS_URL": "",
         }

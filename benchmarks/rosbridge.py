@@ -99,6 +99,7 @@ def start_server(robots: int, extra_env: list[str]) -> Server:
     env = {
         **os.environ,
         "DJANGO_SETTINGS_MODULE": "cloudnav_web.settings",
+        "CLOUDNAV_DEMO": "1",  # a scratch server of the demo building
         "DATABASE_URL": f"sqlite:///{scratch.name}/bench.sqlite3",
         "REDIS_URL": "",
         "LOG_LEVEL": "WARNING",

@@ -1,10 +1,13 @@
 """ASGI entry point: HTTP through Django, WebSockets (rosbridge) through Channels.
 
 Browsers authenticate with their Django session (``AuthMiddlewareStack``); the rosbridge
-consumer checks their origin and robot tokens itself. ``TransportProbe`` sits outermost so
+consumer checks their origin and robot tokens itself. Outside the demo, the server refuses
+to start with the public default ``SECRET_KEY``. ``TransportProbe`` sits outermost so
 the consumer can reach daphne's own ``send`` (see ``telemetry.transport``). Under daphne,
 ``bodies.install`` refuses request bodies that are too large, or come without credentials
-that hold, before daphne keeps them.
+that hold, before daphne keeps them; ``redaction.install`` keeps robot tokens out of
+daphne's access log; ``shutdown.install`` makes SIGTERM finish every task and thread
+before the process exits.
 """
 
 from __future__ import annotations
@@ -19,11 +22,14 @@ django_asgi_app = get_asgi_application()
 from channels.auth import AuthMiddlewareStack  # noqa: E402
 from channels.routing import ProtocolTypeRouter, URLRouter  # noqa: E402
 
-from cloudnav_web import bodies  # noqa: E402
+from cloudnav_web import bodies, deployment, redaction, shutdown  # noqa: E402
 from telemetry.routing import websocket_urlpatterns  # noqa: E402
 from telemetry.transport import TransportProbe  # noqa: E402
 
+deployment.refuse_demo_secret_key()
 bodies.install()
+redaction.install()
+shutdown.install()
 application = ProtocolTypeRouter(
     {
         "http": django_asgi_app,

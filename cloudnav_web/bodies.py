@@ -31,6 +31,7 @@ from channels.db import database_sync_to_async
 from django.conf import settings
 from django.contrib.auth import SESSION_KEY, authenticate
 from django.contrib.sessions.backends.base import SessionBase
+from django.http import HttpRequest
 from twisted.internet.defer import Deferred, inlineCallbacks
 from twisted.web import http
 
@@ -64,22 +65,22 @@ _UNAUTHORISED: Refusal = (
 )
 
 
-async def credentials_hold(headers: Mapping[bytes, bytes]) -> bool:
+async def credentials_hold(headers: Mapping[bytes, bytes], client: str = "") -> bool:
     """True if the request carries credentials that hold: a signed-in session, a robot's
-    token, or a user's HTTP Basic name and password."""
-    return bool(await database_sync_to_async(_credentials_hold)(dict(headers)))
+    token, or a user's HTTP Basic name and password (from ``client``'s address)."""
+    return bool(await database_sync_to_async(_credentials_hold)(dict(headers), client))
 
 
-def _credentials_hold(headers: dict[bytes, bytes]) -> bool:
+def _credentials_hold(headers: dict[bytes, bytes], client: str = "") -> bool:
     authorization = headers.get(b"authorization", b"").decode("latin-1").split()
     if len(authorization) == 2:
-        return _authorization_holds(authorization[0].lower(), authorization[1])
+        return _authorization_holds(authorization[0].lower(), authorization[1], client)
     cookie = SimpleCookie(headers.get(b"cookie", b"").decode("latin-1"))
     morsel = cookie.get(settings.SESSION_COOKIE_NAME)
     return morsel is not None and _session_holds(morsel.value)
 
 
-def _authorization_holds(scheme: str, credentials: str) -> bool:
+def _authorization_holds(scheme: str, credentials: str, client: str) -> bool:
     if scheme == "token":
         return robot_for_token(credentials) is not None
     if scheme == "basic":
@@ -87,8 +88,17 @@ def _authorization_holds(scheme: str, credentials: str) -> bool:
             username, _, password = base64.b64decode(credentials).decode("utf-8").partition(":")
         except (binascii.Error, ValueError):
             return False
-        return authenticate(username=username, password=password) is not None
+        # A sign-in like any other: counted, and refused while locked out (settings, axes).
+        return authenticate(_sign_in(client), username=username, password=password) is not None
     return False
+
+
+def _sign_in(client: str) -> HttpRequest:
+    """The request that a sign-in's rate limit counts: made from ``client``'s address."""
+    request = HttpRequest()
+    request.method = "POST"
+    request.META["REMOTE_ADDR"] = client
+    return request
 
 
 def _session_holds(key: str) -> bool:
@@ -138,7 +148,8 @@ def _gated(base: type[http.Request]) -> type[http.Request]:
         @inlineCallbacks
         def process(self) -> Any:
             if self.refusal is None and needs_credentials(self.received):
-                check = asyncio.ensure_future(credentials_hold(_headers(self)))
+                client = getattr(self.getClientAddress(), "host", "")
+                check = asyncio.ensure_future(credentials_hold(_headers(self), client))
                 if not (yield Deferred.fromFuture(check)):
                     self.refusal = _UNAUTHORISED
             if self.refusal is None:

@@ -7,6 +7,7 @@ Scaled mode: ``DATABASE_URL=postgres://...`` and ``REDIS_URL=redis://...``.
 from __future__ import annotations
 
 import os
+from datetime import timedelta
 from pathlib import Path
 
 import dj_database_url
@@ -31,9 +32,12 @@ def env_list(name: str, default: str) -> list[str]:
 
 
 DEBUG = env_bool("DEBUG", False)
-# The embedded default key is only for a local demo; a real deployment sets SECRET_KEY.
-SECRET_KEY = os.environ.get("SECRET_KEY", "cloudnav-embedded-demo-key-change-me-in-production")
-ALLOWED_HOSTS = env_list("ALLOWED_HOSTS", "127.0.0.1,localhost,[::1],testserver")
+# The demo (``make demo``, the benchmarks' servers) says so; outside it the server refuses
+# to start with the public default key (``cloudnav_web.deployment``).
+CLOUDNAV_DEMO = env_bool("CLOUDNAV_DEMO", False)
+DEMO_SECRET_KEY = "cloudnav-embedded-demo-key-change-me-in-production"
+SECRET_KEY = os.environ.get("SECRET_KEY", DEMO_SECRET_KEY)
+ALLOWED_HOSTS = env_list("ALLOWED_HOSTS", "127.0.0.1,localhost,[::1]")
 CSRF_TRUSTED_ORIGINS = env_list(
     "CSRF_TRUSTED_ORIGINS", "http://127.0.0.1:8000,http://localhost:8000"
 )
@@ -77,6 +81,7 @@ INSTALLED_APPS = [
     "drf_spectacular",
     "drf_spectacular_sidecar",
     "channels",
+    "axes",
     "maps",
     "robots",
     "telemetry",
@@ -93,7 +98,28 @@ MIDDLEWARE = [
     "django.contrib.auth.middleware.AuthenticationMiddleware",
     "django.contrib.messages.middleware.MessageMiddleware",
     "django.middleware.clickjacking.XFrameOptionsMiddleware",
+    # Answers 429 to a sign-in from a name and address that failed too often (below).
+    "axes.middleware.AxesMiddleware",
 ]
+
+# Sign-in attempts (the login page, the admin, HTTP Basic on the API) are rate-limited by
+# django-axes: it counts failures where Django authenticates, so every way of signing in
+# is covered, and keeps them in the database, so every server process shares the count.
+# A name and address pair that failed CLOUDNAV_SIGNIN_FAILURES times is refused (429,
+# even with the right password) for CLOUDNAV_SIGNIN_COOLOFF_MINUTES. The pair, not the
+# address alone, so people behind one proxy do not lock each other out, nor can anyone
+# lock a user out from elsewhere.
+AUTHENTICATION_BACKENDS = [
+    "axes.backends.AxesStandaloneBackend",
+    "django.contrib.auth.backends.ModelBackend",
+]
+AXES_FAILURE_LIMIT = int(os.environ.get("CLOUDNAV_SIGNIN_FAILURES", "5"))
+AXES_COOLOFF_TIME = timedelta(
+    minutes=float(os.environ.get("CLOUDNAV_SIGNIN_COOLOFF_MINUTES", "15"))
+)
+AXES_LOCKOUT_PARAMETERS = [["username", "ip_address"]]
+AXES_RESET_ON_SUCCESS = True
+AXES_HTTP_RESPONSE_CODE = 429
 
 ROOT_URLCONF = "cloudnav_web.urls"
 ASGI_APPLICATION = "cloudnav_web.asgi.application"
@@ -162,7 +188,7 @@ REST_FRAMEWORK = {
     "DEFAULT_AUTHENTICATION_CLASSES": [
         "robots.authentication.RobotTokenAuthentication",
         "rest_framework.authentication.SessionAuthentication",
-        "rest_framework.authentication.BasicAuthentication",
+        "cloudnav_web.signin.RateLimitedBasicAuthentication",
     ],
     "DEFAULT_PERMISSION_CLASSES": ["rest_framework.permissions.IsAuthenticated"],
     "DEFAULT_SCHEMA_CLASS": "drf_spectacular.openapi.AutoSchema",
@@ -185,7 +211,11 @@ LOGGING = {
     "version": 1,
     "disable_existing_loggers": False,
     "formatters": {"plain": {"format": "%(asctime)s %(levelname)s %(name)s: %(message)s"}},
-    "handlers": {"console": {"class": "logging.StreamHandler", "formatter": "plain"}},
+    # Robot tokens never reach a log (cloudnav_web.redaction; daphne's access log too).
+    "filters": {"redact": {"()": "cloudnav_web.redaction.RedactingFilter"}},
+    "handlers": {
+        "console": {"class": "logging.StreamHandler", "formatter": "plain", "filters": ["redact"]}
+    },
     "root": {"handlers": ["console"], "level": os.environ.get("LOG_LEVEL", "INFO")},
     "loggers": {"django.request": {"level": "ERROR"}},
 }

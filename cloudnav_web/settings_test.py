@@ -10,8 +10,14 @@ from __future__ import annotations
 import os
 
 from .settings import *  # noqa: F403
-from .settings import BASE_DIR, DATABASES, env_bool
+from .settings import ALLOWED_HOSTS, BASE_DIR, DATABASES, env_bool
 
+SECRET_KEY = "cloudnav-tests-only-key"
+# Django's test client and Channels' communicator name this host.
+ALLOWED_HOSTS = [*ALLOWED_HOSTS, "testserver"]
+# Sign-in rate limits apply where a test turns them on (tests/test_signin_limits.py): the
+# other tests sign in many times from one address, and some check passwords without a request.
+AXES_ENABLED = False
 PASSWORD_HASHERS = ["django.contrib.auth.hashers.MD5PasswordHasher"]
 
 if DATABASES["default"]["ENGINE"] == "django.db.backends.sqlite3":

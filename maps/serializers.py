@@ -6,10 +6,12 @@ from typing import Any
 
 from django.conf import settings
 from django.contrib.auth.models import User
+from django.db.models import Q, QuerySet
 from django.urls import reverse
 from rest_framework import serializers
 
 from . import services
+from .access import buildings_for
 from .domain import tagart
 from .domain.mapfile import LoadedMap, load_map_archive, load_map_upload
 from .domain.tagart import marker_id_limit
@@ -18,10 +20,34 @@ from .exceptions import TagPayloadError
 from .models import Building, EnvironmentalTag, SubMap, SubMapVersion
 
 
+def _requester(field: serializers.Field[Any, Any, Any, Any]) -> Any:
+    request = field.context.get("request")
+    return getattr(request, "user", None)
+
+
+class KnownUser(serializers.SlugRelatedField[User]):
+    """A username among the users the requester may know of: those sharing one of their
+    buildings, and those of no building yet (all for a superuser). A browsable form lists
+    no other tenant's users, and their names read as unknown."""
+
+    def get_queryset(self) -> QuerySet[User]:
+        user = _requester(self)
+        if user is not None and user.is_superuser:
+            return User.objects.all()
+        mine = buildings_for(user) if user is not None else Building.objects.none()
+        return User.objects.filter(Q(buildings__in=mine) | Q(buildings__isnull=True)).distinct()
+
+
+class VisibleBuilding(serializers.SlugRelatedField[Building]):
+    """A building code among the buildings the requester sees."""
+
+    def get_queryset(self) -> QuerySet[Building]:
+        user = _requester(self)
+        return buildings_for(user) if user is not None else Building.objects.none()
+
+
 class BuildingSerializer(serializers.ModelSerializer[Building]):
-    members = serializers.SlugRelatedField(
-        slug_field="username", queryset=User.objects.all(), many=True, required=False
-    )
+    members = KnownUser(slug_field="username", many=True, required=False)
 
     class Meta:
         model = Building
@@ -139,7 +165,7 @@ class SubMapUpdateSerializer(serializers.Serializer[Any]):
 
 
 class TagSerializer(serializers.ModelSerializer[EnvironmentalTag]):
-    building = serializers.SlugRelatedField(slug_field="code", queryset=Building.objects.all())
+    building = VisibleBuilding(slug_field="code")
     submap = serializers.CharField(source="submap.code")
     links_to = serializers.CharField(source="links_to.code")
     map_id = serializers.CharField(source="submap.map_id", read_only=True)

@@ -21,7 +21,7 @@ from rest_framework.views import APIView
 from cloudnav_web.heavy import heavy_response
 
 from . import services, versions
-from .access import Role, buildings_for, may_create_buildings, robot_of, role_in
+from .access import Role, buildings_for, global_role, may_create_buildings, robot_of, role_in
 from .domain.mapfile import export_map, map_yaml_text, occupancy_grid_json
 from .domain.tagart import print_memory, render_tag_pdf, render_tag_png
 from .domain.topology import Coverage, Edge
@@ -431,6 +431,16 @@ class TagList(generics.ListCreateAPIView[EnvironmentalTag]):
         if code := self.request.query_params.get("map"):
             tags = tags.filter(submap__code=code)
         return tags.select_related("building", "submap__building", "links_to__building")
+
+    def create(self, request: Request, *args: Any, **kwargs: Any) -> Response:
+        """Check that the caller administers the named building before validating the
+        tag, so a refusal tells nothing of another building's sub-maps or markers."""
+        code = request.data.get("building") if hasattr(request.data, "get") else None
+        if isinstance(code, str):
+            building_for(request, code, Role.ADMIN)
+        elif global_role(request.user) < Role.ADMIN:
+            raise PermissionDenied("Only admins create tags.")
+        return super().create(request, *args, **kwargs)
 
     def perform_create(self, serializer: Any) -> None:
         building_for(self.request, serializer.validated_data["building"].code, Role.ADMIN)

@@ -13,10 +13,12 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
+import math
 from dataclasses import dataclass, field
 from datetime import UTC, datetime, timedelta
 
 from channels.db import database_sync_to_async
+from django.db import DatabaseError, transaction
 
 from maps.domain.versions import split_map_ref
 from telemetry.domain.messages import Pose2D
@@ -69,16 +71,28 @@ class FleetTracker:
             entry.online = False
             self._touch(robot_pk, entry, urgent=True)
 
+    def forget(self, robot_pk: int) -> None:
+        """Drop a deleted robot's state: it has no row to write any more."""
+        self._entries.pop(robot_pk, None)
+        self._dirty.discard(robot_pk)
+
     def pose(self, robot_pk: int, pose: Pose2D) -> None:
+        """Keep a pose; one with a coordinate that is not finite is ignored, and a frame
+        that is no storable Map ID keeps the pose without it (``valid_pose``)."""
+        if not valid_pose(pose):
+            return
         entry = self._entry(robot_pk)
         entry.pose = pose
-        if pose.map_id and pose.map_id != entry.map_id:
+        if pose.map_id and valid_map_id(pose.map_id) and pose.map_id != entry.map_id:
             entry.map_id, entry.map_version = pose.map_id, None
         self._touch(robot_pk, entry)
 
     def map_id(self, robot_pk: int, name: str) -> None:
         """The robot's ``map_id`` message: a Map ID, with the version held
-        (``building/code@v<n>``) when the robot says it."""
+        (``building/code@v<n>``) when the robot says it; one whose Map ID cannot be
+        stored (``valid_map_id``) is ignored."""
+        if not valid_map_id(split_map_ref(name)[0]):
+            return
         entry = self._entry(robot_pk)
         entry.map_id, entry.map_version = split_map_ref(name)
         self._touch(robot_pk, entry)
@@ -117,16 +131,63 @@ class FleetTracker:
             del self._entries[pk]
         if batch:
             try:
-                await database_sync_to_async(write_states)(batch)
-                for entry in batch.values():
-                    entry.written = now
+                failed = await database_sync_to_async(write_states)(batch)
             except Exception:
                 logger.exception("fleet state flush failed; retrying with the next one")
                 self._dirty.update(batch)
+                return
+            for pk, entry in batch.items():
+                if pk not in failed:
+                    entry.written = now
+            # a row that failed alone is not retried at once: its robot's next change (or
+            # heartbeat) writes it again, and it never holds back the others meanwhile
 
 
-def write_states(batch: dict[int, _Entry]) -> None:
-    """Upsert the rows of ``batch``: one query per combination of known fields."""
+def valid_pose(pose: Pose2D) -> bool:
+    """True if every coordinate of ``pose`` is finite (NaN and infinity are not stored,
+    and cannot be written as JSON)."""
+    return all(math.isfinite(v) for v in (pose.x, pose.y, pose.yaw))
+
+
+MAP_ID_MAX = RobotState._meta.get_field("map_id").max_length or 100
+
+
+def valid_map_id(map_id: str) -> bool:
+    """True if ``map_id`` fits ``RobotState.map_id``: at most ``MAP_ID_MAX`` characters,
+    none of them a control character (PostgreSQL refuses NUL in text)."""
+    return len(map_id) <= MAP_ID_MAX and map_id.isprintable()
+
+
+def write_states(batch: dict[int, _Entry]) -> set[int]:
+    """Upsert the rows of ``batch`` and return the robots whose row could not be written.
+
+    One query per combination of known fields; if one fails (a robot deleted meanwhile, a
+    row the database refuses) its rows are written one by one, each in a transaction of
+    its own, so one bad row never blocks the others."""
+    failed: set[int] = set()
+    for rows, known in _groups(batch):
+        try:
+            with transaction.atomic():
+                _upsert(rows, known)
+        except DatabaseError:
+            for row in rows:
+                try:
+                    with transaction.atomic():
+                        _upsert([row], known)
+                except DatabaseError as error:
+                    failed.add(row.robot_id)
+                    logger.warning("fleet state of robot %s not written: %s", row.robot_id, error)
+    return failed
+
+
+def _upsert(rows: list[RobotState], known: tuple[str, ...]) -> None:
+    RobotState.objects.bulk_create(
+        rows, update_conflicts=True, unique_fields=["robot"], update_fields=list(known)
+    )
+
+
+def _groups(batch: dict[int, _Entry]) -> list[tuple[list[RobotState], tuple[str, ...]]]:
+    """The rows of ``batch`` grouped by the fields they know."""
     groups: dict[tuple[str, ...], list[RobotState]] = {}
     for pk, entry in batch.items():
         fields: list[str] = ["online", "last_seen"]
@@ -138,10 +199,7 @@ def write_states(batch: dict[int, _Entry]) -> None:
             row.x, row.y, row.yaw = entry.pose.x, entry.pose.y, entry.pose.yaw
             fields += ["x", "y", "yaw"]
         groups.setdefault(tuple(fields), []).append(row)
-    for known, rows in groups.items():
-        RobotState.objects.bulk_create(
-            rows, update_conflicts=True, unique_fields=["robot"], update_fields=list(known)
-        )
+    return [(rows, known) for known, rows in groups.items()]
 
 
 # Connected robots are written at least this often, even when nothing changed...

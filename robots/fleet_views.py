@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 from django.db.models import Prefetch, QuerySet
@@ -54,19 +55,28 @@ def visible_robots(principal: Any, building: str | None) -> QuerySet[Robot]:
     )
 
 
-def fleet_entry(robot: Robot) -> dict[str, Any]:
+def fleet_entry(robot: Robot, visible: set[str] | None = None) -> dict[str, Any]:
+    """The fleet entry of ``robot``; ``buildings`` names only those of ``visible`` (codes
+    the requester sees) when given, so no other tenant's building is shown."""
     state: RobotState | None = getattr(robot, "state", None)
+    codes = [b.code for b in robot.buildings.all()]
     return {
         "robot": robot.name,
-        "buildings": [b.code for b in robot.buildings.all()],
+        "buildings": codes if visible is None else [c for c in codes if c in visible],
         "online": bool(state and is_online(state)),
         "map_id": state.map_id if state else "",
         "map_version": state.map_version if state else None,
-        "x": state.x if state else None,
-        "y": state.y if state else None,
-        "yaw": state.yaw if state else None,
+        "x": _finite(state.x) if state else None,
+        "y": _finite(state.y) if state else None,
+        "yaw": _finite(state.yaw) if state else None,
         "last_seen": state.last_seen if state else None,
     }
+
+
+def _finite(value: float | None) -> float | None:
+    """A stored coordinate as JSON can carry it: NaN and infinity (kept by a server that
+    did not yet refuse them) read as unknown, never as a 500 for everyone."""
+    return value if value is not None and math.isfinite(value) else None
 
 
 class FleetList(APIView):
@@ -81,5 +91,6 @@ class FleetList(APIView):
     )
     def get(self, request: Request) -> Response:
         robots = visible_robots(request.user, request.query_params.get("building"))
-        entries = [fleet_entry(robot) for robot in robots]
+        visible = set(buildings_for(request.user).values_list("code", flat=True))
+        entries = [fleet_entry(robot, visible) for robot in robots]
         return Response(FleetEntrySerializer(entries, many=True).data)

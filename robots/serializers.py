@@ -1,34 +1,75 @@
-"""Wire shapes of the robot registry."""
+"""Wire shapes of the robot registry.
+
+A robot may be registered for buildings of several tenants. Each admin sees, names and
+changes only the links to buildings they administer: a form lists those alone, an answer
+shows no other building's code, and an update keeps the links to the others as they are.
+"""
 
 from __future__ import annotations
 
 from typing import Any
 
+from django.db.models import QuerySet
 from rest_framework import serializers
 
-from maps.access import buildings_for
+from maps.access import Role, buildings_for, global_role
 from maps.models import Building
 
 from .models import Robot
 
 
+def administered(user: Any) -> QuerySet[Building]:
+    """The buildings ``user`` administers (all of them for a superuser)."""
+    if user is None or global_role(user) < Role.ADMIN:
+        return Building.objects.none()
+    return buildings_for(user)
+
+
+class AdministeredBuilding(serializers.SlugRelatedField[Building]):
+    """A building code, among the buildings the requester administers only: a browsable
+    form lists nothing else, and any other code reads as one that does not exist."""
+
+    def get_queryset(self) -> QuerySet[Building]:
+        request = self.context.get("request")
+        return administered(getattr(request, "user", None))
+
+
 class RobotSerializer(serializers.ModelSerializer[Robot]):
-    buildings = serializers.SlugRelatedField(
-        slug_field="code", queryset=Building.objects.all(), many=True, required=False
-    )
+    buildings = AdministeredBuilding(slug_field="code", many=True, required=False)
 
     class Meta:
         model = Robot
         fields = ["name", "description", "buildings", "created", "token_rotated"]
         read_only_fields = ["created", "token_rotated"]
 
-    def validate_buildings(self, value: list[Building]) -> list[Building]:
-        """An admin may register robots only for buildings they administer."""
-        allowed = set(buildings_for(self.context["request"].user))
-        foreign = [b.code for b in value if b not in allowed]
-        if foreign:
-            raise serializers.ValidationError(f"You do not administer {', '.join(foreign)}.")
-        return value
+    def to_representation(self, instance: Robot) -> dict[str, Any]:
+        data = super().to_representation(instance)
+        visible = self._visible_codes()
+        if visible is not None:
+            data["buildings"] = [code for code in data["buildings"] if code in visible]
+        return data
+
+    def _visible_codes(self) -> set[str] | None:
+        """Codes of the buildings the requester sees; None for all (a superuser)."""
+        request = self.context.get("request")
+        user = getattr(request, "user", None)
+        if user is None or user.is_superuser:
+            return None
+        if self._visible is None:
+            self._visible = set(buildings_for(user).values_list("code", flat=True))
+        return self._visible
+
+    _visible: set[str] | None = None
+
+    def update(self, instance: Robot, validated_data: dict[str, Any]) -> Robot:
+        """Update; the new ``buildings`` replace the requester's own links only."""
+        buildings = validated_data.pop("buildings", None)
+        robot = super().update(instance, validated_data)
+        if buildings is not None:
+            mine = set(administered(self.context["request"].user))
+            kept = [b for b in robot.buildings.all() if b not in mine]
+            robot.buildings.set([*kept, *buildings])
+        return robot
 
 
 class RobotCreatedSerializer(RobotSerializer):

@@ -7,7 +7,7 @@ from typing import Any
 from django.db.models import QuerySet
 from drf_spectacular.utils import extend_schema
 from rest_framework import generics, permissions, status
-from rest_framework.exceptions import NotFound
+from rest_framework.exceptions import NotFound, PermissionDenied
 from rest_framework.request import Request
 from rest_framework.response import Response
 from rest_framework.views import APIView
@@ -26,6 +26,23 @@ class IsAdmin(permissions.BasePermission):
     @override
     def has_permission(self, request: Request, view: Any) -> bool:
         return global_role(request.user) >= Role.ADMIN
+
+
+def administers_all(user: Any, robot: Robot) -> bool:
+    """True if ``user`` administers every building ``robot`` is registered for."""
+    if user.is_superuser:
+        return True
+    return not robot.buildings.exclude(pk__in=buildings_for(user)).exists()
+
+
+def require_whole_robot(user: Any, robot: Robot, what: str) -> None:
+    """Raise PermissionDenied unless ``user`` may ``what`` the robot as a whole: renaming,
+    describing, rotating or deleting a robot shared with buildings of others is theirs too."""
+    if not administers_all(user, robot):
+        raise PermissionDenied(
+            f"Only an admin of every building of this robot may {what} it; "
+            "you may link it to or unlink it from your own buildings."
+        )
 
 
 def robots_for(user: Any) -> QuerySet[Robot]:
@@ -48,7 +65,8 @@ class RobotList(generics.ListCreateAPIView[Robot]):
         form = RobotSerializer(data=request.data, context={"request": request})
         form.is_valid(raise_exception=True)
         robot, token = services.register_robot(**form.validated_data)
-        answer = {**RobotSerializer(robot).data, "token": token}
+        shown = RobotSerializer(robot, context={"request": request}).data
+        answer = {**shown, "token": token}
         return Response(answer, status=status.HTTP_201_CREATED)
 
 
@@ -60,6 +78,18 @@ class RobotDetail(generics.RetrieveUpdateDestroyAPIView[Robot]):
     def get_queryset(self) -> QuerySet[Robot]:
         return robots_for(self.request.user)
 
+    def perform_update(self, serializer: Any) -> None:
+        robot, changes = serializer.instance, serializer.validated_data
+        renamed = "name" in changes and changes["name"] != robot.name
+        described = "description" in changes and changes["description"] != robot.description
+        if renamed or described:
+            require_whole_robot(self.request.user, robot, "rename or describe")
+        serializer.save()
+
+    def perform_destroy(self, instance: Robot) -> None:
+        require_whole_robot(self.request.user, instance, "delete")
+        instance.delete()
+
 
 class RotateToken(APIView):
     permission_classes = [permissions.IsAuthenticated, IsAdmin]
@@ -70,4 +100,5 @@ class RotateToken(APIView):
         robot = robots_for(request.user).filter(name=name).first()
         if robot is None:
             raise NotFound("No such robot.")
+        require_whole_robot(request.user, robot, "rotate the token of")
         return Response({"name": robot.name, "token": services.rotate_token(robot)})

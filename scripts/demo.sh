@@ -10,6 +10,8 @@ HOST=${HOST:-127.0.0.1}
 PORT=${PORT:-8000}
 ROBOTS=${ROBOTS:-3}
 export CLOUDNAV_PUBLIC_URL=${CLOUDNAV_PUBLIC_URL:-http://$HOST:$PORT}
+# The demo may run with the public default SECRET_KEY; nothing else may (README, Production).
+export CLOUDNAV_DEMO=1
 
 $PY manage.py seed_demo --robots "$ROBOTS"
 
@@ -31,5 +33,5 @@ if [ -f robots/agent/__main__.py ]; then
   pids+=($!)
 fi
 
-echo "CloudNav is running at $CLOUDNAV_PUBLIC_URL (sign in as admin / ${CLOUDNAV_DEMO_PASSWORD:-admin-demo}). Ctrl-C stops it."
+echo "CloudNav is running at $CLOUDNAV_PUBLIC_URL (sign in as admin / ${CLOUDNAV_DEMO_PASSWORD:-admin-demo}, or the password you gave admin since). Ctrl-C stops it."
 wait -n "${pids[@]}"

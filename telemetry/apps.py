@@ -5,3 +5,8 @@ from django.apps import AppConfig
 
 class TelemetryConfig(AppConfig):
     name = "telemetry"
+
+    def ready(self) -> None:
+        from telemetry.revocation import connect_signals
+
+        connect_signals()

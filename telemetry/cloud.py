@@ -45,10 +45,13 @@ async def teleop_lock(call: ServiceCall) -> Json:
     """``{robot, action: acquire|release|status}`` -> ``{success, holder, message}``.
 
     Only someone who may drive the robot may take its lock; one connection holds it at a
-    time, until it releases it, disconnects, or sends no ``cmd_vel`` for the lock's TTL.
-    ``status`` tells anyone who may see the robot who holds it ("" for nobody).
+    time, until it releases it, disconnects, or sends no ``cmd_vel`` for the lock's TTL
+    (``CLOUDNAV_TELEOP_LOCK_TTL``, 5 s). ``status`` tells anyone who may see the robot who
+    holds it ("" for nobody). Raises ServiceFailed if ``robot`` is not a robot's name.
     """
-    robot, action = _text(call, "robot"), call.arg("action", "acquire")
+    robot, action = call.arg("robot"), call.arg("action", "acquire")
+    if not names.is_robot_name(robot):
+        raise ServiceFailed("'robot' must be a robot's name (a letter, then letters, digits or _)")
     locks, conn = call.hub.teleop, call.conn
     if action == "status":
         await call.access.require("see", names.robot_topic(robot, names.CMD_VEL))

@@ -79,7 +79,7 @@ class RosbridgeConsumer(AsyncWebsocketConsumer):  # type: ignore[misc]  # Channe
             return
         self.hub = await get_hub()
         config = self.hub.config
-        self.access = Access(identity.principal)
+        self.access = Access(identity.principal, self.hub.registry)
         self.fragments = Reassembler(
             config.per_connection.fragment_bytes,
             self.hub.fragment_budget,
@@ -97,8 +97,18 @@ class RosbridgeConsumer(AsyncWebsocketConsumer):  # type: ignore[misc]  # Channe
         )
         await self.accept()
         self.conn.start()
-        self.hub.join(Client(self.conn, identity.robot_pk))
+        self.hub.join(Client(self.conn, identity.robot_pk, self.access, self.revoke))
         logger.info("%s connected as %s", identity.principal.label, self.conn.key)
+
+    async def revoke(self, reason: str) -> None:
+        """Close this connection at once: what it was admitted with no longer holds. The
+        hub has forgotten it already; frames still in flight are ignored."""
+        conn, self.conn = self.conn, None
+        if conn is None:
+            return
+        self.fragments.clear()
+        logger.info("%s (%s) closed: %s", conn.principal.label, conn.key, reason)
+        await self.close(code=REVOKED)
 
     async def websocket_receive(self, message: dict[str, Any]) -> None:
         if self.conn is None:
@@ -134,16 +144,16 @@ class RosbridgeConsumer(AsyncWebsocketConsumer):  # type: ignore[misc]  # Channe
     # ------------------------------------------------------------ topics
 
     async def on_publish(self, op: protocol.Publish) -> None:
-        name = self.access.resolve(op.topic)
+        name = await self.access.resolve(op.topic)
         if not self.access.granted("publish", name):
             await self.access.require("publish", name)
         conn = self._conn
-        if conn.principal.robot is None and name.endswith(_CMD_VEL_SUFFIX):
-            self.hub.check_command(conn, name, op.msg)
+        if name.endswith(_CMD_VEL_SUFFIX):
+            await self.hub.check_command(conn, name, op.msg)
         self.hub.publish(conn, name, op.msg, op.latch, self._frame_size)
 
     async def on_subscribe(self, op: protocol.Subscribe) -> None:
-        name = self.access.resolve(op.topic)
+        name = await self.access.resolve(op.topic)
         await self.access.require("subscribe", name)
         compression = op.compression
         if compression not in SUPPORTED_COMPRESSIONS:
@@ -154,58 +164,58 @@ class RosbridgeConsumer(AsyncWebsocketConsumer):  # type: ignore[misc]  # Channe
         await self.hub.subscribe(self._conn, name, op, params)
 
     async def on_unsubscribe(self, op: protocol.Unsubscribe) -> None:
-        self.hub.unsubscribe(self._conn, self.access.resolve(op.topic), op)
+        self.hub.unsubscribe(self._conn, await self.access.resolve(op.topic), op)
 
     async def on_advertise(self, op: protocol.Advertise) -> None:
-        name = self.access.resolve(op.topic)
+        name = await self.access.resolve(op.topic)
         await self.access.require("advertise", name)
         self.hub.advertise(self._conn, name, op.type, op.latch, op.id)
 
     async def on_unadvertise(self, op: protocol.Unadvertise) -> None:
-        self.hub.unadvertise(self._conn, self.access.resolve(op.topic), op.id)
+        self.hub.unadvertise(self._conn, await self.access.resolve(op.topic), op.id)
 
     # ------------------------------------------------------------ services
 
     async def on_call_service(self, op: protocol.CallService) -> None:
-        name = self.access.resolve(op.service)
+        name = await self.access.resolve(op.service)
         op.fragment_size = self._fragment_size(op.fragment_size)
         call = ServiceCall(self.hub, self._conn, self.access, name, op.args)
         await self.hub.call_service(call, op)
 
     async def on_service_response(self, op: protocol.ServiceResponse) -> None:
-        self.hub.service_response(self._conn, self.access.resolve(op.service), op)
+        self.hub.service_response(self._conn, await self.access.resolve(op.service), op)
 
     async def on_advertise_service(self, op: protocol.AdvertiseService) -> None:
-        name = self.access.resolve(op.service)
+        name = await self.access.resolve(op.service)
         await self.access.require("advertise_service", name)
         self.hub.advertise_service(self._conn, name, op)
 
     async def on_unadvertise_service(self, op: protocol.UnadvertiseService) -> None:
-        self.hub.unadvertise_service(self._conn, self.access.resolve(op.service))
+        self.hub.unadvertise_service(self._conn, await self.access.resolve(op.service))
 
     # ------------------------------------------------------------ actions
 
     async def on_advertise_action(self, op: protocol.AdvertiseAction) -> None:
-        name = self.access.resolve(op.action)
+        name = await self.access.resolve(op.action)
         await self.access.require("advertise_service", name)
         self.hub.advertise_action(self._conn, name, op)
 
     async def on_unadvertise_action(self, op: protocol.UnadvertiseAction) -> None:
-        self.hub.unadvertise_action(self._conn, self.access.resolve(op.action))
+        self.hub.unadvertise_action(self._conn, await self.access.resolve(op.action))
 
     async def on_send_action_goal(self, op: protocol.SendActionGoal) -> None:
-        name = self.access.resolve(op.action)
+        name = await self.access.resolve(op.action)
         op.fragment_size = self._fragment_size(op.fragment_size)
         await self.hub.send_action_goal(self._conn, self.access, name, op)
 
     async def on_cancel_action_goal(self, op: protocol.CancelActionGoal) -> None:
-        self.hub.cancel_action_goal(self._conn, self.access.resolve(op.action), op)
+        self.hub.cancel_action_goal(self._conn, await self.access.resolve(op.action), op)
 
     async def on_action_feedback(self, op: protocol.ActionFeedback) -> None:
-        self.hub.action_feedback(self._conn, self.access.resolve(op.action), op)
+        self.hub.action_feedback(self._conn, await self.access.resolve(op.action), op)
 
     async def on_action_result(self, op: protocol.ActionResult) -> None:
-        self.hub.action_result(self._conn, self.access.resolve(op.action), op)
+        self.hub.action_result(self._conn, await self.access.resolve(op.action), op)
 
     # ------------------------------------------------------------ framing and status
 
@@ -236,6 +246,9 @@ class RosbridgeConsumer(AsyncWebsocketConsumer):  # type: ignore[misc]  # Channe
 
 
 _CMD_VEL_SUFFIX = "/" + names.CMD_VEL
+# WebSocket close code of a connection whose credentials were revoked (daphne allows 1000
+# and 3000-4999 only; 4403 reads as HTTP 403)
+REVOKED = 4403
 _Handler = Callable[[RosbridgeConsumer, Any], Awaitable[None]]
 _HANDLERS: dict[type, _Handler] = {
     protocol.Publish: RosbridgeConsumer.on_publish,

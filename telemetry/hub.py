@@ -8,10 +8,14 @@ processes need, one hop per process.
 from __future__ import annotations
 
 import asyncio
+import logging
 import weakref
-from collections.abc import Callable
-from dataclasses import dataclass
+from collections.abc import Awaitable, Callable, Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass, field
 from typing import Any
+
+from channels.db import database_sync_to_async
 
 from robots.fleet import FleetTracker
 from robots.teleop import MemoryLockStore, RedisLockStore, TeleopLocks
@@ -24,12 +28,16 @@ from telemetry.domain.encoding import Outgoing
 from telemetry.domain.limits import ByteBudget, Holdings
 from telemetry.domain.messages import pose_of, string_of, twist_2d
 from telemetry.domain.protocol import Json
+from telemetry.domain.rules import Principal
 from telemetry.domain.times import complete_header_stamp
 from telemetry.exceptions import ActionFailed, NotAllowed, RosbridgeError, ServiceFailed
 from telemetry.params import MemoryParams, ParamStore, RedisParams
 from telemetry.relay import Relay
+from telemetry.revocation import AccessChange, RobotRecord, revoked, robot_records
 from telemetry.server_services import ServerService, ServiceCall, server_services
-from telemetry.services import Access
+from telemetry.services import Access, Registry
+
+logger = logging.getLogger(__name__)
 
 
 def fleet_type(name: str) -> str | None:
@@ -45,10 +53,24 @@ def fleet_latched(name: str) -> bool:
 
 @dataclass
 class Client:
-    """What the hub keeps of a connection besides the connection itself."""
+    """What the hub keeps of a connection besides the connection itself: its decisions,
+    and how to close it when what it was admitted with is revoked."""
 
     conn: Connection
     robot_pk: int | None = None
+    access: Access | None = None
+    revoke: Callable[[str], Awaitable[None]] | None = None
+
+
+@dataclass(eq=False)
+class Watcher:
+    """A video stream as revocation sees it: who watches which robot's camera; ``ended``
+    is set when the stream must stop."""
+
+    principal: Principal
+    robot: str
+    robot_pk: int | None
+    ended: asyncio.Event = field(default_factory=asyncio.Event)
 
 
 class Hub:
@@ -88,6 +110,8 @@ class Hub:
         # connection: goal id -> that process's channel (the newest ``pending_calls``)
         self._remote_goals: dict[str, dict[Json, str]] = {}
         self._directory: dict[str, set[str]] = {}
+        self.registry = Registry()
+        self.watchers: set[Watcher] = set()
 
     async def start(self) -> None:
         """Join the other server processes when ``REDIS_URL`` is set (scaled mode)."""
@@ -156,6 +180,91 @@ class Hub:
         if self.relay is not None:
             self.relay.remove("robots", robot)
 
+    # ------------------------------------------------------------ access changes
+
+    async def access_changed(self, change: AccessChange) -> None:
+        """Apply ``change`` (see ``telemetry.revocation``): read the robots it names again,
+        close what depended on what was revoked, and take every other connection's
+        decisions again, withdrawing what they may no longer hold."""
+        logger.info("access changed: %s", change)
+        robots: dict[int, RobotRecord | None] = {}
+        if change.robots:
+            robots = await database_sync_to_async(robot_records)(change.robots)
+        for pk, record in robots.items():
+            self.registry.update(pk, record.owner if record is not None else None)
+        doomed = [c for c in self.clients.values() if revoked(c.conn.principal, change, robots)]
+        if robots:  # first, so whoever sees a connection close sees the new grants too
+            for client in list(self.clients.values()):
+                if client not in doomed:
+                    await self._decide_again(client)
+        for client in doomed:
+            await self._revoke(client, "its credentials were revoked")
+        for pk in [pk for pk, record in robots.items() if record is None]:
+            self.fleet.forget(pk)  # a deleted robot's row went with it
+        for watcher in list(self.watchers):
+            if revoked(watcher.principal, change, robots) or not self._may_watch(watcher, robots):
+                watcher.ended.set()
+                self.watchers.discard(watcher)
+
+    async def _revoke(self, client: Client, reason: str) -> None:
+        await self.leave(client.conn)
+        if client.revoke is not None:
+            await client.revoke(reason)
+
+    @staticmethod
+    def _may_watch(watcher: Watcher, robots: dict[int, RobotRecord | None]) -> bool:
+        """True if the watcher may still watch its camera: its robot was not deleted or
+        renamed, and still shares a building the watcher sees."""
+        from telemetry.video.cameras import may_watch
+
+        if watcher.robot_pk not in robots:
+            return True
+        now = robots[watcher.robot_pk]
+        if now is None or now.owner.robot != watcher.robot:
+            return False
+        return may_watch(watcher.principal, now.owner)
+
+    async def _decide_again(self, client: Client) -> None:
+        """Forget ``client``'s decisions and withdraw what it may no longer hold."""
+        access, conn = client.access, client.conn
+        if access is None:
+            return
+        access.reset()
+        for name, spelling in self.bus.holdings(conn):
+            what = "subscribe" if spelling is not None else "advertise"
+            written = spelling if spelling is not None else access.shown(name)
+            if not await self._still(access, what, name, written):
+                self.bus.withdraw(conn, name, spelling)
+                conn.report("warning", f"{names.outside_realm(name)}: access was withdrawn")
+        for table, fail in ((self.services, self._fail_call), (self.actions, self._fail_goal)):
+            for provider in table.served_by(conn):
+                if not await self._still(access, "advertise_service", provider.name, None):
+                    for call in table.unadvertise(provider.name, conn) or []:
+                        fail(call, f"{provider.spelling} is no longer served")
+        self._publish_directory("services", self.services)
+        self._publish_directory("actions", self.actions)
+
+    @staticmethod
+    async def _still(access: Access, what: str, name: str, written: str | None) -> bool:
+        """True if ``written`` still names ``name`` for ``access``, which may still ``what``."""
+        written = written if written is not None else access.shown(name)
+        if written is None or await access.resolve(written) != name:
+            return False
+        return await access.allows(what, name)
+
+    @contextmanager
+    def watching(
+        self, principal: Principal, robot: str, robot_pk: int | None
+    ) -> Iterator[asyncio.Event]:
+        """Count a video stream of ``robot``'s camera watched by ``principal`` while the
+        block runs; the event yielded is set when the stream must end (revoked)."""
+        watcher = Watcher(principal, robot, robot_pk)
+        self.watchers.add(watcher)
+        try:
+            yield watcher.ended
+        finally:
+            self.watchers.discard(watcher)
+
     # ------------------------------------------------------------ topics
 
     def advertise(
@@ -208,12 +317,19 @@ class Hub:
 
     # ------------------------------------------------------------ teleop
 
-    def check_command(self, conn: Connection, name: str, msg: dict[str, Json]) -> None:
-        """Let a person's ``cmd_vel`` through only from the robot's teleop lock holder.
+    async def check_command(self, conn: Connection, name: str, msg: dict[str, Json]) -> None:
+        """Let a ``cmd_vel`` through only from the robot's teleop lock holder, or from the
+        robot's own token while nobody holds the lock (in any server process).
 
-        Raises NotAllowed otherwise; on success renews the lock and re-arms the watchdog.
+        Raises NotAllowed otherwise; a holder's command renews the lock and re-arms the
+        watchdog.
         """
         robot = names.first_segment(name)
+        if conn.principal.robot is not None:
+            holder = await self.teleop.holder(robot)
+            if holder:
+                raise NotAllowed(f"{robot} is driven by {holder}, who holds its teleop lock")
+            return
         if not self.teleop.accepts(robot, conn.key):
             raise NotAllowed(f"{conn.principal.label} does not hold the teleop lock of {robot}")
         self.teleop.commanded(robot, moving=_moving(msg))
@@ -457,6 +573,20 @@ def _moving(twist: dict[str, Json]) -> bool:
 _hubs: weakref.WeakKeyDictionary[asyncio.AbstractEventLoop, asyncio.Task[Hub]] = (
     weakref.WeakKeyDictionary()
 )
+
+
+def running_hubs() -> list[tuple[asyncio.AbstractEventLoop, Hub]]:
+    """Return the hubs of this process that have started, with their event loops."""
+    found = []
+    for loop, task in list(_hubs.items()):
+        if (
+            task.done()
+            and not task.cancelled()
+            and task.exception() is None
+            and not loop.is_closed()
+        ):
+            found.append((loop, task.result()))
+    return found
 
 
 async def get_hub() -> Hub:

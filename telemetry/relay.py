@@ -25,6 +25,7 @@ from telemetry.domain import names
 from telemetry.domain.bus import Topic
 from telemetry.domain.encoding import Wire
 from telemetry.domain.protocol import Json
+from telemetry.revocation import AccessChange, access_channel
 
 if TYPE_CHECKING:
     from telemetry.hub import Hub
@@ -80,9 +81,13 @@ class Relay:
     async def start(self) -> None:
         self.channel = await self.layer.new_channel(names.PROCESS_CHANNEL_PREFIX)
         await self.redis.sadd(names.redis_key("processes"), self.channel)
+        # access changes (``telemetry.revocation``) reach every process on this Redis channel
+        access = self.redis.pubsub()
+        await access.subscribe(access_channel(self.redis))
         await self._beat()
         loop = asyncio.get_running_loop()
-        for work in (self._receive_loop(), self._send_loop(), self._heartbeat_loop()):
+        works = (self._receive_loop(), self._send_loop(), self._heartbeat_loop())
+        for work in (*works, self._access_loop(access)):
             self._tasks.append(loop.create_task(work))
 
     # ------------------------------------------------------------ ordered sending
@@ -245,6 +250,22 @@ class Relay:
                 client.conn.deliver(Wire(tuple(message["payloads"]), message["binary"]))
         else:
             await self.hub.remote_request(message)
+
+    # ------------------------------------------------------------ access changes
+
+    async def _access_loop(self, access: Any) -> None:
+        """Apply each access change announced by any process (``telemetry.revocation``)."""
+        while True:
+            try:
+                async for message in access.listen():
+                    if message.get("type") == "message":
+                        change = AccessChange.of(json.loads(message["data"]))
+                        await self.hub.access_changed(change)
+            except asyncio.CancelledError:
+                raise
+            except Exception:
+                logger.exception("relay: an access change failed")
+                await asyncio.sleep(1.0)
 
     # ------------------------------------------------------------ liveness
 

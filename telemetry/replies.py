@@ -13,7 +13,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from telemetry.connection import Connection
-from telemetry.domain import protocol
+from telemetry.domain import names, protocol
 from telemetry.domain.names import MAX_NAME_LENGTH
 from telemetry.exceptions import RosbridgeError
 
@@ -26,7 +26,7 @@ def answer(conn: Connection, error: RosbridgeError, frame: Mapping[str, Any] | N
     frame = frame or {}
     op = error.op or _name(frame.get("op"))
     ident = error.id if error.id is not None else protocol.echoable_id(frame.get("id"))
-    reason = shortened(error.message)
+    reason = shortened(names.without_realms(error.message))
     logger.info("%s: dropped %s frame: %s", conn.principal.label, op or "a", reason)
     service, action = _name(frame.get("service")), _name(frame.get("action"))
     if op == "call_service" and service is not None:

@@ -21,14 +21,19 @@ SERVER_NODE = "/cloudnav"
 
 
 async def _visible(access: Access, items: Iterable[tuple[str, str]]) -> list[tuple[str, str]]:
+    """The items the caller may see, named as it writes them: a robot's if it may see the
+    robot, a realm's only in its own realm (``Access.shown``)."""
     shown = []
     for name, type_name in sorted(set(items)):
+        spelled = access.shown(name)
+        if spelled is None:
+            continue
         try:
             await access.require("see", name)
         except NotAllowed:
             continue
-        shown.append((name, type_name))
-    return shown
+        shown.append((spelled, type_name))
+    return sorted(shown)
 
 
 async def _everywhere(
@@ -52,7 +57,7 @@ async def topics(call: ServiceCall) -> Json:
 
 
 async def topic_type(call: ServiceCall) -> Json:
-    wanted = _name(call, "topic")
+    wanted = call.access.shown(await _name(call, "topic"))
     return {"type": next((t for n, t in await _topics(call) if n == wanted), "")}
 
 
@@ -72,7 +77,7 @@ async def list_services(call: ServiceCall) -> Json:
 
 
 async def service_type(call: ServiceCall) -> Json:
-    wanted = _name(call, "service")
+    wanted = call.access.shown(await _name(call, "service"))
     return {"type": next((t for n, t in await _services(call) if n == wanted), "")}
 
 
@@ -89,15 +94,15 @@ async def nodes(call: ServiceCall) -> Json:
     return {"nodes": [SERVER_NODE] + [n for n, _ in await _visible(call.access, robots)]}
 
 
-def _name(call: ServiceCall, key: str) -> str:
+async def _name(call: ServiceCall, key: str) -> str:
     value = call.arg(key, "")
     if not isinstance(value, str) or not value:
         raise ServiceFailed(f"'{key}' must be a name")
-    return call.access.resolve(value)
+    return await call.access.resolve(value)
 
 
 async def _param(call: ServiceCall, need: str) -> str:
-    name = _name(call, "name")
+    name = await _name(call, "name")
     await call.access.require(need, name)
     return name
 
@@ -110,7 +115,7 @@ async def get_param(call: ServiceCall) -> Json:
         return {"value": value, "successful": True, "reason": ""}
     default = call.arg("default_value", call.arg("default", ""))
     found = isinstance(default, str) and default != ""
-    reason = "" if found else f"Parameter {name} is not set"
+    reason = "" if found else f"Parameter {names.outside_realm(name)} is not set"
     return {"value": default if found else "null", "successful": found, "reason": reason}
 
 
@@ -136,7 +141,8 @@ async def delete_param(call: ServiceCall) -> Json:
     name = await _param(call, "set_param")
     found = await call.hub.params.delete(name)
     call.hub.params_held.release(call.conn.key, name)
-    return {"successful": found, "reason": "" if found else f"Parameter {name} is not set"}
+    reason = "" if found else f"Parameter {names.outside_realm(name)} is not set"
+    return {"successful": found, "reason": reason}
 
 
 async def has_param(call: ServiceCall) -> Json:

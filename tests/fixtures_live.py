@@ -126,7 +126,8 @@ async def rosbridge() -> AsyncIterator[Connect]:
     """Open rosbridge connections through the real ASGI application; all closed at the end.
 
     ``await rosbridge(token=...)`` (query string), ``header_token=...`` (Authorization),
-    ``user=...`` (session, with an ``origin`` defaulting to ours), ``path=...``.
+    ``user=...`` (session, with an ``origin`` defaulting to ours), ``path=...``, ``host=...``
+    (the ``Host`` header, ``testserver`` unless given).
     Raises Refused when the handshake is refused.
     """
     from channels.db import database_sync_to_async
@@ -141,8 +142,9 @@ async def rosbridge() -> AsyncIterator[Connect]:
         user: User | None = None,
         origin: str | None = "http://testserver",
         path: str = "/rosbridge",
+        host: str = "testserver",
     ) -> RosClient:
-        headers: list[tuple[bytes, bytes]] = []
+        headers: list[tuple[bytes, bytes]] = [(b"host", host.encode())]
         if token is not None:
             path += f"?token={token}"
         if header_token is not None:
@@ -494,12 +496,14 @@ def scaled_postgres_url() -> str:
 class ScaledCluster:
     """Server processes sharing Redis and PostgreSQL, and the people and robots seeded there.
 
-    ``tokens``: robot name -> token; ``cookies``: username -> session cookie header value.
+    ``tokens``: robot name -> token; ``cookies``: username -> session cookie header value;
+    ``database_url``: the database they share.
     """
 
     servers: list[LiveServer]
     tokens: dict[str, str]
     cookies: dict[str, str]
+    database_url: str = ""
 
 
 def run_manage(database_url: str, *args: str) -> str:
@@ -594,6 +598,6 @@ def scaled_servers(
             servers = start_daphnes(count, tmp_path, database_url, {"REDIS_URL": redis_url})
             for server in servers:
                 stack.callback(server.stop)  # before the drop
-            return ScaledCluster(servers, seeded["tokens"], seeded["cookies"])
+            return ScaledCluster(servers, seeded["tokens"], seeded["cookies"], database_url)
 
         yield start

@@ -59,3 +59,42 @@ async def test_it_rejects_a_session_without_origin(rosbridge, operator):
 async def test_a_bad_token_wins_over_a_good_session(rosbridge, operator):
     with pytest.raises(Refused):
         await rosbridge(user=operator, token="cnr_wrong")
+
+
+@pytest.mark.parametrize(
+    "origin",
+    [
+        "http://testserver:8001",  # another port of our host
+        "https://testserver",  # another scheme
+        "http://testserver.evil.example",
+        "null",
+        "http://[::1",
+    ],
+)
+async def test_it_rejects_a_session_from_another_scheme_host_or_port(rosbridge, operator, origin):
+    with pytest.raises(Refused):
+        await rosbridge(user=operator, origin=origin)
+
+
+@pytest.mark.parametrize(
+    ("host", "origin"),
+    [
+        ("127.0.0.1:8000", "http://127.0.0.1:8000"),
+        ("[::1]:8000", "http://[::1]:8000"),
+        ("localhost", "http://localhost:80"),
+    ],
+)
+async def test_it_admits_a_session_from_the_very_origin_it_was_reached_at(
+    rosbridge, operator, host, origin
+):
+    await rosbridge(user=operator, origin=origin, host=host)
+
+
+async def test_it_admits_a_session_from_a_trusted_origin(rosbridge, operator, settings):
+    settings.CSRF_TRUSTED_ORIGINS = ["https://cloudnav.example.org"]
+    await rosbridge(user=operator, origin="https://cloudnav.example.org", host="127.0.0.1:8000")
+
+
+async def test_it_rejects_a_session_reaching_a_host_that_is_not_allowed(rosbridge, operator):
+    with pytest.raises(Refused):
+        await rosbridge(user=operator, origin="http://evil.example", host="evil.example")

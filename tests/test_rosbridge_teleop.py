@@ -153,3 +153,33 @@ async def test_a_viewer_of_another_building_is_not_told_who_holds_the_lock(
         "/cloudnav/teleop_lock", {"robot": "r1", "action": "status"}
     )
     assert response["result"] is False
+
+
+async def test_the_robots_own_token_cannot_drive_around_an_operators_lock(
+    rosbridge, robot_token, operator
+):
+    robot = await robot_listening(rosbridge, robot_token)
+    driver = await rosbridge(user=operator)
+    assert (await acquire(driver))["success"] is True
+    second_robot_connection = await rosbridge(token=robot_token)
+    await second_robot_connection.send(op="publish", topic="cmd_vel", msg=GO)
+    await second_robot_connection.send(op="publish", topic="/r1/cmd_vel", msg=GO)
+    await second_robot_connection.sync()
+    assert await robot.quiet()
+
+
+async def test_the_robots_own_token_drives_it_while_nobody_holds_the_lock(rosbridge, robot_token):
+    robot = await robot_listening(rosbridge, robot_token)
+    second_robot_connection = await rosbridge(token=robot_token)
+    await second_robot_connection.send(op="publish", topic="cmd_vel", msg=GO)
+    assert (await robot.receive())["msg"] == GO
+
+
+@pytest.mark.parametrize(
+    "name", ["r1/cmd_vel", "/r1", "r1/../r2", "", " r1", 42, None, ["r1"], "r" * 65, "1r"]
+)
+async def test_the_lock_refuses_what_is_not_a_robots_name(rosbridge, robot_token, operator, name):
+    driver = await rosbridge(user=operator)
+    response = await driver.call("/cloudnav/teleop_lock", {"robot": name, "action": "acquire"})
+    assert response["result"] is False
+    assert "'robot' must be a robot's name" in str(response["values"])

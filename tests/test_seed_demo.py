@@ -8,6 +8,7 @@ from pathlib import Path
 
 import pytest
 from django.contrib.auth import authenticate
+from django.contrib.auth.models import User
 from django.core.management import call_command
 
 from maps.domain import demo_building
@@ -81,3 +82,44 @@ def test_the_printed_robot_tokens_get_maps(seeded: Path) -> None:
             client_for(token).get("/api/buildings/boccioni_1/maps/Office7/bundle").status_code
             == 200
         )
+
+
+def test_seeding_again_keeps_what_people_changed(seeded: Path) -> None:
+    admin = User.objects.get(username="admin")
+    admin.set_password("a-secret-of-my-own")
+    admin.save()
+    moved = EnvironmentalTag.objects.order_by("marker_id").first()
+    assert moved is not None
+    EnvironmentalTag.objects.filter(pk=moved.pk).update(x=moved.x + 1.0, yaw=moved.yaw + 0.5)
+    placed = EnvironmentalTag.objects.create(
+        building=moved.building,
+        submap=moved.submap,
+        links_to=moved.links_to,
+        marker_id=499,
+        x=1.0,
+        y=1.0,
+        yaw=0.0,
+    )
+    TopologyEdge.objects.filter(pk=TopologyEdge.objects.order_by("pk")[0].pk).update(cost=42)
+    SubMap.objects.filter(code="RoomA").update(node_x=-7.0, name="Room A, renamed")
+    before = [
+        list(m.objects.order_by("pk").values()) for m in (SubMap, EnvironmentalTag, TopologyEdge)
+    ]
+
+    call_command("seed_demo", "--tokens-file", str(seeded), stdout=io.StringIO())
+
+    after = [
+        list(m.objects.order_by("pk").values()) for m in (SubMap, EnvironmentalTag, TopologyEdge)
+    ]
+    assert after == before
+    assert EnvironmentalTag.objects.filter(pk=placed.pk).exists()
+    assert authenticate(username="admin", password="a-secret-of-my-own") is not None
+    assert authenticate(username="admin", password="admin-demo") is None
+
+
+def test_seeding_again_creates_what_is_missing(seeded: Path) -> None:
+    EnvironmentalTag.objects.order_by("marker_id")[0].delete()
+    User.objects.filter(username="viewer").delete()
+    call_command("seed_demo", "--tokens-file", str(seeded), stdout=io.StringIO())
+    assert EnvironmentalTag.objects.count() == len(demo_building.demo_building("x").tags)
+    assert authenticate(username="viewer", password="viewer-demo") is not None

@@ -387,6 +387,34 @@ class TopicBus:
             del topic.subscriptions[key]
             self._after_subscriber_left(topic)
 
+    def holdings(self, peer: Peer) -> list[tuple[str, str | None]]:
+        """Return what ``peer`` holds: ``(topic, spelling)`` of each subscription, and
+        ``(topic, None)`` of each topic it publishes."""
+        held: list[tuple[str, str | None]] = []
+        for name in self._peer_topics.get(peer.key, ()):
+            topic = self._topics.get(name)
+            if topic is None:
+                continue
+            held += [(name, key[1]) for key in topic.subscriptions if key[0] == peer.key]
+            if peer.key in topic.publishers:
+                held.append((name, None))
+        return held
+
+    def withdraw(self, peer: Peer, name: str, spelling: str | None) -> None:
+        """End what ``peer`` holds on ``name``: the subscription of ``spelling``, or its
+        publication when ``spelling`` is None (access to it was revoked)."""
+        topic = self._topics.get(name)
+        if topic is None:
+            return
+        if spelling is None:
+            self.unadvertise(peer, name)
+            return
+        subscription = topic.subscriptions.pop((peer.key, spelling), None)
+        if subscription is not None:
+            self._subscriptions[peer.key] -= len(subscription.requests)
+            subscription.close()
+            self._after_subscriber_left(topic)
+
     def drop(self, peer: Peer) -> None:
         """Forget everything ``peer`` published or subscribed (it disconnected)."""
         self._subscriptions.pop(peer.key, None)

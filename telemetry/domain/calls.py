@@ -69,6 +69,10 @@ class CallTable:
         """Return ``(name, type)`` of every advertised name."""
         return [(p.name, p.type) for p in self._providers.values()]
 
+    def served_by(self, peer: Peer) -> list[Provider]:
+        """Return the names ``peer`` provides."""
+        return [p for p in self._providers.values() if p.peer.key == peer.key]
+
     def advertise(
         self, name: str, type_name: str, peer: Peer, spelling: str | None = None
     ) -> list[PendingCall]:

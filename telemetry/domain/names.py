@@ -9,12 +9,15 @@ from __future__ import annotations
 
 import hashlib
 import re
+from typing import TypeGuard
 
 from telemetry.exceptions import InvalidName
 
 # One token of a ROS 2 name: a letter or underscore, then letters, digits, underscores.
 _NAME = re.compile(r"^/?[A-Za-z_][A-Za-z0-9_]*(/[A-Za-z_][A-Za-z0-9_]*)*/?$")
 MAX_NAME_LENGTH = 256
+# A robot's name: one such token (as ``robots.models.Robot.name`` holds it).
+_SEGMENT = re.compile(r"[A-Za-z_][A-Za-z0-9_]{0,63}")
 
 ROSAPI = "/rosapi"
 CLOUDNAV = "/cloudnav"
@@ -61,6 +64,47 @@ def absolute(name: str, namespace: str = "") -> str:
     if namespace and name.split("/", 1)[0] not in GLOBAL_NAMESPACES:
         return f"{namespace}/{name}"
     return "/" + name
+
+
+def is_robot_name(text: object) -> TypeGuard[str]:
+    """True if ``text`` can be a robot's name: one ROS name token of at most 64 characters."""
+    return isinstance(text, str) and _SEGMENT.fullmatch(text) is not None
+
+
+# Names no robot owns live in a realm: one building's (``-b{pk}``), or ``NO_BUILDING`` for
+# connections of no building (no tenant's). A realm is a first segment no client can write
+# (ROS tokens never start with '-'), which channel-layer groups and Redis keys accept.
+REALM_MARK = "-"
+NO_BUILDING = REALM_MARK + "none"
+
+
+def building_realm(pk: int) -> str:
+    return f"{REALM_MARK}b{pk}"
+
+
+def in_realm(realm: str, name: str) -> str:
+    """Return ``name`` (absolute) as it lives in ``realm``: ``/-b3/announcements``."""
+    return f"/{realm}{name}"
+
+
+def realm_of(name: str) -> str | None:
+    """Return the realm of a name made by ``in_realm``, None for any other name."""
+    segment = first_segment(name)
+    return segment if segment.startswith(REALM_MARK) else None
+
+
+def outside_realm(name: str) -> str:
+    """Return a realm's name as its clients write it (``/-b3/a`` -> ``/a``)."""
+    realm = realm_of(name)
+    return name[len(realm) + 1 :] if realm is not None else name
+
+
+_REALMS = re.compile(r"/" + re.escape(REALM_MARK) + r"[a-z0-9]+(?=/)")
+
+
+def without_realms(text: str) -> str:
+    """Return ``text`` (an error message) with every name in it as its client writes it."""
+    return _REALMS.sub("", text)
 
 
 def robot_namespace(robot: str) -> str:

@@ -1,7 +1,8 @@
 """Fleet rules: who may subscribe, publish, call and advertise which names.
 
 A name whose first segment is a registered robot belongs to that robot (``/r1/pose``);
-other names are shared. The rules:
+a name no robot owns lives in one building's realm (``names.in_realm``): each connection
+reads and writes such names in its own realm only, so tenants share none. The rules:
 
 - a robot may publish, advertise and serve only inside its own namespace, and may
   subscribe to its own names, to robots sharing one of its buildings, and to shared names;
@@ -21,13 +22,21 @@ from .names import COMMAND_TOPICS, first_segment, is_reserved, suffix_in
 
 @dataclass(frozen=True, slots=True)
 class Principal:
-    """Who is on a connection, taken once when it opens."""
+    """Who is on a connection, taken once when it opens.
+
+    ``realm`` is where the names no robot owns live for this connection (one of its
+    buildings); ``user_id``, ``robot_pk`` and ``credential`` (a robot's token digest, a
+    person's session key) say what it depends on, so a revocation finds it."""
 
     label: str
     robot: str | None
     buildings: frozenset[int]
     drive_buildings: frozenset[int] = frozenset()
     admin: bool = False
+    realm: str = ""
+    user_id: int | None = None
+    robot_pk: int | None = None
+    credential: str | None = None
 
     @property
     def namespace(self) -> str:
@@ -36,10 +45,11 @@ class Principal:
 
 @dataclass(frozen=True, slots=True)
 class Owner:
-    """The robot a name belongs to, and that robot's buildings."""
+    """The robot a name belongs to, and that robot's buildings (and key, when known)."""
 
     robot: str
     buildings: frozenset[int]
+    pk: int | None = None
 
 
 def owner_segment(name: str) -> str:

@@ -47,6 +47,7 @@ class Camera:
 
     topic: str
     robot: str
+    robot_pk: int | None = None
 
 
 def token_of(request: HttpRequest) -> str | None:
@@ -72,7 +73,8 @@ async def principal_of(request: HttpRequest) -> Principal:
     user = await request.auser()
     if not user.is_authenticated:
         raise NotAuthenticated("sign in, or give a robot token")
-    person: Identity | None = await database_sync_to_async(person_identity)(user)
+    session = getattr(getattr(request, "session", None), "session_key", None)
+    person: Identity | None = await database_sync_to_async(person_identity)(user, session)
     if person is None:
         return Principal(label=f"user:{user.get_username()}", robot=None, buildings=frozenset())
     return person.principal
@@ -93,7 +95,7 @@ async def find_camera(hub: Hub, asked: str, principal: Principal) -> Camera:
             owner = await database_sync_to_async(owner_named)(names.first_segment(topic))
             if owner is not None:
                 check_watch(principal, owner)
-                return Camera(topic, owner.robot)
+                return Camera(topic, owner.robot, owner.pk)
     raise UnknownStream(f"{asked} is not a camera topic")
 
 

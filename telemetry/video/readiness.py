@@ -64,7 +64,10 @@ class SocketReadiness:
         await self._ready.wait()
 
     def close(self) -> None:
-        if getattr(self.request, "producer", None) is self:
+        # A viewer that left took the registration with it: Twisted detaches the request
+        # from its channel when the connection is lost, and there is nothing to undo.
+        registered = getattr(self.request, "producer", None) is self
+        if registered and self.request.channel is not None:
             self.request.unregisterProducer()
         if self._own_buffer_size:
             self.transport.bufferSize = self._buffer_size

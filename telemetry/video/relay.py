@@ -20,6 +20,7 @@ from concurrent.futures import ThreadPoolExecutor
 from contextlib import asynccontextmanager
 from typing import Any
 
+from cloudnav_web import shutdown
 from cloudnav_web.heavy import Ticket, video_budget
 from telemetry.domain.video import SOURCE, VP8, StreamParams, encoder_memory
 from telemetry.hub import Hub, get_hub
@@ -130,6 +131,7 @@ def _encoding_threads() -> ThreadPoolExecutor:
     global _executor
     if _executor is None:
         _executor = ThreadPoolExecutor(WORKERS, thread_name_prefix="video")
+        shutdown.on_shutdown(_executor.shutdown)  # joined before the interpreter exits
     return _executor
 
 

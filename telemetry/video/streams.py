@@ -20,6 +20,7 @@ from typing import Any
 from cloudnav_web.heavy import Ticket
 from telemetry.domain import multipart
 from telemetry.domain.newest import Closed
+from telemetry.domain.rules import Principal
 from telemetry.domain.video import MJPEG, NoFrame, StreamParams
 from telemetry.video.cameras import Camera
 from telemetry.video.pipelines import FRESH_FOR, ImagePipeline, Part, Vp8Pipeline
@@ -29,36 +30,64 @@ from telemetry.video.relay import VideoRelay
 SNAPSHOT_TIMEOUT = 5.0
 
 
+class Ended(Exception):
+    """The stream's access was revoked (``Hub.watching``)."""
+
+
+async def _until(work: Any, ended: asyncio.Event) -> Any:
+    """Return what ``work`` (an awaitable) returns, unless ``ended`` is set first: then
+    cancel it and raise Ended."""
+    if ended.is_set():
+        raise Ended
+    task = asyncio.ensure_future(work)
+    stop = asyncio.ensure_future(ended.wait())
+    try:
+        await asyncio.wait({task, stop}, return_when=asyncio.FIRST_COMPLETED)
+    finally:
+        stop.cancel()
+        if not task.done():
+            task.cancel()
+    if not task.done() or task.cancelled():
+        raise Ended
+    return task.result()
+
+
 async def image_body(
     relay: VideoRelay,
     camera: Camera,
     params: StreamParams,
     scope: Mapping[str, Any],
     ticket: Ticket | None = None,
+    principal: Principal | None = None,
 ) -> AsyncIterator[bytes]:
     """Yield a multipart body: the preamble, then the newest part whenever it can go.
 
-    ``ticket`` is what ``relay.reserve`` took for a new encoder."""
+    ``ticket`` is what ``relay.reserve`` took for a new encoder. The body ends when the
+    access of ``principal`` to the camera is revoked."""
     readiness = readiness_for(scope)
+    watcher = principal or Principal(label="", robot=None, buildings=frozenset())
     try:
-        async with relay.watch(camera.topic, params, ticket) as pipeline:
-            assert isinstance(pipeline, ImagePipeline)
-            yield multipart.preamble()
-            async for part in _newest_parts(pipeline, readiness):
-                yield part.data
+        with relay.hub.watching(watcher, camera.robot, camera.robot_pk) as ended:
+            async with relay.watch(camera.topic, params, ticket) as pipeline:
+                assert isinstance(pipeline, ImagePipeline)
+                yield multipart.preamble()
+                async for part in _newest_parts(pipeline, readiness, ended):
+                    yield part.data
     finally:
         readiness.close()
 
 
-async def _newest_parts(pipeline: ImagePipeline, readiness: Readiness) -> AsyncIterator[Part]:
+async def _newest_parts(
+    pipeline: ImagePipeline, readiness: Readiness, ended: asyncio.Event
+) -> AsyncIterator[Part]:
     output = pipeline.output
     version = 0
     while True:
         try:
-            await output.newer(version)
-        except Closed:
+            await _until(output.newer(version), ended)
+            await _until(readiness.wait(), ended)
+        except (Closed, Ended):
             return
-        await readiness.wait()
         # Frames that arrived while the socket was busy are skipped: take the newest.
         newest, part = output.version, output.value
         assert part is not None  # a version was put
@@ -76,32 +105,39 @@ async def webm_body(
     params: StreamParams,
     scope: Mapping[str, Any],
     ticket: Ticket | None = None,
+    principal: Principal | None = None,
 ) -> AsyncIterator[bytes]:
     """Yield a live WebM body: a start the viewer can decode at once, then new Clusters.
 
-    ``ticket`` is what ``relay.reserve`` took for a new encoder."""
+    ``ticket`` is what ``relay.reserve`` took for a new encoder. The body ends when the
+    access of ``principal`` to the camera is revoked."""
     readiness = readiness_for(scope)
+    watcher = principal or Principal(label="", robot=None, buildings=frozenset())
     try:
-        async with relay.watch(camera.topic, params, ticket) as pipeline:
-            assert isinstance(pipeline, Vp8Pipeline)
-            # An empty write sends the response headers now (daphne sends them with the
-            # first body bytes), so the viewer's player sets up before the first frame.
-            yield b""
-            async for data in _clusters(pipeline, readiness):
-                yield data
+        with relay.hub.watching(watcher, camera.robot, camera.robot_pk) as ended:
+            async with relay.watch(camera.topic, params, ticket) as pipeline:
+                assert isinstance(pipeline, Vp8Pipeline)
+                # An empty write sends the response headers now (daphne sends them with
+                # the first body bytes), so the viewer's player sets up before the first
+                # frame.
+                yield b""
+                async for data in _clusters(pipeline, readiness, ended):
+                    yield data
     finally:
         readiness.close()
 
 
-async def _clusters(pipeline: Vp8Pipeline, readiness: Readiness) -> AsyncIterator[bytes]:
+async def _clusters(
+    pipeline: Vp8Pipeline, readiness: Readiness, ended: asyncio.Event
+) -> AsyncIterator[bytes]:
     version = 0
     cursor: int | None = None
     while True:
         try:
-            version, _ = await pipeline.appended.newer(version)
-        except Closed:
+            version, _ = await _until(pipeline.appended.newer(version), ended)
+            await _until(readiness.wait(), ended)
+        except (Closed, Ended):
             return
-        await readiness.wait()
         stream = pipeline.stream
         assert stream is not None  # frames were appended
         chunk = stream.join() if cursor is None else stream.read(cursor)

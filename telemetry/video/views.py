@@ -116,10 +116,10 @@ async def stream(request: HttpRequest) -> HttpResponseBase:
     scope = getattr(request, "scope", {})
     response: StreamingHttpResponse
     if asked.params.type == VP8:
-        body = webm_body(relay, camera, asked.params, scope, ticket)
+        body = webm_body(relay, camera, asked.params, scope, ticket, principal)
         response = StreamingHttpResponse(body, headers=multipart.video_headers(WEBM))
     else:
-        body = image_body(relay, camera, asked.params, scope, ticket)
+        body = image_body(relay, camera, asked.params, scope, ticket, principal)
         response = StreamingHttpResponse(body, headers=multipart.stream_headers())
     if ticket is not None:
         release_with(response, ticket)  # if the body never starts; the encoder takes it over

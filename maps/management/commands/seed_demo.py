@@ -1,8 +1,11 @@
 """``python manage.py seed_demo``: the paper's demo building, its people and its robots.
 
-Idempotent: a second run changes nothing that is already as the demo wants it. Robot
-tokens are kept in a file (``--tokens-file``) so the simulated robots can read them; a
-robot whose token in that file no longer matches gets a new one.
+It creates what is missing and leaves everything else alone, so running it again (every
+``make demo`` does) keeps what people did since: sub-maps, tags and users that exist are
+not touched (a tag an admin moved or placed stays, a changed password stays), and the
+topology is seeded only into a building that has no edges yet. Robot tokens are kept in a
+file (``--tokens-file``) so the simulated robots can read them; a robot whose token in that
+file no longer matches gets a new one.
 """
 
 from __future__ import annotations
@@ -19,7 +22,7 @@ from django.db import transaction
 
 from maps import services
 from maps.domain.demo_building import DemoBuilding, demo_building, submap_metadata
-from maps.domain.mapfile import content_version, load_map_upload, map_yaml_text
+from maps.domain.mapfile import load_map_upload, map_yaml_text
 from maps.domain.topology import Edge
 from maps.models import Building, EnvironmentalTag
 from robots.models import Robot
@@ -46,64 +49,65 @@ class Command(BaseCommand):
             building = self._building(demo)
             self._submaps(building, demo)
             self._tags(building, demo)
-            self._topology(building, demo)
+            if not building.edges.exists():
+                self._topology(building, demo)
             passwords = self._users(building)
         tokens = self._robots(building, robots, Path(tokens_file))
         self._report(building, passwords, tokens, tokens_file)
 
     def _building(self, demo: DemoBuilding) -> Building:
-        building, _ = Building.objects.update_or_create(
+        building, _ = Building.objects.get_or_create(
             code=demo.code,
             defaults={"name": demo.name, "zip_code": demo.zip_code, "address": demo.address},
         )
         return building
 
     def _submaps(self, building: Building, demo: DemoBuilding) -> None:
+        existing = set(building.submaps.values_list("code", flat=True))
         for sub in demo.submaps:
+            if sub.code in existing:
+                continue
             meta = submap_metadata(sub)
             loaded = load_map_upload(map_yaml_text(meta).encode(), {meta.image: sub.pgm}, 10**8)
-            existing = building.submaps.filter(code=sub.code).only("version").first()
             fields: dict[str, Any] = {
                 "name": sub.name,
                 "node_x": sub.node_xy[0],
                 "node_y": sub.node_xy[1],
             }
-            if existing is None or existing.version != content_version(loaded.image_bytes, meta):
-                services.save_submap(building, sub.code, loaded, replace=True, **fields)
-            else:
-                building.submaps.filter(code=sub.code).update(**fields)
+            services.save_submap(building, sub.code, loaded, replace=False, **fields)
 
     def _tags(self, building: Building, demo: DemoBuilding) -> None:
         submaps = {s.code: s for s in building.submaps.defer("image")}
+        existing = set(building.tags.values_list("marker_id", flat=True))
         for tag in demo.tags:
-            EnvironmentalTag.objects.update_or_create(
+            if tag.marker_id in existing:
+                continue
+            EnvironmentalTag.objects.create(
                 building=building,
                 marker_id=tag.marker_id,
-                defaults={
-                    "submap": submaps[tag.submap],
-                    "links_to": submaps[tag.links_to],
-                    "x": tag.x,
-                    "y": tag.y,
-                    "yaw": tag.yaw,
-                    "size": tag.size,
-                },
+                submap=submaps[tag.submap],
+                links_to=submaps[tag.links_to],
+                x=tag.x,
+                y=tag.y,
+                yaw=tag.yaw,
+                size=tag.size,
             )
-        building.tags.exclude(marker_id__in=[t.marker_id for t in demo.tags]).delete()
 
     def _topology(self, building: Building, demo: DemoBuilding) -> None:
         edges = [Edge(e.a, e.b, e.cost) for e in demo.edges]
         positions = {s.code: s.node_xy for s in demo.submaps}
         services.replace_topology(building, positions, edges)
 
-    def _users(self, building: Building) -> dict[str, str]:
-        passwords = {}
+    def _users(self, building: Building) -> dict[str, str | None]:
+        """Create the demo users that are missing; return each one's password, or None
+        for a user that was there already (whose password, groups and buildings stay)."""
+        passwords: dict[str, str | None] = {}
         for name in DEMO_USERS:
+            if User.objects.filter(username=name).exists():
+                passwords[name] = None
+                continue
             password = os.environ.get("CLOUDNAV_DEMO_PASSWORD", f"{name}-demo")
-            user, created = User.objects.get_or_create(username=name)
-            if created or not user.check_password(password):
-                user.set_password(password)
-                user.is_staff = name == "admin"
-                user.save()
+            user = User.objects.create_user(name, password=password, is_staff=name == "admin")
             user.groups.add(Group.objects.get_or_create(name=name)[0])
             building.members.add(user)
             passwords[name] = password
@@ -129,7 +133,11 @@ class Command(BaseCommand):
         return tokens
 
     def _report(
-        self, building: Building, passwords: dict[str, str], tokens: dict[str, str], path: str
+        self,
+        building: Building,
+        passwords: dict[str, str | None],
+        tokens: dict[str, str],
+        path: str,
     ) -> None:
         write = self.stdout.write
         write(
@@ -137,7 +145,8 @@ class Command(BaseCommand):
             f"{building.tags.count()} tags, {building.edges.count()} edges."
         )
         for name, password in passwords.items():
-            write(f"  user {name:9} password {password}")
+            kept = "(was there: its password is unchanged)"
+            write(f"  user {name:9} password {password or kept}")
         for name, token in tokens.items():
             write(f"  robot {name:8} token {token}")
         write(f"Robot tokens saved to {path}")
