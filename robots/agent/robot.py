@@ -16,7 +16,8 @@ Topics (relative names, so the server resolves them to ``/{robot}/...``): publis
 ``odom`` (10 Hz), ``scan`` (5 Hz), ``plan`` (when it changes), ``nav_status`` (on every
 change and at 1 Hz), ``map_id`` (latched, on entering a sub-map), ``localisation``
 (latched, on every change and at 1 Hz: lost, entering a sub-map or localised, see
-``whereabouts``) and ``camera/image/compressed`` (``camera_rate``); subscribes
+``whereabouts``), ``camera/image/compressed`` (``camera_rate``), and
+``camera/depth/image`` with ``camera/camera_info`` (``depth_rate``); subscribes
 ``cmd_vel``, ``goal`` and
 ``initialpose``; serves ``cancel_goal`` (``std_srvs/Trigger``), which preempts the
 active goal. (The server lets operators publish only ``cmd_vel``, ``goal`` and
@@ -35,7 +36,7 @@ import logging
 import math
 import time
 from collections.abc import Callable
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from typing import Any, Protocol
 
 import numpy as np
@@ -57,6 +58,8 @@ from robots.domain.se2 import Pose, compose, inverse
 from telemetry.domain.messages import (
     Json,
     Message,
+    camera_info,
+    depth_image,
     goal_of,
     initial_pose_of,
     path_message,
@@ -115,6 +118,12 @@ class SimHardware:
 
     def image(self) -> NDArray[np.uint8]:
         return self.camera.render(self.body.pose)
+
+    def image_and_depth(self) -> tuple[NDArray[np.uint8], NDArray[np.float32]]:
+        """A frame and its registered depth (metres along the optical axis)."""
+        image, depth = self.camera.capture(self.body.pose)
+        assert depth is not None
+        return image, depth
 
 
 # --- where the robot is ----------------------------------------------------------------
@@ -205,6 +214,14 @@ class PoseTracker:
 
 
 # --- the robot -------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Frame:
+    """A camera frame, with its registered depth when one was taken."""
+
+    image: NDArray[np.uint8]
+    depth: NDArray[np.float32] | None = None
 
 
 class Publisher(Protocol):
@@ -316,10 +333,10 @@ class Robot:
         ranges = self.hardware.scan()
         scan = self.hardware.laser.message(ranges, self.stamp)
         self.tracker.scan(scan)
-        camera_due = self._due(self.config.detect_rate, self.config.camera_rate)
-        image = self._look() if camera_due else None
+        rates = (self.config.detect_rate, self.config.camera_rate, self.config.depth_rate)
+        frame = self._look() if self._due(*rates) else None
         self._drive(LocalObstacles.from_scan(ranges.astype(np.float64), self.hardware.scan_angles))
-        await self._publish(scan, image)
+        await self._publish(scan, frame)
 
     @property
     def stamp(self) -> float:
@@ -332,13 +349,17 @@ class Robot:
             rate > 0 and self.ticks % max(1, round(1 / (rate * period))) == 0 for rate in rates
         )
 
-    def _look(self) -> NDArray[np.uint8]:
-        """Render a frame; the detector looks at it when due."""
-        image = self.hardware.image()
+    def _look(self) -> Frame:
+        """Render a frame (with depth when due); the detector looks at it when due."""
+        depth: NDArray[np.float32] | None = None
+        if self._due(self.config.depth_rate):
+            image, depth = self.hardware.image_and_depth()
+        else:
+            image = self.hardware.image()
         if self._due(self.config.detect_rate):
             self.detections = self.detector.detect(image)
             self.supervisor.observe(self.detections, self.tracker.odom, self.seconds)
-        return image
+        return Frame(image, depth)
 
     def _drive(self, obstacles: LocalObstacles) -> None:
         if self.seconds < self._teleop_until:
@@ -354,7 +375,7 @@ class Robot:
 
     # --- publishing --------------------------------------------------------------------
 
-    async def _publish(self, scan: Json, image: NDArray[np.uint8] | None) -> None:
+    async def _publish(self, scan: Json, frame: Frame | None) -> None:
         current = self.supervisor.current
         if self._map_to_publish is not None:
             await self.publisher.publish("map_id", string_message(self._map_to_publish))
@@ -369,8 +390,10 @@ class Robot:
             await self.publisher.publish("scan", scan)
         await self._publish_navigation(current)
         await self._publish_whereabouts()
-        if image is not None and self._due(self.config.camera_rate):
-            await self._publish_image(image)
+        if frame is not None and self._due(self.config.camera_rate):
+            await self._publish_image(frame.image)
+        if frame is not None and frame.depth is not None:
+            await self._publish_depth(frame.depth)
 
     async def _publish_navigation(self, current: SubMap | None) -> None:
         driver, board = self.navigator.driver, self.navigator.board
@@ -392,6 +415,15 @@ class Robot:
         jpeg = encode_jpeg(image, self.config.jpeg_quality)
         message = compressed_image_message(jpeg, self.stamp)
         await self.publisher.publish("camera/image/compressed", message)
+
+    async def _publish_depth(self, depth: NDArray[np.float32]) -> None:
+        model = self.hardware.camera.model
+        frame_id = "camera_optical_frame"
+        await self.publisher.publish("camera/depth/image", depth_image(frame_id, depth, self.stamp))
+        info = camera_info(
+            frame_id, model.width, model.height, model.fx, model.fy, model.cx, model.cy, self.stamp
+        )
+        await self.publisher.publish("camera/camera_info", info)
 
     # --- pacing ------------------------------------------------------------------------
 
@@ -428,7 +460,10 @@ def _unusable_goal(msg: Json) -> str:
 
 # --- declarations on the network -------------------------------------------------------
 
-PUBLISHED = ("pose", "odom", "scan", "plan", "nav_status", "camera/image/compressed")
+PUBLISHED = (
+    "pose", "odom", "scan", "plan", "nav_status", "camera/image/compressed",
+    "camera/depth/image", "camera/camera_info",
+)  # fmt: skip
 
 
 def declare(robot: Robot, client: RosbridgeClient) -> None:
