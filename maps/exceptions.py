@@ -44,3 +44,8 @@ class NoRouteError(TopologyError):
 
 class TagPayloadError(MapStoreError):
     """A QR payload cannot be parsed, or is too long for QR version 3."""
+
+
+class KeyframeError(MapStoreError):
+    """A keyframe or relocalisation request is unusable (its image, depth, camera or
+    pose); nothing of it is stored."""
