@@ -9,12 +9,14 @@ from rest_framework.response import Response
 from rest_framework.views import exception_handler as drf_exception_handler
 
 from maps.exceptions import (
+    KeyframeError,
     MapFileError,
     NoRouteError,
     SubMapExistsError,
     TagPayloadError,
     TopologyError,
 )
+from maps.visual.service import KeyframeQueueFull
 
 
 def exception_handler(exc: Exception, context: dict[str, Any]) -> Response | None:
@@ -28,4 +30,9 @@ def exception_handler(exc: Exception, context: dict[str, Any]) -> Response | Non
         return Response({exc.field: [exc.message]}, status=status.HTTP_400_BAD_REQUEST)
     if isinstance(exc, TagPayloadError):
         return Response({"payload": [str(exc)]}, status=status.HTTP_400_BAD_REQUEST)
+    if isinstance(exc, KeyframeError):
+        return Response({"detail": str(exc)}, status=status.HTTP_400_BAD_REQUEST)
+    if isinstance(exc, KeyframeQueueFull):
+        headers = {"Retry-After": "1"}
+        return Response({"detail": str(exc)}, status.HTTP_503_SERVICE_UNAVAILABLE, headers=headers)
     return drf_exception_handler(exc, context)

@@ -18,6 +18,8 @@ urlpatterns = [
     path(f"{submap}/grid", views.SubMapGrid.as_view(), name="submap-grid"),
     path(f"{submap}/export", views.SubMapExport.as_view(), name="submap-export"),
     path(f"{submap}/bundle", views.SubMapBundle.as_view(), name="submap-bundle"),
+    path(f"{submap}/keyframes", views.SubMapKeyframes.as_view(), name="submap-keyframes"),
+    path("relocalise", views.Relocalise.as_view(), name="relocalise"),
     path(f"{building}/topology", views.Topology.as_view(), name="topology"),
     path(
         f"{building}/topology/validation",

@@ -64,6 +64,7 @@ export const urls = {
   submaps: (b) => `/api/buildings/${b}/maps/`,
   submap: (b, m) => `/api/buildings/${b}/maps/${m}/`,
   grid: (b, m) => `/api/buildings/${b}/maps/${m}/grid`,
+  keyframes: (b, m) => `/api/buildings/${b}/maps/${m}/keyframes`,
   topology: (b) => `/api/buildings/${b}/topology`,
   validation: (b) => `/api/buildings/${b}/topology/validation`,
   route: (b, from, to) =>

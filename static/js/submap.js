@@ -27,8 +27,24 @@ async function load() {
   view.setGrid(grid);
   $("map-wrap").dataset.loaded = config.map;
   setTags(buildingTags);
+  await loadCoverage();
   if (editable && !state.selected) newTag();
 }
+
+/** The visual map's coverage: every keyframe pose of this sub-map, drawn on the map. */
+async function loadCoverage() {
+  const { keyframes } = await api.get(urls.keyframes(config.building, config.map));
+  view.set("keyframes", keyframes);
+  $("keyframe-count").textContent = `${keyframes.length} keyframe${keyframes.length === 1 ? "" : "s"}`;
+  $("keyframe-count").dataset.count = keyframes.length;
+}
+
+$("keyframes-reload")?.addEventListener("click", () => loadCoverage());
+$("keyframes-clear")?.addEventListener("click", async () => {
+  if (!window.confirm("Remove every keyframe of this sub-map? Robots will have to drive it again.")) return;
+  await api.delete(urls.keyframes(config.building, config.map));
+  await loadCoverage();
+});
 
 function setTags(buildingTags) {
   state.buildingTags = buildingTags;
