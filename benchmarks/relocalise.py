@@ -17,7 +17,8 @@ every answer given is counted.
 Times are one query of one image on this process's one thread (the server answers one
 query per worker thread), and one keyframe's ingestion (features, points, words).
 
-Run: ``python manage.py bench relocalise --seed 1 --json``.
+Run: ``python manage.py bench relocalise --seed 1 --json``; ``--table3`` runs the first
+paper's Table 3 instead (``benchmarks/wakeup_table.py``).
 """
 
 from __future__ import annotations
@@ -55,9 +56,19 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--trials", type=int, default=50, help="wake-ups")
     parser.add_argument("--keyframes", type=int, default=1000, help="keyframes surveyed")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
+    parser.add_argument(
+        "--table3", action="store_true",
+        help="the paper's Table 3 instead: tag, visual, random and global starts compared",
+    )  # fmt: skip
 
 
 def run(options: dict[str, Any]) -> None:
+    if options["table3"]:
+        from benchmarks.wakeup_table import format_table, run_table
+
+        table = run_table(options["seed"], options["trials"], options["keyframes"])
+        print(json.dumps(table) if options["json"] else format_table(table))
+        return
     result = measure(options["seed"], options["trials"], options["keyframes"])
     print(json.dumps(result.summary()) if options["json"] else report(result))
 

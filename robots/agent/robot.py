@@ -52,6 +52,7 @@ from robots.agent.sim.camera import Camera, compressed_image_message, encode_jpe
 from robots.agent.sim.laser import Laser, LaserSpec
 from robots.agent.sim.world import World
 from robots.agent.supervisor import BundleError, MapsSupervisor, SubMap
+from robots.agent.visual import LOST_SPREAD, TRUSTED_SPREAD, VisualMap, spread
 from robots.agent.whereabouts import Whereabouts
 from robots.domain.params import BodyLimits, FilterParams, RobotConfig
 from robots.domain.se2 import Pose, compose, inverse
@@ -136,6 +137,7 @@ class Localiser(Protocol):
     def predict(self, odom_delta: Pose) -> None: ...
     def update(self, scan: Message) -> bool: ...
     def pose(self) -> Pose: ...
+    def covariance(self) -> NDArray[np.float64]: ...
     def set_map(self, grid: Any, resolution: float, origin: Pose) -> None: ...
 
 
@@ -212,6 +214,12 @@ class PoseTracker:
             return self.filter.pose()
         return compose(self._offset, self.odom)
 
+    def spread(self) -> float:
+        """Metres: the filter's position standard deviation (0 without a filter)."""
+        if self.filter is None or not self.localised:
+            return 0.0
+        return spread(self.filter.covariance())
+
 
 # --- the robot -------------------------------------------------------------------------
 
@@ -242,8 +250,10 @@ class Robot:
         publisher: Publisher,
         config: RobotConfig | None = None,
         epoch: float | None = None,
+        visual: VisualMap | None = None,
     ) -> None:
         self.hardware = hardware
+        self.visual = visual
         self.supervisor = supervisor
         self.tracker = tracker
         self.publisher = publisher
@@ -359,7 +369,42 @@ class Robot:
         if self._due(self.config.detect_rate):
             self.detections = self.detector.detect(image)
             self.supervisor.observe(self.detections, self.tracker.odom, self.seconds)
+        if self.visual is not None:
+            self._use_visual_map(image, depth)
         return Frame(image, depth)
+
+    # --- the cloud's visual map ---------------------------------------------------------
+
+    def _use_visual_map(self, image: NDArray[np.uint8], depth: NDArray[np.float32] | None) -> None:
+        """Send a keyframe when the pose is trustworthy; ask where the robot is when it
+        has no sub-map and no marker in sight, or when its filter has lost track."""
+        assert self.visual is not None
+        current, supervisor = self.supervisor.current, self.supervisor
+        if supervisor.entering or supervisor.marker_in_sight(self.seconds):
+            return  # a tag is placing the robot: tags win
+        if current is None or self.tracker.spread() > LOST_SPREAD:
+            if self.visual.may_ask(self.seconds):
+                building = current.building if current is not None else ""
+                self._spawn(self._wake_up(image, self.tracker.odom, building))
+            return
+        pose = self.tracker.pose()
+        trusted = self.tracker.localised and self.tracker.spread() <= TRUSTED_SPREAD
+        if depth is not None and trusted and self.visual.keyframe_due(current.map_id, pose):
+            self._spawn(self.visual.send_keyframe(current.map_id, pose, image, depth))
+
+    async def _wake_up(self, image: NDArray[np.uint8], odom: Pose, building: str) -> None:
+        assert self.visual is not None
+        placement = await self.visual.ask(image, self.seconds, building)
+        lost = self.supervisor.current is None or self.tracker.spread() > LOST_SPREAD
+        if placement is None or self.supervisor.entering or not lost:
+            return  # no answer, or a tag placed the robot meanwhile
+        logger.info("placed by the cloud in %s (%d inliers)", placement.map_id, placement.inliers)
+        try:
+            await self.supervisor.relocate(
+                placement.estimate, placement.map_id, odom, "visual relocalisation"
+            )
+        except BundleError as error:
+            logger.warning("cannot enter %s: %s", placement.map_id, error)
 
     def _drive(self, obstacles: LocalObstacles) -> None:
         if self.seconds < self._teleop_until:
