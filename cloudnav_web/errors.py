@@ -10,6 +10,7 @@ from rest_framework.views import exception_handler as drf_exception_handler
 
 from maps.exceptions import (
     IncomparableVersions,
+    KeyframeError,
     MapFileError,
     MappingError,
     NoRouteError,
@@ -19,6 +20,7 @@ from maps.exceptions import (
     TopologyError,
     VersionConflict,
 )
+from maps.visual.service import KeyframeQueueFull
 
 
 def exception_handler(exc: Exception, context: dict[str, Any]) -> Response | None:
@@ -42,4 +44,9 @@ def exception_handler(exc: Exception, context: dict[str, Any]) -> Response | Non
         return Response({"detail": str(exc)}, status=status.HTTP_400_BAD_REQUEST)
     if isinstance(exc, TagPayloadError):
         return Response({"payload": [str(exc)]}, status=status.HTTP_400_BAD_REQUEST)
+    if isinstance(exc, KeyframeError):
+        return Response({"detail": str(exc)}, status=status.HTTP_400_BAD_REQUEST)
+    if isinstance(exc, KeyframeQueueFull):
+        headers = {"Retry-After": "1"}
+        return Response({"detail": str(exc)}, status.HTTP_503_SERVICE_UNAVAILABLE, headers=headers)
     return drf_exception_handler(exc, context)

@@ -45,6 +45,13 @@ CSRF_TRUSTED_ORIGINS = env_list(
 # The address robots reach the cloud at; it is printed in every tag's QR code.
 CLOUDNAV_PUBLIC_URL = os.environ.get("CLOUDNAV_PUBLIC_URL", "http://127.0.0.1:8000")
 # Uploaded map images larger than this are refused before they are decoded.
+# The visual map: keyframe files, the ingestion queue, and image limits (docs/design.md).
+CLOUDNAV_KEYFRAME_DIR = Path(
+    os.environ.get("CLOUDNAV_KEYFRAME_DIR", str(BASE_DIR / "var" / "keyframes"))
+)
+CLOUDNAV_KEYFRAME_QUEUE = int(os.environ.get("CLOUDNAV_KEYFRAME_QUEUE", "32"))
+CLOUDNAV_MAX_IMAGE_PIXELS = int(os.environ.get("CLOUDNAV_MAX_IMAGE_PIXELS", str(1280 * 960)))
+CLOUDNAV_RELOCALISE_WORKERS = int(os.environ.get("CLOUDNAV_RELOCALISE_WORKERS", "2"))
 CLOUDNAV_MAX_MAP_PIXELS = int(os.environ.get("CLOUDNAV_MAX_MAP_PIXELS", str(4096 * 4096)))
 CLOUDNAV_MAX_UPLOAD_BYTES = int(os.environ.get("CLOUDNAV_MAX_UPLOAD_BYTES", str(32 * 1024 * 1024)))
 DATA_UPLOAD_MAX_MEMORY_SIZE = CLOUDNAV_MAX_UPLOAD_BYTES

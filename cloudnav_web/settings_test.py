@@ -29,3 +29,6 @@ if DATABASES["default"]["ENGINE"] == "django.db.backends.sqlite3":
 if not env_bool("CLOUDNAV_LIVE_SERVER", False):
     REDIS_URL = ""
     CHANNEL_LAYERS = {"default": {"BACKEND": "channels.layers.InMemoryChannelLayer"}}
+
+# Keyframe files of test runs go apart from the demo's (a live server inherits the path).
+CLOUDNAV_KEYFRAME_DIR = BASE_DIR / "var" / "test-keyframes"

@@ -71,3 +71,8 @@ class IncomparableVersions(MapStoreError):
 class MappingError(MapStoreError):
     """A mapping session cannot be started, resumed or published as asked; the message
     says why (an offline robot, a second session on one robot, a session in another state)."""
+
+
+class KeyframeError(MapStoreError):
+    """A keyframe or relocalisation request is unusable (its image, depth, camera or
+    pose); nothing of it is stored."""

@@ -247,3 +247,24 @@ class ChangeProposal(models.Model):
 
     def __str__(self) -> str:
         return f"change to {self.submap} v{self.based_on} ({self.state})"
+
+
+class Keyframe(models.Model):
+    """A camera keyframe of a sub-map's visual map: where the robot stood, and the file
+    (``CLOUDNAV_KEYFRAME_DIR``/``path``) holding its features, 3D points and words."""
+
+    submap = models.ForeignKey(SubMap, models.CASCADE, related_name="keyframes")
+    robot = models.CharField(max_length=100, blank=True)
+    x = models.FloatField()
+    y = models.FloatField()
+    yaw = models.FloatField()
+    points = models.PositiveIntegerField()
+    path = models.CharField(max_length=300)
+    size = models.PositiveIntegerField()
+    created = models.DateTimeField(auto_now_add=True)
+
+    class Meta:
+        ordering = ["submap", "id"]
+
+    def __str__(self) -> str:
+        return f"keyframe {self.pk} of {self.submap}"

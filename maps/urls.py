@@ -33,6 +33,8 @@ urlpatterns = [
         mapping.ProposalDecision.as_view(),
         name="change-decision",
     ),
+    path(f"{submap}/keyframes", views.SubMapKeyframes.as_view(), name="submap-keyframes"),
+    path("relocalise", views.Relocalise.as_view(), name="relocalise"),
     path(f"{building}/topology", views.Topology.as_view(), name="topology"),
     path(
         f"{building}/topology/validation",

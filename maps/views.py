@@ -38,6 +38,8 @@ from .serializers import (
     VersionComparisonSerializer,
     VersionSerializer,
 )
+from .visual import service as visual
+from .visual import store as visual_store
 
 
 def building_for(request: Request, code: str, need: Role = Role.VIEWER) -> Building:
@@ -329,6 +331,57 @@ class VersionComparison(APIView):
                 },
             }
         )
+
+
+# The visual map
+
+
+class SubMapKeyframes(APIView):
+    """A sub-map's keyframes: robots of the building send them (``POST``, queued: 202),
+    anyone who sees the building lists their poses (``GET``), admins clear them."""
+
+    parser_classes = [JSONParser]
+
+    @extend_schema(request=OpenApiTypes.OBJECT, responses={202: OpenApiTypes.OBJECT})
+    def post(self, request: Request, building: str, map: str) -> Response:
+        """``{image, depth, pose: {x, y, yaw}, camera_info?, mount?}``; 503 when the
+        ingestion queue is full."""
+        submap = submap_for(request, building, map)
+        robot = robot_of(request.user)
+        if robot is None:
+            raise PermissionDenied("Only robots send keyframes.")
+        if not isinstance(request.data, dict):
+            raise ValidationError({"detail": "a JSON object is required"})
+        visual.accept_keyframe(submap, robot.name, request.data)
+        return Response({"queued": True}, status=status.HTTP_202_ACCEPTED)
+
+    @extend_schema(responses={200: OpenApiTypes.OBJECT})
+    def get(self, request: Request, building: str, map: str) -> Response:
+        submap = submap_for(request, building, map)
+        return Response({"map_id": submap.map_id, "keyframes": visual_store.coverage(submap)})
+
+    @extend_schema(responses={200: OpenApiTypes.OBJECT})
+    def delete(self, request: Request, building: str, map: str) -> Response:
+        submap = submap_for(request, building, map, Role.ADMIN)
+        return Response({"removed": visual_store.clear(submap)})
+
+
+class Relocalise(APIView):
+    """``/cloudnav/relocalise`` over REST: where the images were taken, among the
+    keyframes of the caller's buildings (``building`` narrows it; 403 for one the caller
+    may not use)."""
+
+    parser_classes = [JSONParser]
+
+    @extend_schema(request=OpenApiTypes.OBJECT, responses={200: OpenApiTypes.OBJECT})
+    def post(self, request: Request) -> Response:
+        if not isinstance(request.data, dict):
+            raise ValidationError({"detail": "a JSON object is required"})
+        code = request.data.get("building")
+        if code is not None and not isinstance(code, str):
+            raise ValidationError({"building": ["a building code is required"]})
+        buildings = [building_for(request, code)] if code else list(buildings_for(request.user))
+        return Response(visual.relocalise_in(buildings, request.data))
 
 
 # Topology and routes

@@ -1,13 +1,17 @@
 """The cloud's own services under ``/cloudnav``: teleop lock, route planning, tag resolution,
-path planning."""
+path planning, visual relocalisation."""
 
 from __future__ import annotations
 
+import asyncio
 import math
+from concurrent.futures import ThreadPoolExecutor
 from functools import lru_cache
 from typing import Any
 
 from channels.db import database_sync_to_async
+from django.conf import settings
+from django.db import close_old_connections
 
 from maps import services as map_services
 from maps.domain.planning import (
@@ -19,8 +23,9 @@ from maps.domain.planning import (
     plan_on,
 )
 from maps.domain.tagpayload import parse_payload
-from maps.exceptions import MapStoreError
+from maps.exceptions import KeyframeError, MapStoreError
 from maps.models import Building, SubMap
+from maps.visual.service import relocalise_in
 from telemetry.domain import names
 from telemetry.domain.messages import Path, path_of
 from telemetry.domain.protocol import Json
@@ -32,6 +37,7 @@ TELEOP_LOCK = f"{names.CLOUDNAV}/teleop_lock"
 ROUTE = f"{names.CLOUDNAV}/route"
 RESOLVE_TAG = f"{names.CLOUDNAV}/resolve_tag"
 PLAN_PATH = f"{names.CLOUDNAV}/plan_path"
+RELOCALISE = f"{names.CLOUDNAV}/relocalise"
 
 
 def _text(call: ServiceCall, key: str) -> str:
@@ -188,10 +194,55 @@ def _path(frame_id: str, points: list[tuple[float, float]]) -> Path:
     return path_of(frame_id, [(x, y, 0.0) for x, y in points], now_stamp())
 
 
+async def relocalise(call: ServiceCall) -> Json:
+    """``{images, depth?, camera_info?, mount?, building?, submap?}`` -> ``{localised,
+    map_id, pose: {x, y, yaw}, covariance (9), inliers, keyframes, image, reason}``.
+
+    Searched among the keyframes of the caller's buildings (``building`` narrows it; one
+    it may not use is refused). Runs on the relocalisation threads
+    (``CLOUDNAV_RELOCALISE_WORKERS``), never on the event loop that relays topics.
+    """
+    args = call.args[0] if isinstance(call.args, list) and call.args else call.args
+    if not isinstance(args, dict):
+        raise ServiceFailed("the request must be an object")
+    code = args.get("building")
+    if code is not None and not isinstance(code, str):
+        raise ServiceFailed("'building' must be a building code")
+    visible = call.conn.principal.buildings
+    try:
+        return await _on_relocalise_threads(_relocalise, visible, code, args)
+    except KeyframeError as exc:
+        raise ServiceFailed(str(exc)) from None
+
+
+def _relocalise(visible: frozenset[int], code: str | None, args: dict[str, Any]) -> Json:
+    try:
+        buildings = list(Building.objects.filter(pk__in=visible))
+        if code:
+            buildings = [b for b in buildings if b.code == code]
+            if not buildings:
+                raise NotAllowed(f"building {code} does not exist or is not visible")
+        return relocalise_in(buildings, args)
+    finally:
+        close_old_connections()
+
+
+_RELOCALISE_POOL: ThreadPoolExecutor | None = None
+
+
+async def _on_relocalise_threads(function: Any, *args: Any) -> Any:
+    global _RELOCALISE_POOL
+    if _RELOCALISE_POOL is None:
+        workers = max(1, settings.CLOUDNAV_RELOCALISE_WORKERS)
+        _RELOCALISE_POOL = ThreadPoolExecutor(workers, thread_name_prefix="relocalise")
+    return await asyncio.get_running_loop().run_in_executor(_RELOCALISE_POOL, function, *args)
+
+
 def services() -> dict[str, ServerService]:
     return {
         TELEOP_LOCK: ServerService("cloudnav/TeleopLock", teleop_lock),
         ROUTE: ServerService("cloudnav/Route", route),
         RESOLVE_TAG: ServerService("cloudnav/ResolveTag", resolve_tag),
         PLAN_PATH: ServerService("cloudnav/PlanPath", plan_path),
+        RELOCALISE: ServerService("cloudnav/Relocalise", relocalise),
     }

@@ -44,7 +44,10 @@ BUNDLE = re.compile(r'"GET /api/buildings/([^/]+)/maps/([^/]+)/bundle" (\d{3})')
 @pytest.fixture
 def agent(daphne_server: LiveServer, demo_token: str, tmp_path: Path) -> Iterator[Path]:
     """``python -m robots.agent`` in its own process; yields its log file."""
-    options = ["--time-scale", str(TIME_SCALE), "--camera-rate", "1"]
+    # Tags only: the visual map has its own end-to-end test (test_visual_wake_up.py), and
+    # its keyframes (a megabyte each) at 8 x real time would load this one's server.
+    options = ["--time-scale", str(TIME_SCALE), "--camera-rate", "1", "--depth-rate", "0"]
+    options.append("--no-visual")
     with agent_process(daphne_server.url, demo_token, tmp_path / "agent.log", *options) as log:
         yield log
 

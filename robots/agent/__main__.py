@@ -79,8 +79,9 @@ async def main(options: argparse.Namespace) -> None:
         start=options.start,
         particles=options.particles,
         seed=options.seed,
-        robot=RobotConfig(camera_rate=options.camera_rate),
+        robot=RobotConfig(camera_rate=options.camera_rate, depth_rate=options.depth_rate),
         changes=None if options.changes is None else plan_changes(options.changes),
+        visual=options.visual,
     )
     fleet = build_fleet(tokens_of(options), fleet_options)
     running = asyncio.create_task(run_fleet(fleet, options.time_scale))

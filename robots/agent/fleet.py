@@ -24,6 +24,7 @@ from robots.agent.robot import PoseTracker, Robot, SimHardware, declare, particl
 from robots.agent.sim.changes import WorldChanges, changed_demo_world
 from robots.agent.sim.world import World, demo_world
 from robots.agent.supervisor import BundleCache, MapsSupervisor
+from robots.agent.visual import VisualMap
 from robots.domain.params import RobotConfig
 from robots.domain.se2 import Pose
 
@@ -42,6 +43,7 @@ class FleetOptions:
     seed: int = 0
     robot: RobotConfig = field(default_factory=RobotConfig)
     changes: WorldChanges | None = None  # how the building differs from its maps
+    visual: bool = True  # send keyframes, and ask the cloud where it is when lost
 
 
 def add_robot_arguments(parser: argparse.ArgumentParser) -> None:
@@ -52,6 +54,14 @@ def add_robot_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--camera-rate", type=float, default=defaults.camera_rate, help="JPEG frames/s published"
     )
+    parser.add_argument(
+        "--depth-rate", type=float, default=defaults.depth_rate,
+        help="depth images/s published (and offered as keyframes)",
+    )  # fmt: skip
+    parser.add_argument(
+        "--no-visual", dest="visual", action="store_false",
+        help="send no keyframes and never ask the cloud where the robot is",
+    )  # fmt: skip
     parser.add_argument(
         "--particles",
         type=int,
@@ -94,7 +104,8 @@ def build_robot(
     tracker = PoseTracker(particle_filter(particles, seed, config.localisation))
     supervisor = MapsSupervisor(BundleCache(http), tracker)
     client = RosbridgeClient(ws_url, token, seed=seed)
-    robot = Robot(hardware, supervisor, tracker, client, options.robot)
+    visual = VisualMap(http, hardware.camera.model) if options.visual else None
+    robot = Robot(hardware, supervisor, tracker, client, options.robot, visual=visual)
     declare(robot, client)
     return FleetRobot(name, robot, client, http)
 

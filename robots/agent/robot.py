@@ -17,7 +17,8 @@ Topics (relative names, so the server resolves them to ``/{robot}/...``): publis
 change and at 1 Hz), ``map_id`` (latched, on entering a sub-map and on taking a new version
 of it: ``building/code@v<n>``, the version held), ``localisation``
 (latched, on every change and at 1 Hz: lost, entering a sub-map or localised, see
-``whereabouts``) and ``camera/image/compressed`` (``camera_rate``); subscribes
+``whereabouts``), ``camera/image/compressed`` (``camera_rate``), and
+``camera/depth/image`` with ``camera/camera_info`` (``depth_rate``); subscribes
 ``cmd_vel``, ``goal`` and
 ``initialpose``; serves ``cancel_goal`` (``std_srvs/Trigger``), which preempts the
 active goal. (The server lets operators publish only ``cmd_vel``, ``goal`` and
@@ -36,7 +37,7 @@ import logging
 import math
 import time
 from collections.abc import Callable
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from typing import Any, Protocol
 
 import numpy as np
@@ -52,12 +53,15 @@ from robots.agent.sim.camera import Camera, compressed_image_message, encode_jpe
 from robots.agent.sim.laser import Laser, LaserSpec
 from robots.agent.sim.world import World
 from robots.agent.supervisor import BundleError, MapsSupervisor, SubMap
+from robots.agent.visual import LOST_SPREAD, TRUSTED_SPREAD, VisualMap, spread
 from robots.agent.whereabouts import Whereabouts
 from robots.domain.params import BodyLimits, FilterParams, RobotConfig
 from robots.domain.se2 import Pose, compose, inverse
 from telemetry.domain.messages import (
     Json,
     Message,
+    camera_info,
+    depth_image,
     goal_of,
     initial_pose_of,
     path_message,
@@ -117,6 +121,12 @@ class SimHardware:
     def image(self) -> NDArray[np.uint8]:
         return self.camera.render(self.body.pose)
 
+    def image_and_depth(self) -> tuple[NDArray[np.uint8], NDArray[np.float32]]:
+        """A frame and its registered depth (metres along the optical axis)."""
+        image, depth = self.camera.capture(self.body.pose)
+        assert depth is not None
+        return image, depth
+
 
 # --- where the robot is ----------------------------------------------------------------
 
@@ -128,6 +138,7 @@ class Localiser(Protocol):
     def predict(self, odom_delta: Pose) -> None: ...
     def update(self, scan: Message) -> bool: ...
     def pose(self) -> Pose: ...
+    def covariance(self) -> NDArray[np.float64]: ...
     def set_map(self, grid: Any, resolution: float, origin: Pose) -> None: ...
 
 
@@ -204,8 +215,22 @@ class PoseTracker:
             return self.filter.pose()
         return compose(self._offset, self.odom)
 
+    def spread(self) -> float:
+        """Metres: the filter's position standard deviation (0 without a filter)."""
+        if self.filter is None or not self.localised:
+            return 0.0
+        return spread(self.filter.covariance())
+
 
 # --- the robot -------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Frame:
+    """A camera frame, with its registered depth when one was taken."""
+
+    image: NDArray[np.uint8]
+    depth: NDArray[np.float32] | None = None
 
 
 class Publisher(Protocol):
@@ -226,8 +251,10 @@ class Robot:
         publisher: Publisher,
         config: RobotConfig | None = None,
         epoch: float | None = None,
+        visual: VisualMap | None = None,
     ) -> None:
         self.hardware = hardware
+        self.visual = visual
         self.supervisor = supervisor
         self.tracker = tracker
         self.publisher = publisher
@@ -319,11 +346,11 @@ class Robot:
         ranges = self.hardware.scan()
         scan = self.hardware.laser.message(ranges, self.stamp)
         self.tracker.scan(scan)
-        camera_due = self._due(self.config.detect_rate, self.config.camera_rate)
-        image = self._look() if camera_due else None
+        rates = (self.config.detect_rate, self.config.camera_rate, self.config.depth_rate)
+        frame = self._look() if self._due(*rates) else None
         self._drive(LocalObstacles.from_scan(ranges.astype(np.float64), self.hardware.scan_angles))
         self._check_map()
-        await self._publish(scan, image)
+        await self._publish(scan, frame)
 
     def _check_map(self) -> None:
         """Now and then ask for the sub-map the robot is in again (a conditional request),
@@ -344,13 +371,52 @@ class Robot:
             rate > 0 and self.ticks % max(1, round(1 / (rate * period))) == 0 for rate in rates
         )
 
-    def _look(self) -> NDArray[np.uint8]:
-        """Render a frame; the detector looks at it when due."""
-        image = self.hardware.image()
+    def _look(self) -> Frame:
+        """Render a frame (with depth when due); the detector looks at it when due."""
+        depth: NDArray[np.float32] | None = None
+        if self._due(self.config.depth_rate):
+            image, depth = self.hardware.image_and_depth()
+        else:
+            image = self.hardware.image()
         if self._due(self.config.detect_rate):
             self.detections = self.detector.detect(image)
             self.supervisor.observe(self.detections, self.tracker.odom, self.seconds)
-        return image
+        if self.visual is not None:
+            self._use_visual_map(image, depth)
+        return Frame(image, depth)
+
+    # --- the cloud's visual map ---------------------------------------------------------
+
+    def _use_visual_map(self, image: NDArray[np.uint8], depth: NDArray[np.float32] | None) -> None:
+        """Send a keyframe when the pose is trustworthy; ask where the robot is when it
+        has no sub-map and no marker in sight, or when its filter has lost track."""
+        assert self.visual is not None
+        current, supervisor = self.supervisor.current, self.supervisor
+        if supervisor.entering or supervisor.marker_in_sight(self.seconds):
+            return  # a tag is placing the robot: tags win
+        if current is None or self.tracker.spread() > LOST_SPREAD:
+            if self.visual.may_ask(self.seconds):
+                building = current.building if current is not None else ""
+                self._spawn(self._wake_up(image, self.tracker.odom, building))
+            return
+        pose = self.tracker.pose()
+        trusted = self.tracker.localised and self.tracker.spread() <= TRUSTED_SPREAD
+        if depth is not None and trusted and self.visual.keyframe_due(current.map_id, pose):
+            self._spawn(self.visual.send_keyframe(current.map_id, pose, image, depth))
+
+    async def _wake_up(self, image: NDArray[np.uint8], odom: Pose, building: str) -> None:
+        assert self.visual is not None
+        placement = await self.visual.ask(image, self.seconds, building)
+        lost = self.supervisor.current is None or self.tracker.spread() > LOST_SPREAD
+        if placement is None or self.supervisor.entering or not lost:
+            return  # no answer, or a tag placed the robot meanwhile
+        logger.info("placed by the cloud in %s (%d inliers)", placement.map_id, placement.inliers)
+        try:
+            await self.supervisor.relocate(
+                placement.estimate, placement.map_id, odom, "visual relocalisation"
+            )
+        except BundleError as error:
+            logger.warning("cannot enter %s: %s", placement.map_id, error)
 
     def _drive(self, obstacles: LocalObstacles) -> None:
         if self.seconds < self._teleop_until:
@@ -366,7 +432,7 @@ class Robot:
 
     # --- publishing --------------------------------------------------------------------
 
-    async def _publish(self, scan: Json, image: NDArray[np.uint8] | None) -> None:
+    async def _publish(self, scan: Json, frame: Frame | None) -> None:
         current = self.supervisor.current
         if self._map_to_publish is not None:
             await self.publisher.publish("map_id", string_message(self._map_to_publish))
@@ -381,8 +447,10 @@ class Robot:
             await self.publisher.publish("scan", scan)
         await self._publish_navigation(current)
         await self._publish_whereabouts()
-        if image is not None and self._due(self.config.camera_rate):
-            await self._publish_image(image)
+        if frame is not None and self._due(self.config.camera_rate):
+            await self._publish_image(frame.image)
+        if frame is not None and frame.depth is not None:
+            await self._publish_depth(frame.depth)
 
     async def _publish_navigation(self, current: SubMap | None) -> None:
         driver, board = self.navigator.driver, self.navigator.board
@@ -404,6 +472,15 @@ class Robot:
         jpeg = encode_jpeg(image, self.config.jpeg_quality)
         message = compressed_image_message(jpeg, self.stamp)
         await self.publisher.publish("camera/image/compressed", message)
+
+    async def _publish_depth(self, depth: NDArray[np.float32]) -> None:
+        model = self.hardware.camera.model
+        frame_id = "camera_optical_frame"
+        await self.publisher.publish("camera/depth/image", depth_image(frame_id, depth, self.stamp))
+        info = camera_info(
+            frame_id, model.width, model.height, model.fx, model.fy, model.cx, model.cy, self.stamp
+        )
+        await self.publisher.publish("camera/camera_info", info)
 
     # --- pacing ------------------------------------------------------------------------
 
@@ -440,7 +517,10 @@ def _unusable_goal(msg: Json) -> str:
 
 # --- declarations on the network -------------------------------------------------------
 
-PUBLISHED = ("pose", "odom", "scan", "plan", "nav_status", "camera/image/compressed")
+PUBLISHED = (
+    "pose", "odom", "scan", "plan", "nav_status", "camera/image/compressed",
+    "camera/depth/image", "camera/camera_info",
+)  # fmt: skip
 
 
 def declare(robot: Robot, client: RosbridgeClient) -> None:

@@ -492,13 +492,22 @@ class MapsSupervisor:
             callback(fresh)
         return True
 
-    async def relocate(self, estimate: PoseEstimate, map_id: str, odom: Pose) -> None:
-        """An operator's initial pose in ``map_id``: fetch that map, reset there.
+    async def relocate(
+        self, estimate: PoseEstimate, map_id: str, odom: Pose, placed_by: str = "initial pose"
+    ) -> None:
+        """A pose in ``map_id`` from outside (an operator's initial pose, the cloud's
+        visual relocalisation) when odometry read ``odom``: fetch that map, reset there.
         Raises BundleError when the map cannot be had."""
         submap = await self.cache.load(map_id)
         pose = (estimate.x, estimate.y, estimate.yaw)
         self.tracker.reset(pose, estimate.covariance, odom)
-        self.make_current(submap, "initial pose")
+        self.make_current(submap, placed_by)
+
+    def marker_in_sight(self, seconds: float) -> bool:
+        """Whether a usable marker was seen lately (a tag beats asking the cloud)."""
+        return any(
+            m not in self._useless and self._fresh(s, seconds) for m, s in self._sightings.items()
+        )
 
     # --- legs ------------------------------------------------------------------------------
 

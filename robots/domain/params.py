@@ -144,6 +144,9 @@ class RobotConfig:
     scan_rate: float = 5.0
     camera_rate: float = 5.0
     """JPEG frames published per second (0: none)."""
+    depth_rate: float = 1.0
+    """Registered depth images (with ``camera_info``) published per second (0: none); a
+    640x480 depth image is 600 kB of JSON, so fewer than the colour frames."""
     detect_rate: float = 5.0
     """Camera frames per second the tag detector looks at."""
     status_rate: float = 1.0

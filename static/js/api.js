@@ -68,6 +68,7 @@ export const urls = {
   versionGrid: (b, m, n) => `/api/buildings/${b}/maps/${m}/versions/${n}/grid`,
   rollback: (b, m, n) => `/api/buildings/${b}/maps/${m}/versions/${n}/rollback`,
   compare: (b, m, from, to) => `/api/buildings/${b}/maps/${m}/versions/compare?from=${from}&to=${to}`,
+  keyframes: (b, m) => `/api/buildings/${b}/maps/${m}/keyframes`,
   topology: (b) => `/api/buildings/${b}/topology`,
   validation: (b) => `/api/buildings/${b}/topology/validation`,
   route: (b, from, to) =>

@@ -16,6 +16,7 @@ const COLORS = {
   goal: "#d98a00",
   initialpose: "#8a4ff0",
   tag: "#b3128a",
+  keyframe: "rgba(0, 150, 170, 0.7)",
   selected: "#ff9f1a",
   added: [224, 65, 47, 230],
   removed: [31, 157, 85, 230],
@@ -57,7 +58,7 @@ export class MapView {
     this.onClick = onClick;
     this.onHover = onHover;
     this.view = { cx: 0, cy: 0, scale: 40 };
-    this.layers = { tags: [], trail: [], plan: [], scan: [], robot: null, goal: null };
+    this.layers = { tags: [], trail: [], plan: [], scan: [], keyframes: [], robot: null, goal: null };
     this.grid = null;
     this.image = null;
     this.overlay = null;
@@ -267,6 +268,7 @@ export class MapView {
     this.#drawPolyline(this.layers.trail, COLORS.trail, 2.5);
     this.#drawPolyline(this.layers.plan, COLORS.plan, 2.5, [7, 5]);
     this.#drawScan();
+    this.#drawKeyframes();
     this.layers.tags.forEach((tag) => this.#drawTag(tag));
     if (this.layers.goal) this.#drawArrow(this.layers.goal, COLORS.goal, "goal");
     if (this.layers.robot) this.#drawRobot(this.layers.robot);
@@ -322,6 +324,25 @@ export class MapView {
     for (const point of this.layers.scan || []) {
       const { sx, sy } = this.toScreen(point.x, point.y);
       ctx.fillRect(sx - 1.5, sy - 1.5, 3, 3);
+    }
+  }
+
+  /** Keyframe poses (the visual map's coverage): a dot and a short heading tick each. */
+  #drawKeyframes() {
+    const ctx = this.ctx;
+    const reach = Math.max(6, 0.25 * this.view.scale);
+    ctx.strokeStyle = COLORS.keyframe;
+    ctx.fillStyle = COLORS.keyframe;
+    ctx.lineWidth = 1.5;
+    for (const pose of this.layers.keyframes || []) {
+      const { sx, sy } = this.toScreen(pose.x, pose.y);
+      ctx.beginPath();
+      ctx.arc(sx, sy, 2, 0, Math.PI * 2);
+      ctx.fill();
+      ctx.beginPath();
+      ctx.moveTo(sx, sy);
+      ctx.lineTo(sx + reach * Math.cos(pose.yaw), sy - reach * Math.sin(pose.yaw));
+      ctx.stroke();
     }
   }
 

@@ -31,6 +31,7 @@ async function load() {
   const [, buildingTags] = await Promise.all([loadGrid(), api.get(urls.tags(config.building)), versions.load()]);
   await changes.load();
   setTags(buildingTags);
+  await loadCoverage();
   if (editable && !state.selected) newTag();
 }
 
@@ -38,6 +39,21 @@ async function loadGrid() {
   view.setGrid(await api.get(urls.grid(config.building, config.map)));
   $("map-wrap").dataset.loaded = config.map;
 }
+
+/** The visual map's coverage: every keyframe pose of this sub-map, drawn on the map. */
+async function loadCoverage() {
+  const { keyframes } = await api.get(urls.keyframes(config.building, config.map));
+  view.set("keyframes", keyframes);
+  $("keyframe-count").textContent = `${keyframes.length} keyframe${keyframes.length === 1 ? "" : "s"}`;
+  $("keyframe-count").dataset.count = keyframes.length;
+}
+
+$("keyframes-reload")?.addEventListener("click", () => loadCoverage());
+$("keyframes-clear")?.addEventListener("click", async () => {
+  if (!window.confirm("Remove every keyframe of this sub-map? Robots will have to drive it again.")) return;
+  await api.delete(urls.keyframes(config.building, config.map));
+  await loadCoverage();
+});
 
 function setTags(buildingTags) {
   state.buildingTags = buildingTags;

@@ -184,6 +184,32 @@ class CompressedImage(TypedDict):
     data: str
 
 
+class Image(TypedDict):
+    """``sensor_msgs/Image``: ``camera/depth/image`` (``16UC1``, millimetres, 0 where the
+    sensor has no reading, as OpenNI cameras publish it); ``data`` in base64."""
+
+    header: Header
+    height: int
+    width: int
+    encoding: str
+    is_bigendian: int
+    step: int
+    data: str
+
+
+class CameraInfo(TypedDict):
+    """``sensor_msgs/CameraInfo``: ``camera/camera_info`` (a pinhole camera, no distortion)."""
+
+    header: Header
+    height: int
+    width: int
+    distortion_model: str
+    D: list[float]
+    K: list[float]
+    R: list[float]
+    P: list[float]
+
+
 class KeyValue(TypedDict):
     """``diagnostic_msgs/KeyValue``."""
 
@@ -429,7 +455,69 @@ def compressed_image(frame_id: str, jpeg: bytes, stamp: Stamp) -> CompressedImag
     }
 
 
+DEPTH_ENCODING = "16UC1"
+MAX_DEPTH_MM = 65535
+
+
+def depth_image(frame_id: str, depth_m: NDArray[np.floating[Any]], stamp: Stamp) -> Image:
+    """``sensor_msgs/Image`` of a depth image in metres: ``16UC1`` millimetres, 0 where
+    there is no reading (not finite, not positive, or past 65.535 m)."""
+    millimetres = np.rint(np.nan_to_num(depth_m, nan=0.0, posinf=0.0, neginf=0.0) * 1000.0)
+    millimetres[(millimetres <= 0) | (millimetres > MAX_DEPTH_MM)] = 0
+    data = np.ascontiguousarray(millimetres, dtype="<u2")
+    height, width = data.shape
+    return {
+        "header": header(frame_id, stamp),
+        "height": height,
+        "width": width,
+        "encoding": DEPTH_ENCODING,
+        "is_bigendian": 0,
+        "step": 2 * width,
+        "data": base64.b64encode(data.tobytes()).decode("ascii"),
+    }
+
+
+def camera_info(
+    frame_id: str, width: int, height: int, fx: float, fy: float, cx: float, cy: float,
+    stamp: Stamp,
+) -> CameraInfo:  # fmt: skip
+    """``sensor_msgs/CameraInfo`` of an undistorted pinhole camera."""
+    return {
+        "header": header(frame_id, stamp),
+        "height": height,
+        "width": width,
+        "distortion_model": "plumb_bob",
+        "D": [0.0] * 5,
+        "K": [fx, 0.0, cx, 0.0, fy, cy, 0.0, 0.0, 1.0],
+        "R": [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
+        "P": [fx, 0.0, cx, 0.0, 0.0, fy, cy, 0.0, 0.0, 0.0, 1.0, 0.0],
+    }
+
+
 # --- readers ---------------------------------------------------------------------------
+
+
+def depth_of(msg: Message, max_pixels: int) -> NDArray[np.float32] | None:
+    """Metres (float32, ``nan`` where there is no reading) of a ``16UC1`` (millimetres) or
+    ``32FC1`` (metres) ``sensor_msgs/Image``; None for anything else, for more than
+    ``max_pixels`` pixels, or for data that does not fill ``height`` x ``step``."""
+    try:
+        height, width, step = int(msg["height"]), int(msg["width"]), int(msg["step"])
+        encoding, data = str(msg["encoding"]), base64.b64decode(msg["data"], validate=True)
+        big = bool(msg.get("is_bigendian", 0))
+    except (KeyError, TypeError, ValueError):
+        return None
+    size = {"16UC1": 2, "mono16": 2, "32FC1": 4}.get(encoding)
+    if size is None or not 0 < height * width <= max_pixels or step < width * size:
+        return None
+    if len(data) != height * step:
+        return None
+    kind = "u2" if size == 2 else "f4"
+    rows = np.frombuffer(data, np.uint8).reshape(height, step)[:, : width * size]
+    values = rows.copy().view((">" if big else "<") + kind).reshape(height, width)
+    metres = values.astype(np.float32) / (1000.0 if size == 2 else 1.0)
+    metres[~np.isfinite(metres) | (metres <= 0)] = np.nan
+    return metres
 
 
 def yaw_of(q: Mapping[str, Any]) -> float:

@@ -34,6 +34,8 @@ ROBOT_TOPIC_TYPES = {
     "map_id": "std_msgs/String",
     "localisation": "diagnostic_msgs/DiagnosticStatus",
     "camera/image/compressed": "sensor_msgs/CompressedImage",
+    "camera/depth/image": "sensor_msgs/Image",
+    "camera/camera_info": "sensor_msgs/CameraInfo",
     "cmd_vel": "geometry_msgs/Twist",
     "goal": "geometry_msgs/PoseStamped",
     "initialpose": "geometry_msgs/PoseWithCovarianceStamped",

@@ -25,12 +25,14 @@ from numpy.typing import NDArray
 
 from maps.domain.tagart import TagFace, face_size, plate_right_axis, tag_face
 from robots.agent.perception import CameraModel
-from robots.agent.sim.world import OBSTACLE, SimTag, World
+from robots.agent.sim.wallpaper import EAST, FAR_LEVELS, NORTH, PANEL_WIDTH, SOUTH, TEXEL, WEST
+from robots.agent.sim.world import OBSTACLE, RayHits, SimTag, World
 from robots.domain.se2 import Pose, ahead
 from telemetry.domain.messages import CompressedImage, compressed_image
 
 Image = NDArray[np.uint8]
 Floats = NDArray[np.float64]
+Depth = NDArray[np.float32]
 
 SUPERSAMPLING = 4
 NEAR = 0.05
@@ -65,7 +67,13 @@ class Camera:
         columns = np.arange(self.model.width, dtype=np.float64)
         self._column_angles = np.arctan((columns - self.model.cx) / self.model.fx)
         self._rows = np.arange(self.model.height, dtype=np.float64)[:, None]
-        self._background = _background(self.model)
+        self._rows32 = self._rows.astype(np.float32)
+        self._map_x = np.broadcast_to(
+            np.arange(self.model.width, dtype=np.float32), (self.model.height, self.model.width)
+        ).copy()
+        self._background = np.ascontiguousarray(
+            np.broadcast_to(_background(self.model), (self.model.height, self.model.width))
+        )
         self._noise = _noise_banks(self.model, noise_sigma, self.rng)
 
     def eye(self, pose: Pose) -> Pose:
@@ -74,33 +82,96 @@ class Camera:
 
     def render(self, pose: Pose) -> Image:
         """The grey image seen from a robot at ``pose`` (map frame)."""
+        return self.capture(pose, depth=False)[0]
+
+    def capture(self, pose: Pose, depth: bool = True) -> tuple[Image, Depth | None]:
+        """The grey image and, when ``depth``, the registered depth image (metres along
+        the optical axis, float32, ``inf`` where nothing is within ``max_depth``)."""
         eye = self.eye(pose)
         # Image columns run right to left in angle: column angle is measured clockwise.
         angles = eye[2] - self._column_angles
         hits = self.world.cast(eye[0], eye[1], angles, self.max_depth)
-        image = self._walls(hits.distance, hits.material, hits.x_face)
+        image = self._walls(eye, angles, hits)
         for tag in self.world.tags:
             self._draw_tag(image, tag, eye, hits.distance)
-        return self._degraded(image)
+        return self._degraded(image), (self._depth(hits.distance) if depth else None)
 
     # --- walls -------------------------------------------------------------------------
 
-    def _walls(
-        self, distance: Floats, material: NDArray[np.uint8], x_face: NDArray[np.bool_]
-    ) -> Image:
-        """Background with each column's wall drawn as a shaded band."""
+    def _walls(self, eye: Pose, angles: Floats, hits: RayHits) -> Image:
+        """Background with each column's wall drawn: its wallpaper for walls, a plain
+        band with a skirting for obstacles, shaded by face and distance. Each column is
+        its strip of texels resampled (``remap``) at the height each row sees; rows
+        seeing above the wall's top or below the floor keep the background."""
         model = self.model
-        depth = distance * np.cos(self._column_angles)  # along the optical axis
+        depth = hits.distance * np.cos(self._column_angles)  # along the optical axis
         with np.errstate(divide="ignore"):
             scale = np.where(np.isfinite(depth), model.fy / depth, 0.0)
-        top = model.cy - scale * (self.world.wall_height - model.mount_height)
-        bottom = model.cy + scale * model.mount_height
-        skirting = model.cy + scale * (model.mount_height - SKIRTING)
-        shade = _wall_shade(distance, material, x_face)
-        wall = (self._rows >= top) & (self._rows <= bottom)
-        lower = self._rows >= skirting
-        colour = np.where(lower, (shade * 0.55).astype(np.uint8), shade)
-        return np.asarray(np.where(wall, colour, self._background), np.uint8)
+            per_row = np.where(scale > 0, -1.0 / (scale * TEXEL), 0.0)
+        # Texel row (height above the floor) that image row r sees: at_horizon + r * per_row.
+        at_horizon = np.where(scale > 0, model.mount_height / TEXEL - model.cy * per_row, -1e6)
+        map_y = self._rows32 * per_row.astype(np.float32) + at_horizon.astype(np.float32)
+        image = self._background.copy()
+        cv2.remap(
+            self._strips(eye, angles, hits), self._map_x, map_y, cv2.INTER_NEAREST,
+            dst=image, borderMode=cv2.BORDER_TRANSPARENT,
+        )  # fmt: skip
+        return image
+
+    def _strips(self, eye: Pose, angles: Floats, hits: RayHits) -> Image:
+        """Texels seen by each column (shape: texel rows from the floor x columns), shaded."""
+        shade = _wall_shade(hits.distance, hits.material, hits.x_face)
+        strips = self._wallpaper_columns(eye, angles, hits)
+        obstacle = hits.material == OBSTACLE
+        strips[:, obstacle] = shade[obstacle]
+        strips[: round(SKIRTING / TEXEL), obstacle] = (shade[obstacle] * 0.55).astype(np.uint8)
+        factor = np.where(obstacle, 1.0, shade / 150.0).astype(np.float32)
+        return np.asarray(np.clip(strips * factor[None, :], 0, 255), np.uint8)
+
+    def _wallpaper_columns(self, eye: Pose, angles: Floats, hits: RayHits) -> Image:
+        """Per image column, the texel column of wallpaper its ray meets (row i: i texels
+        above the floor); zeros where no wall is hit."""
+        world, wallpaper = self.world, self.world.wallpaper
+        strips = np.zeros((wallpaper.rows, angles.size), np.uint8)
+        finite = np.isfinite(hits.distance)
+        hit_x = eye[0] + np.where(finite, hits.distance, 0.0) * np.cos(angles)
+        hit_y = eye[1] + np.where(finite, hits.distance, 0.0) * np.sin(angles)
+        facing = np.where(
+            hits.x_face,
+            np.where(np.cos(angles) > 0, WEST, EAST),
+            np.where(np.sin(angles) > 0, SOUTH, NORTH),
+        )
+        across = np.where(hits.x_face, hit_x - world.origin[0], hit_y - world.origin[1])
+        line = np.rint(across / world.resolution).astype(np.int64)
+        along = np.where(hits.x_face, hit_y, hit_x)
+        index = np.floor(along / PANEL_WIDTH).astype(np.int64)
+        column = np.clip(
+            ((along - index * PANEL_WIDTH) / TEXEL).astype(np.intp), 0, wallpaper.columns - 1
+        )
+        level = np.searchsorted(FAR_LEVELS, hits.distance)
+        wanted = finite & (hits.material != OBSTACLE)
+        keys = np.stack([facing, line, index, level], axis=1)[wanted]
+        if keys.shape[0] == 0:
+            return strips
+        unique, which = np.unique(keys, axis=0, return_inverse=True)
+        panels = np.stack([wallpaper.panel(*(int(k) for k in key)) for key in unique])
+        strips[:, wanted] = panels[which.ravel(), :, column[wanted]].T
+        return strips
+
+    def _depth(self, distance: Floats) -> Depth:
+        """Registered depth: the nearer of each column's wall and the floor or ceiling
+        plane each row sees, along the optical axis."""
+        model = self.model
+        walls = distance * np.cos(self._column_angles)
+        below = self._rows - model.cy
+        with np.errstate(divide="ignore"):
+            planes = np.where(
+                below > 0,
+                model.fy * model.mount_height / below,
+                model.fy * (self.world.wall_height - model.mount_height) / -below,
+            )
+        depth = np.minimum(planes, walls[None, :])
+        return np.where(depth <= self.max_depth, depth, np.inf).astype(np.float32)
 
     # --- tags --------------------------------------------------------------------------
 

@@ -16,6 +16,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field, replace
+from functools import cached_property, lru_cache
 
 import numpy as np
 from numpy.typing import NDArray
@@ -23,6 +24,7 @@ from numpy.typing import NDArray
 from maps.domain.demo_building import DemoBuilding, DemoTag, demo_building
 from maps.domain.tagart import DEFAULT_DICTIONARY, QR_VERSION
 from maps.domain.tagpayload import TagPayload, encode_payload
+from robots.agent.sim.wallpaper import Wallpaper, appearance_of, tags_by_face
 
 FREE, WALL, OBSTACLE = 0, 1, 2
 """Cell materials."""
@@ -99,6 +101,17 @@ class World:
     tags: tuple[SimTag, ...] = ()
     obstacles: tuple[Obstacle, ...] = ()
     wall_height: float = WALL_HEIGHT
+    appearance: int = 0
+    """Seeds what the walls look like (``wallpaper.appearance_of``)."""
+    plain: tuple[tuple[float, float, float], ...] = ()
+    """Places ``(x, y, yaw)`` on walls kept plain around (where tags hang)."""
+
+    @cached_property
+    def wallpaper(self) -> Wallpaper:
+        """The walls' panels; shared by every world of the same appearance and plain places."""
+        return _wallpaper(
+            self.appearance, self.wall_height, self.plain, self.origin, self.resolution
+        )
 
     def with_obstacles(self, *obstacles: Obstacle) -> World:
         """A copy of this world with ``obstacles`` added to its grid."""
@@ -108,8 +121,9 @@ class World:
         return replace(self, cells=cells, obstacles=(*self.obstacles, *obstacles))
 
     def with_tags(self, *tags: SimTag) -> World:
-        """A copy of this world with ``tags`` added."""
-        return replace(self, tags=(*self.tags, *tags))
+        """A copy of this world with ``tags`` added (and the wall around them plain)."""
+        places = tuple((tag.x, tag.y, tag.yaw) for tag in tags)
+        return replace(self, tags=(*self.tags, *tags), plain=(*self.plain, *places))
 
     def cell_of(self, x: float, y: float) -> tuple[int, int]:
         """``(row, col)`` of the cell holding ``(x, y)``; may lie outside the grid."""
@@ -144,19 +158,37 @@ def world_from_grid(
     """A world whose walls are the cells of ``grid`` (an occupancy grid) at ``OCCUPIED_AT`` or
     above, with ``tags`` and extra ``obstacles``."""
     cells = np.where(np.asarray(grid) >= OCCUPIED_AT, WALL, FREE).astype(np.uint8)
-    world = World(cells, (float(origin[0]), float(origin[1])), float(resolution), tuple(tags))
-    return world.with_obstacles(*obstacles)
+    world = World(cells, (float(origin[0]), float(origin[1])), float(resolution))
+    return world.with_tags(*tags).with_obstacles(*obstacles)
 
 
 def demo_world(
-    cloud_location: str = "http://127.0.0.1:8000", obstacles: Iterable[Obstacle] = ()
+    cloud_location: str = "http://127.0.0.1:8000",
+    obstacles: Iterable[Obstacle] = (),
+    *,
+    seed: int = 0,
+    building_code: str | None = None,
 ) -> World:
-    """The demo building's ground truth, its tags naming ``cloud_location`` in their QR."""
+    """The demo building's ground truth, its tags naming ``cloud_location`` in their QR;
+    its walls look as ``seed`` and ``building_code`` (the demo's own by default) make
+    them: the same floor plan under another code is another building to the camera."""
     building = demo_building(cloud_location)
     tags = (demo_sim_tag(building, tag) for tag in building.tags)
-    return world_from_grid(
+    world = world_from_grid(
         building.world, building.world_origin, building.resolution, tags, obstacles
     )
+    return replace(world, appearance=appearance_of(building_code or building.code, seed))
+
+
+@lru_cache(maxsize=16)
+def _wallpaper(
+    appearance: int,
+    wall_height: float,
+    plain: tuple[tuple[float, float, float], ...],
+    origin: tuple[float, float],
+    resolution: float,
+) -> Wallpaper:
+    return Wallpaper(appearance, wall_height, tags_by_face(plain, origin, resolution))
 
 
 def demo_sim_tag(building: DemoBuilding, tag: DemoTag) -> SimTag:

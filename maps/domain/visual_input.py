@@ -1,0 +1,125 @@
+"""Reading what robots send the visual map: images, depth, camera parameters and poses,
+as rosbridge JSON (``sensor_msgs/CompressedImage``, ``sensor_msgs/Image``,
+``sensor_msgs/CameraInfo``). Every reader raises KeyframeError with a sentence for the
+sender; nothing is decoded past the pixel limit (the size is read from the header
+first).
+
+Nothing here imports Django.
+"""
+
+from __future__ import annotations
+
+import base64
+import binascii
+import io
+import math
+import warnings
+from collections.abc import Mapping
+from typing import Any
+
+import cv2
+import numpy as np
+from PIL import Image as PILImage
+
+from maps.domain.keyframes import Depth, Image, Intrinsics
+from maps.exceptions import KeyframeError
+from telemetry.domain.messages import depth_of
+
+MAX_IMAGES = 8
+"""Images one relocalisation request may carry."""
+
+
+def grey_image(msg: Any, max_pixels: int, field: str = "image") -> Image:
+    """The grey pixels of a ``CompressedImage``-shaped object (JPEG or PNG, base64)."""
+    if not isinstance(msg, Mapping) or not isinstance(msg.get("data"), str):
+        raise KeyframeError(
+            f"{field}: a sensor_msgs/CompressedImage with base64 'data' is required"
+        )
+    try:
+        data = base64.b64decode(msg["data"], validate=True)
+    except (binascii.Error, ValueError):
+        raise KeyframeError(f"{field}: 'data' is not base64") from None
+    width, height = _size(data, field)
+    if width * height > max_pixels:
+        raise KeyframeError(
+            f"{field}: {width}x{height} is more than the {max_pixels} pixels an image may have"
+        )
+    pixels = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_GRAYSCALE)
+    if pixels is None or pixels.shape != (height, width):
+        raise KeyframeError(f"{field}: the image is truncated or corrupt")
+    return np.asarray(pixels, np.uint8)
+
+
+def _size(data: bytes, field: str) -> tuple[int, int]:
+    """Width and height from the header alone; raises for anything not a JPEG or PNG."""
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", PILImage.DecompressionBombWarning)
+            with PILImage.open(io.BytesIO(data)) as image:
+                if image.format not in {"JPEG", "PNG"}:
+                    raise KeyframeError(f"{field}: only JPEG and PNG images are taken")
+                return image.size
+    except KeyframeError:
+        raise
+    except (OSError, ValueError, PILImage.DecompressionBombError, Warning):
+        raise KeyframeError(f"{field}: not an image") from None
+
+
+def depth_image(msg: Any, shape: tuple[int, ...], max_pixels: int) -> Depth:
+    """Metres of a ``sensor_msgs/Image`` depth (``16UC1`` mm or ``32FC1`` m) registered
+    to an image of ``shape``; raises unless it is one and matches that size."""
+    if not isinstance(msg, Mapping):
+        raise KeyframeError("depth: a sensor_msgs/Image is required")
+    depth = depth_of(msg, max_pixels)
+    if depth is None:
+        raise KeyframeError(
+            "depth: a 16UC1 (millimetres) or 32FC1 (metres) sensor_msgs/Image whose data "
+            f"fills height x step, at most {max_pixels} pixels, is required"
+        )
+    if depth.shape != shape[:2]:
+        raise KeyframeError(
+            f"depth: {depth.shape[1]}x{depth.shape[0]} does not match the "
+            f"{shape[1]}x{shape[0]} image it must be registered to"
+        )
+    return depth
+
+
+def intrinsics_of(msg: Any, shape: tuple[int, ...]) -> Intrinsics:
+    """The camera of a ``CameraInfo``-shaped object (only ``K`` is read), or the robots'
+    default camera when there is none; the image's size wins."""
+    height, width = shape[:2]
+    if msg is None:
+        default = Intrinsics()
+        if (width, height) != (default.width, default.height):
+            raise KeyframeError(
+                f"camera_info: required for a {width}x{height} image (the default camera "
+                f"is {default.width}x{default.height})"
+            )
+        return default
+    if not isinstance(msg, Mapping) or not isinstance(msg.get("K"), list):
+        raise KeyframeError("camera_info: a sensor_msgs/CameraInfo with 'K' is required")
+    try:
+        k = [float(v) for v in msg["K"]]
+    except (TypeError, ValueError):
+        raise KeyframeError("camera_info: 'K' must be numbers") from None
+    return Intrinsics.from_k(k, width, height)
+
+
+def planar_pose(value: Any) -> tuple[float, float, float]:
+    """``{x, y, yaw}`` as finite numbers."""
+    try:
+        pose = float(value["x"]), float(value["y"]), float(value["yaw"])
+    except (KeyError, TypeError, ValueError):
+        raise KeyframeError("pose: {x, y, yaw} in metres and radians is required") from None
+    if not all(math.isfinite(v) for v in pose):
+        raise KeyframeError("pose: x, y and yaw must be finite")
+    return pose
+
+
+def image_list(value: Any) -> list[Any]:
+    """The ``images`` of a relocalisation request: 1 to ``MAX_IMAGES`` of them."""
+    if not isinstance(value, list) or not 1 <= len(value) <= MAX_IMAGES:
+        raise KeyframeError(
+            f"images: a list of 1 to {MAX_IMAGES} CompressedImage objects is required"
+        )
+    return value

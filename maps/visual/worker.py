@@ -1,0 +1,117 @@
+"""Keyframe ingestion off the request path: a bounded queue and one worker thread.
+
+The request checks and decodes what it was sent (so bad input is refused at once and
+nothing of it stored) and queues the pixels; the worker extracts the features, drops
+near-duplicates and stores the rest. A full queue refuses at once (the robot tries
+again with a later keyframe), so a flood of keyframes costs a bounded amount of memory
+and never holds up anything else the server does: the rosbridge relay runs on the event
+loop, this on its own thread, and OpenCV releases the GIL while it works.
+"""
+
+from __future__ import annotations
+
+import logging
+import queue
+import threading
+from dataclasses import dataclass
+
+from django.conf import settings
+from django.db import close_old_connections
+
+from maps.domain.keyframes import Depth, FeatureExtractor, Image, Intrinsics, Mount
+from maps.domain.vocabulary import default_vocabulary
+from maps.exceptions import KeyframeError
+from maps.models import SubMap
+from maps.visual import store
+
+logger = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class Job:
+    submap_id: int
+    robot: str
+    image: Image
+    depth: Depth
+    pose: tuple[float, float, float]
+    intrinsics: Intrinsics
+    mount: Mount
+
+
+@dataclass
+class Counts:
+    stored: int = 0
+    duplicates: int = 0
+    failed: int = 0
+    refused: int = 0
+
+
+class IngestQueue:
+    """At most ``size`` keyframes waiting; one thread works through them."""
+
+    def __init__(self, size: int) -> None:
+        self._jobs: queue.Queue[Job] = queue.Queue(maxsize=size)
+        self._thread: threading.Thread | None = None
+        self._start_lock = threading.Lock()
+        self.counts = Counts()
+
+    def submit(self, job: Job) -> bool:
+        """Queue ``job``; False (nothing queued) when the queue is full."""
+        self._ensure_running()
+        try:
+            self._jobs.put_nowait(job)
+        except queue.Full:
+            self.counts.refused += 1
+            return False
+        return True
+
+    def drain(self) -> None:
+        """Return once every queued keyframe has been handled (for tests and commands)."""
+        self._jobs.join()
+
+    def _ensure_running(self) -> None:
+        with self._start_lock:
+            if self._thread is None or not self._thread.is_alive():
+                self._thread = threading.Thread(target=self._work, name="keyframes", daemon=True)
+                self._thread.start()
+
+    def _work(self) -> None:
+        extractor = FeatureExtractor(default_vocabulary())
+        while True:
+            job = self._jobs.get()
+            try:
+                self._ingest(extractor, job)
+            except Exception:  # the worker must outlive any one keyframe
+                logger.exception("keyframe of %s failed", job.robot)
+                self.counts.failed += 1
+            finally:
+                close_old_connections()
+                self._jobs.task_done()
+
+    def _ingest(self, extractor: FeatureExtractor, job: Job) -> None:
+        submap = SubMap.objects.select_related("building").filter(pk=job.submap_id).first()
+        if submap is None:
+            return  # deleted while the keyframe waited
+        try:
+            features = extractor.keyframe(job.image, job.depth, job.pose, job.intrinsics, job.mount)
+        except KeyframeError as error:
+            logger.info("keyframe of %s dropped: %s", job.robot, error)
+            self.counts.failed += 1
+            return
+        if store.save(submap, job.robot, features) is None:
+            self.counts.duplicates += 1
+        else:
+            self.counts.stored += 1
+
+
+_QUEUE: IngestQueue | None = None
+_QUEUE_LOCK = threading.Lock()
+
+
+def ingest_queue() -> IngestQueue:
+    """This process's queue (made on first use, ``CLOUDNAV_KEYFRAME_QUEUE`` long)."""
+    global _QUEUE
+    with _QUEUE_LOCK:
+        if _QUEUE is None:
+            _QUEUE = IngestQueue(settings.CLOUDNAV_KEYFRAME_QUEUE)
+        return _QUEUE

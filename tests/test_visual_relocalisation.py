@@ -1,0 +1,133 @@
+"""The cloud's visual map in its domain: keyframes from rendered views with known poses,
+retrieval of held-out views, pose from matches, and no confident answer elsewhere."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from maps.domain.keyframes import FeatureExtractor, Intrinsics, Keyframe, Mount
+from maps.domain.relocalisation import KeyframeIndex, QueryFrame, project, relocalise
+from maps.domain.vocabulary import default_vocabulary
+from maps.exceptions import KeyframeError
+from robots.agent.sim.camera import Camera
+from robots.agent.sim.world import demo_world
+
+pytestmark = pytest.mark.slow  # renders and surveys about 150 views
+
+# Along Corridor A (y 22.0 to 24.4) and into Atrium 1, looking both ways.
+SURVEY = [
+    (x, y, yaw)
+    for x in np.arange(4.0, 22.0, 0.5)
+    for y in (22.6, 23.8)
+    for yaw in (0.0, math.pi, math.pi / 2, -math.pi / 2)
+]
+HELD_OUT = [
+    (6.3, 23.1, 0.2),
+    (9.7, 23.4, 3.0),
+    (14.2, 22.9, 1.4),
+    (18.9, 23.2, -0.3),
+    (11.1, 23.0, -1.7),
+]
+
+
+@pytest.fixture(scope="module")
+def extractor() -> FeatureExtractor:
+    return FeatureExtractor(default_vocabulary())
+
+
+@pytest.fixture(scope="module")
+def index(extractor: FeatureExtractor) -> KeyframeIndex:
+    camera = Camera(demo_world(seed=11), seed=1)
+    built = KeyframeIndex(default_vocabulary().size)
+    for number, pose in enumerate(SURVEY):
+        image, depth = camera.capture(pose)
+        assert depth is not None
+        try:
+            built.add(number, "CorridorA", extractor.keyframe(image, depth, pose))
+        except KeyframeError:
+            continue
+    return built
+
+
+def query(
+    extractor: FeatureExtractor, camera: Camera, pose: tuple[float, float, float]
+) -> QueryFrame:
+    pixels, descriptors = extractor.detect(camera.render(pose))
+    return QueryFrame(pixels, descriptors, extractor.vocabulary.bag(descriptors))
+
+
+def test_keyframe_points_lie_where_the_camera_saw_them(extractor: FeatureExtractor) -> None:
+    pose = (5.0, 23.2, math.pi / 2)  # facing Corridor A's north wall, its face at y = 24.4
+    image, depth = Camera(demo_world(seed=11), noise_sigma=0.0).capture(pose)
+    assert depth is not None
+    keyframe = extractor.keyframe(image, depth, pose)
+    on_wall = keyframe.points[np.abs(keyframe.points[:, 1] - 24.4) < 0.02]
+    assert len(on_wall) >= 0.9 * len(keyframe.points) >= 100
+    pixels, _ = project(pose, on_wall.astype(np.float64), Intrinsics(), Mount())
+    assert np.all(
+        (pixels[:, 0] > -1) & (pixels[:, 0] < 641) & (pixels[:, 1] > -1) & (pixels[:, 1] < 481)
+    )
+    again = Keyframe.from_bytes(keyframe.to_bytes())
+    np.testing.assert_array_equal(again.descriptors, keyframe.descriptors)
+    assert again.pose == keyframe.pose
+
+
+def test_a_depth_image_of_another_size_is_refused(extractor: FeatureExtractor) -> None:
+    image, depth = Camera(demo_world()).capture((5.0, 23.2, 0.0))
+    assert depth is not None
+    with pytest.raises(KeyframeError, match="must match"):
+        extractor.keyframe(image, depth[::2, ::2], (5.0, 23.2, 0.0))
+
+
+def test_retrieval_finds_keyframes_near_held_out_views(
+    index: KeyframeIndex, extractor: FeatureExtractor
+) -> None:
+    camera = Camera(demo_world(seed=11), seed=2)
+    for pose in HELD_OUT:
+        frame = query(extractor, camera, pose)
+        best = index.frames[index.nearest(frame.words, 3)[0]].pose
+        heading = abs(math.remainder(best[2] - pose[2], math.tau))
+        assert math.hypot(best[0] - pose[0], best[1] - pose[1]) < 4.0, (pose, best)
+        assert heading < math.radians(60), (pose, best)
+
+
+def test_held_out_views_are_placed_within_10_cm_and_2_degrees(
+    index: KeyframeIndex, extractor: FeatureExtractor
+) -> None:
+    camera = Camera(demo_world(seed=11), seed=3)
+    for pose in HELD_OUT:
+        answer = relocalise(index, [query(extractor, camera, pose)], Intrinsics(), Mount())
+        assert answer.localised, (pose, answer.reason)
+        assert answer.submap == "CorridorA"
+        assert math.hypot(answer.pose[0] - pose[0], answer.pose[1] - pose[1]) < 0.10
+        assert abs(math.remainder(answer.pose[2] - pose[2], math.tau)) < math.radians(2)
+        assert answer.inliers >= 40
+        assert answer.keyframes
+        assert 0 < answer.covariance[0, 0] < 0.05
+
+
+def test_views_of_another_building_are_never_answered(
+    index: KeyframeIndex, extractor: FeatureExtractor
+) -> None:
+    """The same floor plan under another code: every wall looks different."""
+    camera = Camera(demo_world(seed=11, building_code="elsewhere_1"), seed=4)
+    for pose in HELD_OUT + SURVEY[::9]:
+        answer = relocalise(index, [query(extractor, camera, pose)], Intrinsics(), Mount())
+        assert not answer.localised, pose
+        assert answer.reason
+
+
+def test_a_blank_image_is_not_localised(index: KeyframeIndex, extractor: FeatureExtractor) -> None:
+    blank = np.full((480, 640), 128, np.uint8)
+    pixels, descriptors = extractor.detect(blank)
+    answer = relocalise(
+        index,
+        [QueryFrame(pixels, descriptors, extractor.vocabulary.bag(descriptors))],
+        Intrinsics(),
+        Mount(),
+    )
+    assert not answer.localised
+    assert "texture" in answer.reason

@@ -1,0 +1,244 @@
+"""Keyframes through the real server: robots send them, the worker stores them off the
+request path, admins see and clear the coverage, and relocalisation answers over REST
+and rosbridge, only about the caller's own buildings. Bad input stores nothing."""
+
+from __future__ import annotations
+
+import base64
+import io
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from django.core.management import call_command
+
+from maps.models import Building, Keyframe
+from maps.visual.worker import ingest_queue
+from robots.agent.sim.camera import Camera, encode_jpeg
+from robots.agent.sim.world import demo_world
+from telemetry.domain.messages import CompressedImage, compressed_image, depth_image
+from tests.conftest import client_for, make_building, make_robot, make_user
+
+pytestmark = pytest.mark.django_db(transaction=True)
+
+URL = "/api/buildings/boccioni_1/maps/CorridorA/keyframes"
+SURVEY = [
+    (x, y, yaw) for x in np.arange(4.0, 12.0, 0.5) for y in (22.6, 23.8) for yaw in (0.0, math.pi)
+]
+WAKE_UP = (7.3, 23.1, 0.15)
+
+
+@pytest.fixture(autouse=True)
+def keyframe_dir(tmp_path: Path, settings: Any) -> Path:
+    settings.CLOUDNAV_KEYFRAME_DIR = tmp_path / "keyframes"
+    return settings.CLOUDNAV_KEYFRAME_DIR
+
+
+@pytest.fixture
+def token(db: None) -> str:
+    call_command("seed_demo", stdout=io.StringIO())
+    return make_robot(name="scout", buildings=[Building.objects.get(code="boccioni_1")])[1]
+
+
+@pytest.fixture
+def admin(token: str) -> Any:
+    """An admin of the demo building (seed_demo's own ``admin`` has a password it sets)."""
+    boss = make_user("boss", "admin")
+    Building.objects.get(code="boccioni_1").members.add(boss)
+    return boss
+
+
+@pytest.fixture(scope="module")
+def camera() -> Camera:
+    return Camera(demo_world(seed=0))
+
+
+def keyframe_body(camera: Camera, pose: tuple[float, float, float]) -> dict[str, Any]:
+    image, depth = camera.capture(pose)
+    assert depth is not None
+    return {
+        "image": compressed_image("camera", encode_jpeg(image, 90), 1.0),
+        "depth": depth_image("camera", depth, 1.0),
+        "pose": {"x": pose[0], "y": pose[1], "yaw": pose[2]},
+    }
+
+
+def send_survey(token: str, camera: Camera) -> None:
+    client = client_for(token)
+    for pose in SURVEY:
+        assert client.post(URL, keyframe_body(camera, pose), format="json").status_code == 202
+    ingest_queue().drain()
+
+
+def test_a_robots_keyframes_are_stored_in_the_database_and_on_disk(
+    token: str, camera: Camera, keyframe_dir: Path
+) -> None:
+    send_survey(token, camera)
+    stored = list(Keyframe.objects.all())
+    assert len(stored) >= 0.9 * len(SURVEY)  # a few views see too little to keep
+    assert ingest_queue().counts.duplicates == 0
+    assert all((keyframe_dir / k.path).stat().st_size == k.size for k in stored)
+    assert all(k.robot == "scout" and k.points >= 20 for k in stored)
+    assert {k.submap.code for k in stored} == {"CorridorA"}
+
+
+def test_a_near_duplicate_keyframe_is_dropped(token: str, camera: Camera) -> None:
+    client = client_for(token)
+    for pose in [(5.0, 23.2, 0.0), (5.05, 23.2, 0.03), (5.0, 23.2, 0.5)]:
+        assert client.post(URL, keyframe_body(camera, pose), format="json").status_code == 202
+    ingest_queue().drain()
+    assert Keyframe.objects.count() == 2
+
+
+def test_admins_see_the_coverage_and_clear_it(
+    token: str, camera: Camera, admin: Any, keyframe_dir: Path
+) -> None:
+    client_for(token).post(URL, keyframe_body(camera, (5.0, 23.2, 0.0)), format="json")
+    ingest_queue().drain()
+    listed = client_for(admin).get(URL)
+    assert listed.status_code == 200, listed.content
+    coverage = listed.json()["keyframes"]
+    assert [(round(k["x"], 2), round(k["y"], 2)) for k in coverage] == [(5.0, 23.2)]
+    assert client_for(token).delete(URL).status_code == 403
+    assert client_for(admin).delete(URL).json() == {"removed": 1}
+    assert Keyframe.objects.count() == 0
+    assert not list(keyframe_dir.rglob("*.npz"))
+
+
+def test_a_robot_wakes_up_and_is_placed_over_rest(token: str, camera: Camera) -> None:
+    send_survey(token, camera)
+    image = compressed_image(
+        "camera", encode_jpeg(Camera(demo_world(seed=0), seed=9).render(WAKE_UP)), 2.0
+    )
+    answer = client_for(token).post("/api/relocalise", {"images": [image]}, format="json").json()
+    assert answer["localised"], answer
+    assert answer["map_id"] == "boccioni_1/CorridorA"
+    assert math.hypot(answer["pose"]["x"] - WAKE_UP[0], answer["pose"]["y"] - WAKE_UP[1]) < 0.15
+    assert abs(answer["pose"]["yaw"] - WAKE_UP[2]) < math.radians(3)
+    assert len(answer["covariance"]) == 9
+    assert answer["inliers"] >= 40
+    assert answer["keyframes"]
+    assert answer["reason"] == ""
+
+
+def test_images_of_another_building_are_not_localised(token: str, camera: Camera) -> None:
+    send_survey(token, camera)
+    elsewhere = Camera(demo_world(seed=0, building_code="elsewhere_9")).render(WAKE_UP)
+    body = {"images": [compressed_image("camera", encode_jpeg(elsewhere), 2.0)]}
+    answer = client_for(token).post("/api/relocalise", body, format="json").json()
+    assert answer["localised"] is False
+    assert answer["reason"]
+    assert answer["map_id"] == ""
+
+
+def test_a_robot_may_not_ask_about_another_building(token: str, camera: Camera) -> None:
+    other = make_building(code="other_1")
+    _, stranger = make_robot(name="stranger", buildings=[other])
+    body = {"images": [keyframe_body(camera, WAKE_UP)["image"]], "building": "boccioni_1"}
+    assert client_for(stranger).post("/api/relocalise", body, format="json").status_code == 403
+    assert (
+        client_for(stranger).post(URL, keyframe_body(camera, WAKE_UP), format="json").status_code
+        == 403
+    )
+    assert client_for(None).post("/api/relocalise", body, format="json").status_code in (401, 403)
+
+
+def jpeg_of(pixels: np.ndarray) -> CompressedImage:
+    return compressed_image("camera", encode_jpeg(pixels), 1.0)
+
+
+@pytest.mark.parametrize(
+    ("change", "complaint"),
+    [
+        (
+            lambda b: {**b, "image": {**b["image"], "data": base64.b64encode(b"hello").decode()}},
+            "not an image",
+        ),
+        (
+            lambda b: {
+                **b,
+                "image": {
+                    **b["image"],
+                    "data": b["image"]["data"][: len(b["image"]["data"]) // 2 // 4 * 4],
+                },
+            },
+            "truncated",
+        ),
+        (lambda b: {**b, "image": jpeg_of(np.zeros((1200, 1600), np.uint8))}, "pixels"),
+        (
+            lambda b: {**b, "depth": depth_image("camera", np.ones((240, 320), np.float32), 1.0)},
+            "does not match",
+        ),
+        (lambda b: {**b, "pose": {"x": 500.0, "y": 3.0, "yaw": 0.0}}, "not on the free floor"),
+        (lambda b: {**b, "pose": {"x": "NaN", "y": 3.0, "yaw": 0.0}}, "finite"),
+        (lambda b: {k: v for k, v in b.items() if k != "depth"}, "depth"),
+    ],
+)
+def test_bad_keyframes_get_a_clear_error_and_store_nothing(
+    token: str, camera: Camera, change: Any, complaint: str, keyframe_dir: Path
+) -> None:
+    body = change(keyframe_body(camera, (5.0, 23.2, 0.0)))
+    response = client_for(token).post(URL, body, format="json")
+    ingest_queue().drain()
+    assert response.status_code == 400, response.content
+    assert complaint in response.json()["detail"]
+    assert Keyframe.objects.count() == 0
+    assert not keyframe_dir.exists() or not list(keyframe_dir.rglob("*.npz"))
+
+
+def test_a_bad_relocalisation_request_is_refused(token: str, camera: Camera) -> None:
+    client = client_for(token)
+    good = keyframe_body(camera, WAKE_UP)
+    for body, complaint in [
+        ({"images": []}, "images"),
+        ({"images": [{"data": "!!"}]}, "base64"),
+        (
+            {
+                "images": [good["image"]],
+                "depth": depth_image("camera", np.ones((10, 10), np.float32), 1),
+            },
+            "does not match",
+        ),
+    ]:
+        response = client.post("/api/relocalise", body, format="json")
+        assert response.status_code == 400, body
+        assert complaint in response.json()["detail"]
+
+
+@pytest.fixture
+def surveyed(token: str, camera: Camera) -> str:
+    """The robot's token, once its survey of Corridor A is stored."""
+    send_survey(token, camera)
+    return token
+
+
+async def test_relocalise_is_a_rosbridge_service(rosbridge: Any, surveyed: str) -> None:
+    token = surveyed
+    image = compressed_image(
+        "camera", encode_jpeg(Camera(demo_world(seed=0), seed=9).render(WAKE_UP)), 2.0
+    )
+    robot = await rosbridge(token=token)
+    await robot.send(
+        op="call_service",
+        id="where",
+        service="cloudnav/relocalise",
+        args={"images": [image], "building": "boccioni_1"},
+    )
+    answer = await robot.receive(60)
+    assert answer["result"] is True, answer
+    assert answer["values"]["localised"] is True
+    assert answer["values"]["map_id"] == "boccioni_1/CorridorA"
+    await robot.send(
+        op="call_service", id="bad", service="cloudnav/relocalise", args={"images": "nope"}
+    )
+    refused = await robot.receive(60)
+    assert refused["result"] is False
+    await robot.send(
+        op="call_service",
+        id="other",
+        service="cloudnav/relocalise",
+        args={"images": [image], "building": "other_1"},
+    )
+    assert (await robot.receive(60))["result"] is False
