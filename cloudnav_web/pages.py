@@ -96,6 +96,15 @@ def building(request: HttpRequest, code: str) -> HttpResponse:
 
 
 @login_required
+def building_map(request: HttpRequest, code: str) -> HttpResponse:
+    """Every sub-map of a building as one floor plan, with every robot live on it."""
+    found, role = _building(request, code)
+    config = {"building": found.code}
+    context = _context(request, role, page="building-map", building=found, config=config)
+    return render(request, "pages/building_map.html", context)
+
+
+@login_required
 def submap(request: HttpRequest, code: str, map: str) -> HttpResponse:
     found, role = _building(request, code)
     sub: SubMap | None = found.submaps.defer("image").filter(code=map).first()

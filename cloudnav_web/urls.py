@@ -22,6 +22,7 @@ urlpatterns = [
     path("robots/<slug:name>/", pages.robot, name="robot-page"),
     path("buildings/", pages.buildings, name="buildings-page"),
     path("buildings/<slug:code>/", pages.building, name="building-page"),
+    path("buildings/<slug:code>/map/", pages.building_map, name="building-map-page"),
     path("buildings/<slug:code>/upload/", pages.upload, name="upload-page"),
     path("buildings/<slug:code>/maps/<slug:map>/", pages.submap, name="submap-page"),
 ]

@@ -161,3 +161,18 @@ def test_headings_are_shown_in_degrees_on_every_page(viewer: User, submap: SubMa
     submap_page = client.get("/buildings/boccioni_1/maps/CorridorA/").content.decode()
     assert "-180°" in submap_page
     assert "-3.14" not in submap_page
+
+
+def test_the_live_map_gives_goals_to_those_who_drive(
+    operator: User, viewer: User, building: Building
+) -> None:
+    url = "/buildings/boccioni_1/map/"
+    page = signed_in(operator).get(url).content.decode()
+    assert 'id="floor-plan"' in page
+    assert 'id="tool-goal"' in page
+    assert "vendor/leaflet.css" in page
+    assert 'id="tool-goal"' not in signed_in(viewer).get(url).content.decode()
+
+
+def test_the_live_map_rejects_outsider(outsider: User, building: Building) -> None:
+    assert signed_in(outsider).get("/buildings/boccioni_1/map/").status_code == 404

@@ -21,19 +21,23 @@ const COLORS = {
 const DRAG_THRESHOLD_PX = 4;
 const ZOOM_STEP = 1.15;
 
-/** RGBA pixels of a grid message, top row first, for an offscreen canvas. */
-export function gridPixels(grid) {
+/**
+ * RGBA pixels of a grid message, top row first, for an offscreen canvas; unknown cells get
+ * alpha `unknownAlpha` (a floor plan of overlapping sub-maps makes them transparent).
+ */
+export function gridPixels(grid, { unknownAlpha = 255 } = {}) {
   const { width, height } = grid.info;
   const pixels = new Uint8ClampedArray(width * height * 4);
   for (let row = 0; row < height; row += 1) {
     const source = (height - 1 - row) * width;
     for (let col = 0; col < width; col += 1) {
-      const [r, g, b] = cellColor(grid.data[source + col]);
+      const value = grid.data[source + col];
+      const [r, g, b] = cellColor(value);
       const at = (row * width + col) * 4;
       pixels[at] = r;
       pixels[at + 1] = g;
       pixels[at + 2] = b;
-      pixels[at + 3] = 255;
+      pixels[at + 3] = value < 0 || value > 100 ? unknownAlpha : 255;
     }
   }
   return pixels;
