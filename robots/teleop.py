@@ -108,6 +108,11 @@ class RedisLockStore:
         return current.decode() if isinstance(current, bytes) else (current or "")
 
 
+# What ``on_event`` is told (the names of telemetry's event kinds).
+DEADMAN_STOP = "deadman_stop"
+LAPSED = "teleop_lapsed"
+
+
 @dataclass
 class _Hold:
     """A lock this process granted to one of its connections."""
@@ -130,9 +135,12 @@ class TeleopLocks:
         stop: Callable[[str], None],
         ttl: float = 5.0,
         silence: float = 0.5,
+        on_event: Callable[[str, str, str], None] | None = None,
     ) -> None:
         self.store = store
         self.stop = stop
+        # Told (robot, what, holder's label) of a dead-man stop or a lapsed lock.
+        self.on_event = on_event
         self.ttl = ttl
         self.silence = silence
         self.process = uuid.uuid4().hex[:12]
@@ -183,6 +191,7 @@ class TeleopLocks:
             return False
         if hold.expires <= self._now():
             self._let_go(robot)
+            self._tell(robot, LAPSED, hold.holder)
             return False
         return True
 
@@ -217,6 +226,7 @@ class TeleopLocks:
         elif hold.moving:
             hold.moving = False
             self.stop(robot)
+            self._tell(robot, DEADMAN_STOP, hold.holder)
 
     def held_by(self, connection: str) -> list[str]:
         return [robot for robot, hold in self._holds.items() if hold.connection == connection]
@@ -229,6 +239,10 @@ class TeleopLocks:
     def _let_go(self, robot: str) -> None:
         self._forget(robot)
         self.stop(robot)
+
+    def _tell(self, robot: str, what: str, holder: str) -> None:
+        if self.on_event is not None:
+            self.on_event(robot, what, self.label_of(holder))
 
     def _forget(self, robot: str) -> None:
         hold = self._holds.pop(robot, None)

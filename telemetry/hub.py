@@ -25,11 +25,13 @@ from telemetry.domain import names, protocol
 from telemetry.domain.bus import SubscribeParams, TopicBus
 from telemetry.domain.calls import CallTable, PendingCall
 from telemetry.domain.encoding import Outgoing
+from telemetry.domain.events import Kind
 from telemetry.domain.limits import ByteBudget, Holdings
 from telemetry.domain.messages import pose_of, string_of, twist_2d
 from telemetry.domain.protocol import Json
 from telemetry.domain.rules import Principal
 from telemetry.domain.times import complete_header_stamp
+from telemetry.events import OBSERVED, EventLog
 from telemetry.exceptions import ActionFailed, NotAllowed, RosbridgeError, ServiceFailed
 from telemetry.params import MemoryParams, ParamStore, RedisParams
 from telemetry.relay import Relay
@@ -95,9 +97,11 @@ class Hub:
         self.fragment_budget = ByteBudget(config.fragments_total_bytes)
         self.clients: dict[str, Client] = {}
         self.relay: Relay | None = None
+        self.events = EventLog()
         self.teleop = TeleopLocks(
             MemoryLockStore(),
             stop=self.stop_robot,
+            on_event=self._teleop_event,
             ttl=config.teleop_lock_ttl,
             silence=config.teleop_silence,
         )
@@ -130,9 +134,10 @@ class Hub:
         self.clients[client.conn.key] = client
         robot = client.conn.principal.robot
         if robot is not None and client.robot_pk is not None:
-            for kind in (names.POSE, names.MAP_ID):
+            for kind in {names.MAP_ID, *OBSERVED}:
                 self._fleet_topics[names.robot_topic(robot, kind)] = (client.robot_pk, kind)
             self.fleet.connected(client.robot_pk)
+            self.events.connected(robot)
             if self.relay is not None:
                 self.relay.put("robots", robot, "1")
 
@@ -172,7 +177,8 @@ class Hub:
         self.fleet.disconnected(robot_pk)
         if robot in self.robots():
             return  # another connection of the same robot is still here
-        for kind in (names.POSE, names.MAP_ID):
+        self.events.disconnected(robot)
+        for kind in {names.MAP_ID, *OBSERVED}:
             self._fleet_topics.pop(names.robot_topic(robot, kind), None)
         if self.relay is not None:
             self.relay.remove("robots", robot)
@@ -277,17 +283,24 @@ class Hub:
     ) -> None:
         complete_header_stamp(msg)
         self.bus.publish(conn, name, msg, latch, size)
+        if conn.principal.robot is not None:
+            self.events.heard(conn.principal.robot)
         tracked = self._fleet_topics.get(name)
         if tracked is not None:
             self._track(tracked[0], tracked[1], msg)
+            if tracked[1] in OBSERVED:
+                self.events.observe(names.first_segment(name), tracked[1], msg)
 
     def _track(self, robot_pk: int, kind: str, msg: dict[str, Json]) -> None:
         if kind == names.POSE:
             pose = pose_of(msg)
             if pose is not None:
                 self.fleet.pose(robot_pk, pose)
-        elif (map_id := string_of(msg)) is not None:
+        elif kind == names.MAP_ID and (map_id := string_of(msg)) is not None:
             self.fleet.map_id(robot_pk, map_id)
+
+    def _teleop_event(self, robot: str, kind: str, holder: str) -> None:
+        self.events.teleop(robot, Kind(kind), holder)
 
     async def subscribe(
         self, conn: Connection, name: str, op: protocol.Subscribe, params: SubscribeParams

@@ -33,6 +33,7 @@ ROBOT_TOPIC_TYPES = {
     "nav_status": "actionlib_msgs/GoalStatusArray",
     "map_id": "std_msgs/String",
     "localisation": "diagnostic_msgs/DiagnosticStatus",
+    "battery": "sensor_msgs/BatteryState",
     "camera/image/compressed": "sensor_msgs/CompressedImage",
     "cmd_vel": "geometry_msgs/Twist",
     "goal": "geometry_msgs/PoseStamped",
@@ -49,6 +50,9 @@ LATCHED_TOPICS = frozenset({"map_id", "localisation"})
 CMD_VEL = "cmd_vel"
 POSE = "pose"
 MAP_ID = "map_id"
+NAV_STATUS = "nav_status"
+LOCALISATION = "localisation"
+BATTERY = "battery"
 
 
 def absolute(name: str, namespace: str = "") -> str:
