@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import asyncio
 import logging
+import time
 import weakref
 from collections.abc import Awaitable, Callable, Iterator
 from contextlib import contextmanager
@@ -18,6 +19,7 @@ from typing import Any
 from channels.db import database_sync_to_async
 
 from robots.fleet import FleetTracker
+from robots.missions import Goal
 from robots.teleop import MemoryLockStore, RedisLockStore, TeleopLocks
 from telemetry.config import RosbridgeConfig
 from telemetry.connection import Connection
@@ -27,12 +29,13 @@ from telemetry.domain.calls import CallTable, PendingCall
 from telemetry.domain.encoding import Outgoing
 from telemetry.domain.events import Kind
 from telemetry.domain.limits import ByteBudget, Holdings
-from telemetry.domain.messages import pose_of, string_of, twist_2d
+from telemetry.domain.messages import pose_of, pose_stamped, string_of, twist_2d
 from telemetry.domain.protocol import Json
 from telemetry.domain.rules import Principal
 from telemetry.domain.times import complete_header_stamp
 from telemetry.events import OBSERVED, EventLog
 from telemetry.exceptions import ActionFailed, NotAllowed, RosbridgeError, ServiceFailed
+from telemetry.missions import MissionRunner
 from telemetry.params import MemoryParams, ParamStore, RedisParams
 from telemetry.relay import Relay
 from telemetry.revocation import AccessChange, RobotRecord, revoked, robot_records
@@ -98,6 +101,7 @@ class Hub:
         self.clients: dict[str, Client] = {}
         self.relay: Relay | None = None
         self.events = EventLog()
+        self.missions = MissionRunner(self._send_goal, self.robots)
         self.teleop = TeleopLocks(
             MemoryLockStore(),
             stop=self.stop_robot,
@@ -138,6 +142,7 @@ class Hub:
                 self._fleet_topics[names.robot_topic(robot, kind)] = (client.robot_pk, kind)
             self.fleet.connected(client.robot_pk)
             self.events.connected(robot)
+            self.missions.ensure_running()
             if self.relay is not None:
                 self.relay.put("robots", robot, "1")
 
@@ -290,6 +295,8 @@ class Hub:
             self._track(tracked[0], tracked[1], msg)
             if tracked[1] in OBSERVED:
                 self.events.observe(names.first_segment(name), tracked[1], msg)
+            if tracked[1] == names.NAV_STATUS:
+                self.missions.status(names.first_segment(name), msg)
 
     def _track(self, robot_pk: int, kind: str, msg: dict[str, Json]) -> None:
         if kind == names.POSE:
@@ -341,6 +348,11 @@ class Hub:
         if not self.teleop.accepts(robot, conn.key):
             raise NotAllowed(f"{conn.principal.label} does not hold the teleop lock of {robot}")
         self.teleop.commanded(robot, moving=_moving(msg))
+
+    def _send_goal(self, goal: Goal) -> None:
+        """Send a mission's goal to its robot from the server itself."""
+        msg = dict(pose_stamped(goal.map_id, (goal.x, goal.y, goal.yaw), time.time()))
+        self.bus.publish(None, names.robot_topic(goal.robot, names.GOAL), msg)
 
     def stop_robot(self, robot: str) -> None:
         """Send ``robot`` a zero Twist from the server itself."""

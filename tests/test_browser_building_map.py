@@ -295,3 +295,38 @@ def test_twenty_robots_moving_keep_the_floor_plan_at_frame_rate(
     assert report["frame_gap_p95_ms"] < 50, report
     # It kept drawing the robots as their poses came (10 Hz each, as delivered).
     assert report["drawings"] >= 40, report
+
+
+SECOND_WAYPOINT = (10.0, 23.2, 0.0)
+
+
+def test_an_operator_runs_a_mission_that_outlives_the_page_and_every_operator_sees(
+    context: BrowserContext, demo: Demo, agent: Path
+) -> None:
+    page = open_plan(context, demo)
+    select_robot(page)
+    page.click("#mission-plan")
+    press_and_drag(page, *CORRIDOR_A_GOAL)
+    press_and_drag(page, *SECOND_WAYPOINT)
+    expect(page.locator("#mission-draft-points li")).to_have_count(2)
+    page.fill("#mission-name", "corridor round")
+    page.click("#mission-start")
+    row = page.locator(f"#mission-list tr[data-robot={ROBOT}]")
+    expect(row).to_contain_text("waypoint 1/2")
+    expect(row).to_have_attribute("data-state", "running")
+
+    # The server runs it: a reload, or another operator, finds it as it is.
+    page.reload()
+    expect(row).to_contain_text("corridor round")
+    other = open_as(context.browser.new_context(), demo, "admin", PAGE)  # type: ignore[union-attr]
+    expect(other.locator(f"#mission-list tr[data-robot={ROBOT}]")).to_be_visible()
+    other.context.close()
+
+    expect(row).to_contain_text("waypoint 2/2", timeout=90_000)  # the first one reached
+    screenshot(page, "building-map-mission")
+    row.locator("button[data-command=pause]").click()
+    expect(row).to_have_attribute("data-state", "paused")
+    row.locator("button[data-command=resume]").click()
+    expect(row).to_have_attribute("data-state", "running")
+    row.locator("button[data-command=cancel]").click()
+    expect(row).to_have_count(0)

@@ -6,6 +6,7 @@
 import { api, splitMapId, urls } from "./api.js";
 import { FloorPlan, LAYERS } from "./floorplan.js";
 import { planarPose, poseStamped } from "./geometry.js";
+import { MissionsPanel } from "./missions.js";
 import { badge, connectFleet, el, navigationState, pageConfig, whereabouts } from "./page.js";
 
 const TRAIL_POINTS = 300;
@@ -267,7 +268,9 @@ function bindControls() {
     following = following && Boolean(plan.selected);
     renderList();
   });
-  plan.addEventListener("pose", (event) => sendGoal(event.detail));
+  plan.addEventListener("pose", (event) => {
+    if (event.detail.tool === "goal") sendGoal(event.detail);
+  });
   plan.addEventListener("hover", ({ detail }) => {
     $("plan-cursor").textContent = `${detail.x.toFixed(2)}, ${detail.y.toFixed(2)} m${detail.map ? ` · ${detail.map}` : ""}`;
   });
@@ -293,6 +296,7 @@ function bindControls() {
 connection.addEventListener("disconnected", () => { $("plan-offline").hidden = false; });
 connection.addEventListener("connected", () => { $("plan-offline").hidden = true; });
 bindControls();
+new MissionsPanel({ building, plan, connection, mayDrive, hint }).start();
 loadBuilding().catch((error) => hint(`Cannot load the building: ${error.message}`));
 refreshFleet();
 setInterval(refreshFleet, FLEET_MS);

@@ -15,6 +15,7 @@ const COLORS = {
   trail: "rgba(47, 111, 237, 0.45)",
   plan: "#1f9d55",
   goal: "#d98a00",
+  waypoint: "#8a4ff0",
   route: "rgba(217, 138, 0, 0.7)",
   tag: "#b3128a",
   outline: "rgba(28, 35, 51, 0.35)",
@@ -158,6 +159,8 @@ export class FloorPlan extends EventTarget {
     this.element = element;
     this.grids = new Map(); // code -> OccupancyGrid
     this.tags = [];
+    // Mission waypoints to show: [{x, y, yaw}] of the selected robot's mission or a draft.
+    this.waypoints = [];
     this.robots = new Map(); // name -> RobotTrack (see buildingmap.js)
     this.selected = null;
     this.hover = null;
@@ -334,8 +337,12 @@ export class FloorPlan extends EventTarget {
     if (this.visible.trails) tracks.forEach((t) => polyline(ctx, project, t.trail, COLORS.trail, 2));
     if (this.visible.plans) tracks.forEach((t) => polyline(ctx, project, t.plan, COLORS.plan, 2, [6, 4]));
     if (this.visible.routes) tracks.forEach((t) => this.#drawGoal(ctx, project, t));
+    if (this.visible.routes) this.#drawWaypoints(ctx, project);
     tracks.forEach((t) => this.#drawRobot(ctx, project, t));
-    if (this.drag) arrow(ctx, project, this.#dragPose(this.drag), COLORS.goal, project.scale);
+    if (this.drag) {
+      const color = this.tool === "waypoint" ? COLORS.waypoint : COLORS.goal;
+      arrow(ctx, project, this.#dragPose(this.drag), color, project.scale);
+    }
   }
 
   #drawOutlines(ctx, project) {
@@ -372,6 +379,15 @@ export class FloorPlan extends EventTarget {
       polyline(ctx, project, [track.pose, ...track.route, track.goal.pose], COLORS.route, 2, [2, 5]);
     }
     arrow(ctx, project, track.goal.pose, COLORS.goal, project.scale);
+  }
+
+  #drawWaypoints(ctx, project) {
+    polyline(ctx, project, this.waypoints, COLORS.waypoint, 1.5, [4, 4]);
+    this.waypoints.forEach((point, index) => {
+      arrow(ctx, project, point, COLORS.waypoint, Math.min(project.scale, 30));
+      const [sx, sy] = project(point.x, point.y);
+      label(ctx, String(index + 1), sx - 12, sy - 6, COLORS.waypoint);
+    });
   }
 
   #drawRobot(ctx, project, track) {

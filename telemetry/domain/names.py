@@ -53,6 +53,7 @@ MAP_ID = "map_id"
 NAV_STATUS = "nav_status"
 LOCALISATION = "localisation"
 BATTERY = "battery"
+GOAL = "goal"
 
 
 def absolute(name: str, namespace: str = "") -> str:
