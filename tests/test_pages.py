@@ -176,3 +176,26 @@ def test_the_live_map_gives_goals_to_those_who_drive(
 
 def test_the_live_map_rejects_outsider(outsider: User, building: Building) -> None:
     assert signed_in(outsider).get("/buildings/boccioni_1/map/").status_code == 404
+
+
+def test_a_missing_page_is_a_styled_404_with_the_way_back(
+    operator: User, building: Building
+) -> None:
+    answer = signed_in(operator).get("/buildings/nowhere/")
+    assert answer.status_code == 404
+    page = answer.content.decode()
+    assert 'data-status="404"' in page
+    assert "Back to the fleet" in page
+    assert "app.css" in page
+
+
+def test_a_forbidden_page_is_a_styled_403(operator: User, building: Building) -> None:
+    answer = signed_in(operator).get("/buildings/boccioni_1/upload/")
+    assert answer.status_code == 403
+    assert 'data-status="403"' in answer.content.decode()
+
+
+def test_strangers_get_a_styled_404_that_offers_to_sign_in(db: None) -> None:
+    answer = Client().get("/no/such/page/")
+    assert answer.status_code == 404
+    assert "Sign in" in answer.content.decode()
