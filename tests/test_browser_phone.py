@@ -87,3 +87,31 @@ def test_stop_is_always_within_reach_and_the_map_pinch_zooms(
     pinch(page, "#map-canvas")
     after = page.evaluate("window.cloudnav.robotPage.view.view.scale")
     assert after > 2 * before
+
+
+def test_the_touch_joystick_drives_once_the_operator_holds_control(
+    phone: BrowserContext, demo: Demo
+) -> None:
+    page = open_as(phone, demo, "operator", f"/robots/{ROBOT}/")
+    expect(page.locator("#conn-state")).to_contain_text("Live")
+    page.click("#lock-acquire")
+    expect(page.locator("#lock-state")).to_have_text("You are driving")
+    pad = page.locator("#joystick")
+    pad.scroll_into_view_if_needed()
+    box = pad.bounding_box()
+    assert box is not None
+    cx, cy = box["x"] + box["width"] / 2, box["y"] + box["height"] / 2
+    cdp = page.context.new_cdp_session(page)
+    start = {"x": cx, "y": cy, "id": 1}
+    cdp.send("Input.dispatchTouchEvent", {"type": "touchStart", "touchPoints": [start]})
+    for step in range(1, 6):
+        point = {"x": cx, "y": cy - step * box["height"] / 10, "id": 1}
+        cdp.send("Input.dispatchTouchEvent", {"type": "touchMove", "touchPoints": [point]})
+        page.wait_for_timeout(50)  # a finger moves over frames
+    page.wait_for_function("window.cloudnav.robotPage.teleop.stick.y < -0.8")
+    stick = page.evaluate("window.cloudnav.robotPage.teleop.stick")
+    assert stick["y"] < -0.8  # pushed forward (up the screen)
+    assert abs(stick["x"]) < 0.2
+    cdp.send("Input.dispatchTouchEvent", {"type": "touchEnd", "touchPoints": []})
+    expect(page.locator("#stop-button")).to_be_in_viewport()
+    page.wait_for_function("window.cloudnav.robotPage.teleop.stick.y === 0")
