@@ -19,6 +19,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Protocol
 
+from telemetry.domain.events import Kind
 from telemetry.domain.names import redis_key
 
 
@@ -108,11 +109,6 @@ class RedisLockStore:
         return current.decode() if isinstance(current, bytes) else (current or "")
 
 
-# What ``on_event`` is told (the names of telemetry's event kinds).
-DEADMAN_STOP = "deadman_stop"
-LAPSED = "teleop_lapsed"
-
-
 @dataclass
 class _Hold:
     """A lock this process granted to one of its connections."""
@@ -135,7 +131,7 @@ class TeleopLocks:
         stop: Callable[[str], None],
         ttl: float = 5.0,
         silence: float = 0.5,
-        on_event: Callable[[str, str, str], None] | None = None,
+        on_event: Callable[[str, Kind, str], None] | None = None,
     ) -> None:
         self.store = store
         self.stop = stop
@@ -191,7 +187,7 @@ class TeleopLocks:
             return False
         if hold.expires <= self._now():
             self._let_go(robot)
-            self._tell(robot, LAPSED, hold.holder)
+            self._tell(robot, Kind.TELEOP_LAPSED, hold.holder)
             return False
         return True
 
@@ -226,7 +222,7 @@ class TeleopLocks:
         elif hold.moving:
             hold.moving = False
             self.stop(robot)
-            self._tell(robot, DEADMAN_STOP, hold.holder)
+            self._tell(robot, Kind.DEADMAN_STOP, hold.holder)
 
     def held_by(self, connection: str) -> list[str]:
         return [robot for robot, hold in self._holds.items() if hold.connection == connection]
@@ -240,7 +236,7 @@ class TeleopLocks:
         self._forget(robot)
         self.stop(robot)
 
-    def _tell(self, robot: str, what: str, holder: str) -> None:
+    def _tell(self, robot: str, what: Kind, holder: str) -> None:
         if self.on_event is not None:
             self.on_event(robot, what, self.label_of(holder))
 

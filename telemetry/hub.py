@@ -306,8 +306,8 @@ class Hub:
         elif kind == names.MAP_ID and (map_id := string_of(msg)) is not None:
             self.fleet.map_id(robot_pk, map_id)
 
-    def _teleop_event(self, robot: str, kind: str, holder: str) -> None:
-        self.events.teleop(robot, Kind(kind), holder)
+    def _teleop_event(self, robot: str, kind: Kind, holder: str) -> None:
+        self.events.teleop(robot, kind, holder)
 
     async def subscribe(
         self, conn: Connection, name: str, op: protocol.Subscribe, params: SubscribeParams
