@@ -52,6 +52,31 @@ def _building(request: HttpRequest, code: str) -> tuple[Building, Role]:
     return building, role
 
 
+ERRORS = {
+    403: ("Not allowed", "Your role does not let you do this here. Ask an admin of the building."),
+    404: ("Not found", "There is nothing here, or nothing you may see."),
+}
+
+
+def error_page(request: HttpRequest, status: int) -> HttpResponse:
+    """A 403 or 404 in the app's own style, with the navigation of whoever asked."""
+    title, text = ERRORS[status]
+    extra = {"status": status, "title": title, "text": text}
+    if request.user.is_authenticated:
+        context = _context(request, global_role(request.user), page="", **extra)
+    else:
+        context = {"role": "none", **extra}
+    return render(request, "error.html", context, status=status)
+
+
+def not_found(request: HttpRequest, exception: Exception | None = None) -> HttpResponse:  # noqa: ARG001 (Django's handler)
+    return error_page(request, 404)
+
+
+def forbidden(request: HttpRequest, exception: Exception | None = None) -> HttpResponse:  # noqa: ARG001 (Django's handler)
+    return error_page(request, 403)
+
+
 @login_required
 def fleet(request: HttpRequest) -> HttpResponse:
     role = global_role(request.user)
@@ -70,6 +95,17 @@ def robot(request: HttpRequest, name: str) -> HttpResponse:
     config = {"robot": found.name, "buildings": [b.code for b in visible]}
     context = _context(request, role, page="fleet", robot=found, config=config)
     return render(request, "pages/robot.html", context)
+
+
+@login_required
+def robots(request: HttpRequest) -> HttpResponse:
+    """Robot administration, for admins."""
+    role = global_role(request.user)
+    if role < Role.ADMIN:
+        raise PermissionDenied("Only admins administer robots.")
+    codes = list(buildings_for(request.user).order_by("code").values_list("code", flat=True))
+    context = _context(request, role, page="robots", config={"buildings": codes})
+    return render(request, "pages/robots.html", context)
 
 
 @login_required
@@ -93,6 +129,15 @@ def building(request: HttpRequest, code: str) -> HttpResponse:
         request, role, page="buildings", building=found, submaps=submaps, tags=tags, config=config
     )
     return render(request, "pages/building.html", context)
+
+
+@login_required
+def building_map(request: HttpRequest, code: str) -> HttpResponse:
+    """Every sub-map of a building as one floor plan, with every robot live on it."""
+    found, role = _building(request, code)
+    config = {"building": found.code}
+    context = _context(request, role, page="building-map", building=found, config=config)
+    return render(request, "pages/building_map.html", context)
 
 
 @login_required

@@ -45,3 +45,46 @@ class RobotState(models.Model):
 
     def __str__(self) -> str:
         return f"{self.robot.name} ({'online' if self.online else 'offline'})"
+
+
+class Mission(models.Model):
+    """A list of goals (``waypoints``: ``{"map", "x", "y", "yaw"}``, any sub-maps of
+    ``building``) a robot drives to in turn, once or round and round (a patrol).
+
+    The server that serves the robot sends each goal and moves on when the robot reports
+    it reached it (``telemetry.missions``); ``sent`` is the index of the goal sent last
+    (-1: none since the last start or change). A robot has at most one active mission.
+    """
+
+    class Mode(models.TextChoices):
+        ONCE = "once"
+        PATROL = "patrol"
+
+    class State(models.TextChoices):
+        RUNNING = "running"
+        PAUSED = "paused"
+        DONE = "done"
+        CANCELLED = "cancelled"
+
+    ACTIVE = (State.RUNNING, State.PAUSED)
+
+    building = models.ForeignKey(Building, models.CASCADE, related_name="missions")
+    robot = models.ForeignKey(Robot, models.CASCADE, related_name="missions")
+    name = models.CharField(max_length=100, blank=True)
+    waypoints = models.JSONField()
+    mode = models.CharField(max_length=10, choices=Mode.choices, default=Mode.ONCE)
+    state = models.CharField(max_length=10, choices=State.choices, default=State.RUNNING)
+    index = models.PositiveIntegerField(default=0)
+    laps = models.PositiveIntegerField(default=0)
+    sent = models.IntegerField(default=-1)
+    note = models.CharField(max_length=300, blank=True)
+    created_by = models.CharField(max_length=150, blank=True)
+    created = models.DateTimeField(auto_now_add=True)
+    updated = models.DateTimeField(auto_now=True)
+
+    class Meta:
+        ordering = ["-created"]
+        indexes = [models.Index(fields=["robot", "state"])]
+
+    def __str__(self) -> str:
+        return f"{self.robot}: {self.name or 'mission'} ({self.state})"

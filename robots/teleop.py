@@ -19,6 +19,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Protocol
 
+from telemetry.domain.events import Kind
 from telemetry.domain.names import redis_key
 
 
@@ -130,9 +131,12 @@ class TeleopLocks:
         stop: Callable[[str], None],
         ttl: float = 5.0,
         silence: float = 0.5,
+        on_event: Callable[[str, Kind, str], None] | None = None,
     ) -> None:
         self.store = store
         self.stop = stop
+        # Told (robot, what, holder's label) of a dead-man stop or a lapsed lock.
+        self.on_event = on_event
         self.ttl = ttl
         self.silence = silence
         self.process = uuid.uuid4().hex[:12]
@@ -183,6 +187,7 @@ class TeleopLocks:
             return False
         if hold.expires <= self._now():
             self._let_go(robot)
+            self._tell(robot, Kind.TELEOP_LAPSED, hold.holder)
             return False
         return True
 
@@ -217,6 +222,7 @@ class TeleopLocks:
         elif hold.moving:
             hold.moving = False
             self.stop(robot)
+            self._tell(robot, Kind.DEADMAN_STOP, hold.holder)
 
     def held_by(self, connection: str) -> list[str]:
         return [robot for robot, hold in self._holds.items() if hold.connection == connection]
@@ -229,6 +235,10 @@ class TeleopLocks:
     def _let_go(self, robot: str) -> None:
         self._forget(robot)
         self.stop(robot)
+
+    def _tell(self, robot: str, what: Kind, holder: str) -> None:
+        if self.on_event is not None:
+            self.on_event(robot, what, self.label_of(holder))
 
     def _forget(self, robot: str) -> None:
         hold = self._holds.pop(robot, None)

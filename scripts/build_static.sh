@@ -2,14 +2,15 @@
 # Bundle the browser libraries from node_modules into static/vendor/ (git-ignored), so
 # pages load them as static files: nothing comes from a CDN. roslib 2.x is ESM-only with
 # npm dependencies; esbuild (its binary ships inside an npm package) resolves them into
-# one ES module. Quick when nothing changed.
+# one ES module; Leaflet's ES module is minified the same way and its stylesheet and
+# images copied beside it. Quick when nothing changed.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
 OUT=static/vendor
 STAMP=$OUT/.build.sha256
 want=$(cat package-lock.json "$0" | sha256sum | cut -d' ' -f1)
-if [ "$(cat "$STAMP" 2>/dev/null)" = "$want" ] && [ -f "$OUT/roslib.js" ]; then
+if [ "$(cat "$STAMP" 2>/dev/null)" = "$want" ] && [ -f "$OUT/roslib.js" ] && [ -f "$OUT/leaflet.js" ]; then
   exit 0
 fi
 echo "setup: bundling browser libraries into $OUT/"
@@ -17,4 +18,9 @@ mkdir -p "$OUT"
 node_modules/.bin/esbuild node_modules/roslib/dist/RosLib.js --bundle --format=esm \
   --platform=browser --target=es2022 --minify --legal-comments=none --log-level=warning \
   --outfile="$OUT/roslib.js"
+node_modules/.bin/esbuild node_modules/leaflet/dist/leaflet-src.esm.js --format=esm \
+  --target=es2022 --minify --legal-comments=none --log-level=warning --outfile="$OUT/leaflet.js"
+cp node_modules/leaflet/dist/leaflet.css "$OUT/leaflet.css"
+mkdir -p "$OUT/images"
+cp node_modules/leaflet/dist/images/*.png "$OUT/images/"
 echo "$want" > "$STAMP"

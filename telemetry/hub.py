@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import asyncio
 import logging
+import time
 import weakref
 from collections.abc import Awaitable, Callable, Iterator
 from contextlib import contextmanager
@@ -18,6 +19,7 @@ from typing import Any
 from channels.db import database_sync_to_async
 
 from robots.fleet import FleetTracker
+from robots.missions import Goal
 from robots.teleop import MemoryLockStore, RedisLockStore, TeleopLocks
 from telemetry.config import RosbridgeConfig
 from telemetry.connection import Connection
@@ -25,12 +27,15 @@ from telemetry.domain import names, protocol
 from telemetry.domain.bus import SubscribeParams, TopicBus
 from telemetry.domain.calls import CallTable, PendingCall
 from telemetry.domain.encoding import Outgoing
+from telemetry.domain.events import Kind
 from telemetry.domain.limits import ByteBudget, Holdings
-from telemetry.domain.messages import pose_of, string_of, twist_2d
+from telemetry.domain.messages import pose_of, pose_stamped, string_of, twist_2d
 from telemetry.domain.protocol import Json
 from telemetry.domain.rules import Principal
 from telemetry.domain.times import complete_header_stamp
+from telemetry.events import OBSERVED, EventLog
 from telemetry.exceptions import ActionFailed, NotAllowed, RosbridgeError, ServiceFailed
+from telemetry.missions import MissionRunner
 from telemetry.params import MemoryParams, ParamStore, RedisParams
 from telemetry.relay import Relay
 from telemetry.revocation import AccessChange, RobotRecord, revoked, robot_records
@@ -95,9 +100,12 @@ class Hub:
         self.fragment_budget = ByteBudget(config.fragments_total_bytes)
         self.clients: dict[str, Client] = {}
         self.relay: Relay | None = None
+        self.events = EventLog()
+        self.missions = MissionRunner(self._send_goal, self.robots)
         self.teleop = TeleopLocks(
             MemoryLockStore(),
             stop=self.stop_robot,
+            on_event=self._teleop_event,
             ttl=config.teleop_lock_ttl,
             silence=config.teleop_silence,
         )
@@ -133,9 +141,11 @@ class Hub:
         self.clients[client.conn.key] = client
         robot = client.conn.principal.robot
         if robot is not None and client.robot_pk is not None:
-            for kind in (names.POSE, names.MAP_ID):
+            for kind in {names.MAP_ID, *OBSERVED}:
                 self._fleet_topics[names.robot_topic(robot, kind)] = (client.robot_pk, kind)
             self.fleet.connected(client.robot_pk)
+            self.events.connected(robot)
+            self.missions.ensure_running()
             if self.relay is not None:
                 self.relay.put("robots", robot, "1")
 
@@ -175,7 +185,8 @@ class Hub:
         self.fleet.disconnected(robot_pk)
         if robot in self.robots():
             return  # another connection of the same robot is still here
-        for kind in (names.POSE, names.MAP_ID):
+        self.events.disconnected(robot)
+        for kind in {names.MAP_ID, *OBSERVED}:
             self._fleet_topics.pop(names.robot_topic(robot, kind), None)
         if self.relay is not None:
             self.relay.remove("robots", robot)
@@ -280,9 +291,15 @@ class Hub:
     ) -> None:
         complete_header_stamp(msg)
         self.bus.publish(conn, name, msg, latch, size)
+        if conn.principal.robot is not None:
+            self.events.heard(conn.principal.robot)
         tracked = self._fleet_topics.get(name)
         if tracked is not None:
             self._track(tracked[0], tracked[1], msg)
+            if tracked[1] in OBSERVED:
+                self.events.observe(names.first_segment(name), tracked[1], msg)
+            if tracked[1] == names.NAV_STATUS:
+                self.missions.status(names.first_segment(name), msg)
         for tap in self.taps.get(name, ()):
             tap(msg)
 
@@ -291,8 +308,11 @@ class Hub:
             pose = pose_of(msg)
             if pose is not None:
                 self.fleet.pose(robot_pk, pose)
-        elif (map_id := string_of(msg)) is not None:
+        elif kind == names.MAP_ID and (map_id := string_of(msg)) is not None:
             self.fleet.map_id(robot_pk, map_id)
+
+    def _teleop_event(self, robot: str, kind: Kind, holder: str) -> None:
+        self.events.teleop(robot, kind, holder)
 
     async def subscribe(
         self, conn: Connection, name: str, op: protocol.Subscribe, params: SubscribeParams
@@ -333,6 +353,11 @@ class Hub:
         if not self.teleop.accepts(robot, conn.key):
             raise NotAllowed(f"{conn.principal.label} does not hold the teleop lock of {robot}")
         self.teleop.commanded(robot, moving=_moving(msg))
+
+    def _send_goal(self, goal: Goal) -> None:
+        """Send a mission's goal to its robot from the server itself."""
+        msg = dict(pose_stamped(goal.map_id, (goal.x, goal.y, goal.yaw), time.time()))
+        self.bus.publish(None, names.robot_topic(goal.robot, names.GOAL), msg)
 
     def stop_robot(self, robot: str) -> None:
         """Send ``robot`` a zero Twist from the server itself."""

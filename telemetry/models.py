@@ -1,1 +1,51 @@
-"""Telemetry keeps no rows of its own yet: the topic bus lives in memory and the channel layer."""
+"""Telemetry's rows: the events the server derives from the fleet (``telemetry.events``).
+
+The topic bus itself lives in memory and the channel layer.
+"""
+
+from __future__ import annotations
+
+from django.conf import settings
+from django.db import models
+
+from maps.models import Building
+from robots.models import Robot
+from telemetry.domain.events import Kind, Severity
+
+
+class Event(models.Model):
+    """Something that happened: when, where, to which robot, what, how bad, who caused it.
+
+    ``actor`` is ``server``, ``robot:<name>`` or ``user:<name>``; ``data`` the values behind
+    ``message``. An alert (``alert``) stays open until acknowledged. A recording carries
+    the same fields, so events can be listed and filtered the same way there.
+    """
+
+    time = models.DateTimeField(db_index=True)
+    building = models.ForeignKey(
+        Building, null=True, blank=True, on_delete=models.SET_NULL, related_name="events"
+    )
+    robot = models.ForeignKey(
+        Robot, null=True, blank=True, on_delete=models.SET_NULL, related_name="events"
+    )
+    kind = models.CharField(max_length=40, choices=[(k.value, k.value) for k in Kind])
+    severity = models.CharField(max_length=10, choices=[(s.value, s.value) for s in Severity])
+    actor = models.CharField(max_length=160, default="server")
+    message = models.CharField(max_length=500)
+    data = models.JSONField(default=dict, blank=True)
+    alert = models.BooleanField(default=False)
+    acknowledged_at = models.DateTimeField(null=True, blank=True)
+    acknowledged_by = models.ForeignKey(
+        settings.AUTH_USER_MODEL, null=True, blank=True, on_delete=models.SET_NULL, related_name="+"
+    )
+
+    class Meta:
+        ordering = ["-time", "-id"]
+        indexes = [
+            models.Index(fields=["building", "time"]),
+            models.Index(fields=["robot", "time"]),
+            models.Index(fields=["alert", "acknowledged_at"]),
+        ]
+
+    def __str__(self) -> str:
+        return f"{self.time:%Y-%m-%d %H:%M:%S} {self.kind}: {self.message}"

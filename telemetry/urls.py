@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from django.urls import URLPattern, path
 
+from telemetry import event_views as events
 from telemetry.video import views as video
 
 urlpatterns: list[URLPattern] = [
@@ -13,4 +14,7 @@ urlpatterns: list[URLPattern] = [
     path("stream_viewer", video.stream_viewer, name="video-viewer"),
     path("video/", video.camera_topics, name="video-page"),
     path("api/video/stats", video.video_stats, name="video-stats"),
+    path("api/events/", events.EventList.as_view(), name="events"),
+    path("api/events/<int:pk>/acknowledge", events.Acknowledge.as_view(), name="event-ack"),
+    path("api/alerts/open", events.OpenAlerts.as_view(), name="alerts-open"),
 ]

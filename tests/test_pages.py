@@ -161,3 +161,41 @@ def test_headings_are_shown_in_degrees_on_every_page(viewer: User, submap: SubMa
     submap_page = client.get("/buildings/boccioni_1/maps/CorridorA/").content.decode()
     assert "-180°" in submap_page
     assert "-3.14" not in submap_page
+
+
+def test_the_live_map_gives_goals_to_those_who_drive(
+    operator: User, viewer: User, building: Building
+) -> None:
+    url = "/buildings/boccioni_1/map/"
+    page = signed_in(operator).get(url).content.decode()
+    assert 'id="floor-plan"' in page
+    assert 'id="tool-goal"' in page
+    assert "vendor/leaflet.css" in page
+    assert 'id="tool-goal"' not in signed_in(viewer).get(url).content.decode()
+
+
+def test_the_live_map_rejects_outsider(outsider: User, building: Building) -> None:
+    assert signed_in(outsider).get("/buildings/boccioni_1/map/").status_code == 404
+
+
+def test_a_missing_page_is_a_styled_404_with_the_way_back(
+    operator: User, building: Building
+) -> None:
+    answer = signed_in(operator).get("/buildings/nowhere/")
+    assert answer.status_code == 404
+    page = answer.content.decode()
+    assert 'data-status="404"' in page
+    assert "Back to the fleet" in page
+    assert "app.css" in page
+
+
+def test_a_forbidden_page_is_a_styled_403(operator: User, building: Building) -> None:
+    answer = signed_in(operator).get("/buildings/boccioni_1/upload/")
+    assert answer.status_code == 403
+    assert 'data-status="403"' in answer.content.decode()
+
+
+def test_strangers_get_a_styled_404_that_offers_to_sign_in(db: None) -> None:
+    answer = Client().get("/no/such/page/")
+    assert answer.status_code == 404
+    assert "Sign in" in answer.content.decode()

@@ -48,6 +48,7 @@ from robots.agent.localisation import ParticleFilter, odometry_delta
 from robots.agent.navigation import LocalObstacles, Navigator
 from robots.agent.perception import CameraModel, TagDetection, TagDetector
 from robots.agent.relocalise import PoseEstimate
+from robots.agent.sim.battery import SimBattery
 from robots.agent.sim.body import DiffDriveBody
 from robots.agent.sim.camera import Camera, compressed_image_message, encode_jpeg
 from robots.agent.sim.laser import Laser, LaserSpec
@@ -60,6 +61,7 @@ from robots.domain.se2 import Pose, compose, inverse
 from telemetry.domain.messages import (
     Json,
     Message,
+    battery_state,
     camera_info,
     depth_image,
     goal_of,
@@ -91,6 +93,7 @@ class SimHardware:
         self.body = DiffDriveBody(world, pose, limits=limits, seed=seed)
         self.laser = Laser(world, LaserSpec(), seed=seed + 1)
         self.camera = Camera(world, CameraModel(), seed=seed + 2)
+        self.battery = SimBattery()
         self.scan_angles = self.laser.spec.angles()
 
     @property
@@ -110,6 +113,7 @@ class SimHardware:
 
     def advance(self, seconds: float) -> None:
         self.body.advance(seconds)
+        self.battery.drain(seconds, *self.body.velocity)
 
     def command(self, linear: float, angular: float) -> None:
         """Ask for a velocity; the body clamps it to its limits."""
@@ -447,6 +451,10 @@ class Robot:
             await self.publisher.publish("scan", scan)
         await self._publish_navigation(current)
         await self._publish_whereabouts()
+        if self._due(self.config.status_rate):
+            battery = self.hardware.battery
+            state = battery_state(battery.charge, battery.voltage, self.stamp)
+            await self.publisher.publish("battery", state)
         if frame is not None and self._due(self.config.camera_rate):
             await self._publish_image(frame.image)
         if frame is not None and frame.depth is not None:
@@ -518,7 +526,7 @@ def _unusable_goal(msg: Json) -> str:
 # --- declarations on the network -------------------------------------------------------
 
 PUBLISHED = (
-    "pose", "odom", "scan", "plan", "nav_status", "camera/image/compressed",
+    "pose", "odom", "scan", "plan", "nav_status", "battery", "camera/image/compressed",
     "camera/depth/image", "camera/camera_info",
 )  # fmt: skip
 

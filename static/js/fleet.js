@@ -3,9 +3,12 @@
 // for whether it knows where it is).
 
 import { api, splitMapId, urls } from "./api.js";
+import { EventsPanel } from "./events.js";
 import { ago, badge, connectFleet, el, fixed, navigationState, pageConfig, whereabouts } from "./page.js";
 
 const POLL_MS = 3000;
+// Online means heard from within this; the server's record of a connection is not enough
+// (a server that restarted still holds the poses of before).
 const LIVE_FOR_MS = 3000;
 // How a lost robot is got out, said to whoever reads the dashboard.
 const WAY_OUT = ["operator", "admin"].includes(pageConfig().role)
@@ -63,7 +66,7 @@ class FleetDashboard {
   }
 
   online(robot) {
-    return Date.now() - robot.heard < LIVE_FOR_MS || Boolean(robot.entry?.online);
+    return Boolean(robot.heard) && Date.now() - robot.heard < LIVE_FOR_MS;
   }
 
   render() {
@@ -81,9 +84,9 @@ class FleetDashboard {
     const href = `/robots/${encodeURIComponent(robot.name)}/`;
     return el("tr", { class: "clickable", dataset: { robot: robot.name }, onclick: () => { window.location.href = href; } },
       el("td", {}, el("a", { href }, el("strong", {}, robot.name))),
-      el("td", {}, badge(online ? "online" : "offline", online ? "ok" : "idle")),
+      el("td", {}, badge(online ? "online" : robot.heard ? "silent" : "offline", online ? "ok" : "idle")),
       el("td", {}, building || robot.entry?.buildings.join(", ") || "—"),
-      el("td", { class: "submap" }, map || "—"),
+      el("td", { class: "submap" }, online ? map || "—" : el("span", { class: "muted", title: "last known" }, map ? `last: ${map}` : "—")),
       el("td", { class: "localisation" }, ...this.#localisation(robot, online)),
       el("td", { class: "num speed" }, online && robot.speed !== null ? `${fixed(robot.speed)} m/s` : "—"),
       el("td", { class: "navigation" }, badge(word, kind), kind === "danger" && text ? el("div", { class: "muted small" }, text) : null),
@@ -116,6 +119,18 @@ class FleetDashboard {
 }
 
 const dashboard = new FleetDashboard(connectFleet());
+const events = new EventsPanel({
+  alerts: document.getElementById("alerts-body"),
+  alertsEmpty: document.getElementById("alerts-empty"),
+  alertsOpen: document.getElementById("alerts-open"),
+  events: document.getElementById("events-body"),
+  eventsEmpty: document.getElementById("events-empty"),
+  mayAcknowledge: ["operator", "admin"].includes(pageConfig().role),
+});
 dashboard.refresh();
-setInterval(() => dashboard.refresh(), POLL_MS);
+events.refresh();
+setInterval(() => {
+  dashboard.refresh();
+  events.refresh();
+}, POLL_MS);
 setInterval(() => dashboard.render(), 1000);

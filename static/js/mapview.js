@@ -24,19 +24,23 @@ const COLORS = {
 const DRAG_THRESHOLD_PX = 4;
 const ZOOM_STEP = 1.15;
 
-/** RGBA pixels of a grid message, top row first, for an offscreen canvas. */
-export function gridPixels(grid) {
+/**
+ * RGBA pixels of a grid message, top row first, for an offscreen canvas; unknown cells get
+ * alpha `unknownAlpha` (a floor plan of overlapping sub-maps makes them transparent).
+ */
+export function gridPixels(grid, { unknownAlpha = 255 } = {}) {
   const { width, height } = grid.info;
   const pixels = new Uint8ClampedArray(width * height * 4);
   for (let row = 0; row < height; row += 1) {
     const source = (height - 1 - row) * width;
     for (let col = 0; col < width; col += 1) {
-      const [r, g, b] = cellColor(grid.data[source + col]);
+      const value = grid.data[source + col];
+      const [r, g, b] = cellColor(value);
       const at = (row * width + col) * 4;
       pixels[at] = r;
       pixels[at + 1] = g;
       pixels[at + 2] = b;
-      pixels[at + 3] = 255;
+      pixels[at + 3] = value < 0 || value > 100 ? unknownAlpha : 255;
     }
   }
   return pixels;
@@ -64,6 +68,8 @@ export class MapView {
     this.overlay = null;
     this.tool = null;
     this.drag = null;
+    this.pointers = new Map(); // pointerId -> position, for pinches
+    this.pinch = null;
     this.follow = false;
     this.pending = null;
     new ResizeObserver(() => this.#resize()).observe(canvas);
@@ -194,7 +200,12 @@ export class MapView {
     canvas.addEventListener("pointerdown", (event) => this.#down(event));
     canvas.addEventListener("pointermove", (event) => this.#move(event));
     canvas.addEventListener("pointerup", (event) => this.#up(event));
-    canvas.addEventListener("pointercancel", () => { this.drag = null; this.redraw(); });
+    canvas.addEventListener("pointercancel", (event) => {
+      this.pointers.delete(event.pointerId);
+      this.drag = null;
+      this.pinch = null;
+      this.redraw();
+    });
     canvas.addEventListener("wheel", (event) => {
       event.preventDefault();
       const at = this.#local(event);
@@ -207,15 +218,42 @@ export class MapView {
     return { sx: event.clientX - rect.left, sy: event.clientY - rect.top };
   }
 
+  /** Two fingers: their midpoint and spread, for a pinch. */
+  #pinchState() {
+    const [a, b] = [...this.pointers.values()];
+    return { mid: { sx: (a.sx + b.sx) / 2, sy: (a.sy + b.sy) / 2 }, spread: Math.max(1, Math.hypot(a.sx - b.sx, a.sy - b.sy)) };
+  }
+
+  /** A pinch moved: zoom about the fingers' midpoint by how much they spread, pan with it. */
+  #pinchTo(now) {
+    const before = this.pinch;
+    this.zoom(now.spread / before.spread, now.mid);
+    this.view.cx -= (now.mid.sx - before.mid.sx) / this.view.scale;
+    this.view.cy += (now.mid.sy - before.mid.sy) / this.view.scale;
+    this.follow = false;
+    this.pinch = now;
+  }
+
   #down(event) {
     if (event.button !== 0) return;
     this.canvas.setPointerCapture(event.pointerId);
     const at = this.#local(event);
+    this.pointers.set(event.pointerId, at);
+    if (this.pointers.size >= 2) {
+      this.drag = null; // a second finger: a pinch, never a pose
+      this.pinch = this.#pinchState();
+      return;
+    }
     this.drag = { start: at, last: at, moved: false, world: this.toWorld(at.sx, at.sy) };
   }
 
   #move(event) {
     const at = this.#local(event);
+    if (this.pointers.has(event.pointerId)) this.pointers.set(event.pointerId, at);
+    if (this.pinch) {
+      this.#pinchTo(this.#pinchState());
+      return;
+    }
     this.onHover?.(this.toWorld(at.sx, at.sy));
     if (!this.drag) return;
     const { start, last } = this.drag;
@@ -230,6 +268,12 @@ export class MapView {
   }
 
   #up(event) {
+    this.pointers.delete(event.pointerId);
+    if (this.pinch) {
+      if (this.pointers.size < 2) this.pinch = null;
+      this.drag = null;
+      return;
+    }
     const drag = this.drag;
     this.drag = null;
     if (!drag) return;

@@ -20,10 +20,12 @@ export function connectFleet() {
   };
   connection.addEventListener("connected", () => {
     banner.hidden = true;
+    document.body.classList.remove("server-lost");
     show("Live", "ok");
   });
   connection.addEventListener("disconnected", (event) => {
     banner.hidden = false;
+    document.body.classList.add("server-lost");
     const seconds = Math.max(1, Math.round(event.detail.retryInMs / 1000));
     banner.textContent = `Connection to the fleet lost — reconnecting in ${seconds} s…`;
     show("Offline", "danger");

@@ -304,12 +304,15 @@ async function sendPose(tool, pose) {
     $("goal-text").textContent = `${mapId} · x ${fixed(pose.x)} y ${fixed(pose.y)} · ${fixed(degrees(pose.yaw), 0)}°`;
     renderGoalState("sent", "info", "");
     if (state.robotMap) topology.route(state.robotMap, mapId);
+    // The robot is on its way: show it, and the sub-maps it crosses as it enters them.
+    state.followRobotMap = true;
   } else if (tool === "initialpose") {
     connection.publish(`${ns}/initialpose`, "geometry_msgs/PoseWithCovarianceStamped", poseWithCovariance(mapId, pose));
     state.trail = [];
   }
   selectTool(null);
   drawRobotLayers();
+  if (state.followRobotMap && state.robotMap) showMap(state.robotMap);
 }
 
 function selectTool(tool, { keepHint = false } = {}) {

@@ -228,6 +228,19 @@ class DiagnosticStatus(TypedDict):
     values: list[KeyValue]
 
 
+class BatteryState(TypedDict):
+    """``sensor_msgs/BatteryState``, the fields the fleet uses (rosbridge fills no others)."""
+
+    header: Header
+    voltage: float
+    percentage: float
+    power_supply_status: int
+    present: bool
+
+
+POWER_SUPPLY_STATUS_DISCHARGING = 2
+
+
 class GoalStatus(IntEnum):
     """``actionlib_msgs/GoalStatus`` values."""
 
@@ -431,6 +444,17 @@ def status_array(entries: Iterable[StatusEntry], stamp: Stamp) -> GoalStatusArra
 def string_message(data: str) -> String:
     """``std_msgs/String``."""
     return {"data": data}
+
+
+def battery_state(percentage: float, voltage: float, stamp: Stamp) -> BatteryState:
+    """``sensor_msgs/BatteryState`` of a discharging battery; ``percentage`` is 0..1."""
+    return {
+        "header": header("", stamp),
+        "voltage": voltage,
+        "percentage": percentage,
+        "power_supply_status": POWER_SUPPLY_STATUS_DISCHARGING,
+        "present": True,
+    }
 
 
 def diagnostic_status(

@@ -33,6 +33,7 @@ ROBOT_TOPIC_TYPES = {
     "nav_status": "actionlib_msgs/GoalStatusArray",
     "map_id": "std_msgs/String",
     "localisation": "diagnostic_msgs/DiagnosticStatus",
+    "battery": "sensor_msgs/BatteryState",
     "camera/image/compressed": "sensor_msgs/CompressedImage",
     "camera/depth/image": "sensor_msgs/Image",
     "camera/camera_info": "sensor_msgs/CameraInfo",
@@ -51,6 +52,10 @@ LATCHED_TOPICS = frozenset({"map_id", "localisation"})
 CMD_VEL = "cmd_vel"
 POSE = "pose"
 MAP_ID = "map_id"
+NAV_STATUS = "nav_status"
+LOCALISATION = "localisation"
+BATTERY = "battery"
+GOAL = "goal"
 
 
 def absolute(name: str, namespace: str = "") -> str:

@@ -1,0 +1,286 @@
+"""What happened to the fleet, derived in memory from what robots publish and the server does.
+
+An ``EventDraft`` is one occurrence: when, which robot, what kind, how severe, who caused it
+(``actor``: ``server``, ``robot:<name>``, ``user:<name>``), a sentence for people and the
+data behind it. The same record is what the database keeps (``telemetry.models.Event``) and
+what a recording will carry, so its fields are plain values. Some kinds are alerts: they
+stay open until someone acknowledges them.
+
+``EventDeriver`` turns observations into drafts. It is called on the relay's hot path
+(each pose, each status), so every observation is a few dictionary operations and no I/O;
+``tick`` finds what only the passing of time reveals (a silent robot, a stuck one).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from enum import StrEnum
+from typing import Any
+
+
+class Kind(StrEnum):
+    CONNECTED = "robot_connected"
+    DISCONNECTED = "robot_disconnected"
+    SILENT = "robot_silent"
+    GOAL_ABORTED = "goal_aborted"
+    STUCK = "robot_stuck"
+    LOST = "robot_lost"
+    DEADMAN_STOP = "deadman_stop"
+    TELEOP_LAPSED = "teleop_lapsed"
+    BATTERY_LOW = "battery_low"
+
+
+class Severity(StrEnum):
+    INFO = "info"
+    WARNING = "warning"
+    ERROR = "error"
+
+
+# Kinds someone must acknowledge.
+ALERTS = frozenset(
+    {
+        Kind.DISCONNECTED,
+        Kind.SILENT,
+        Kind.GOAL_ABORTED,
+        Kind.STUCK,
+        Kind.LOST,
+        Kind.BATTERY_LOW,
+    }
+)
+# A connected robot that published nothing for this long has gone silent.
+SILENT_AFTER_S = 5.0
+# A robot with an active goal that moved less than STUCK_METRES in STUCK_AFTER_S is stuck.
+STUCK_AFTER_S = 30.0
+STUCK_METRES = 0.25
+# Battery fraction under which an alert is raised, and over which it may be raised again.
+BATTERY_LOW = 0.2
+BATTERY_RECOVERED = 0.3
+# actionlib_msgs/GoalStatus codes.
+_ACTIVE = 1
+_FAILED = {4: "aborted", 5: "rejected", 9: "lost"}
+
+
+@dataclass(frozen=True)
+class EventDraft:
+    """One event, before it is stored: ``time`` in seconds since the epoch."""
+
+    time: float
+    kind: Kind
+    severity: Severity
+    robot: str | None
+    message: str
+    actor: str = "server"
+    building: str | None = None
+    data: Mapping[str, Any] = field(default_factory=dict)
+
+    @property
+    def alert(self) -> bool:
+        return self.kind in ALERTS
+
+
+@dataclass
+class _Watch:
+    """What the deriver remembers of one robot."""
+
+    building: str | None = None
+    connected: bool = False
+    heard: float = 0.0
+    silent: bool = False
+    status_key: tuple[str, int] | None = None
+    goal_active: bool = False
+    anchor: tuple[float, float, float] | None = None  # x, y, time of the last real move
+    stuck: bool = False
+    localisation: str = ""
+    battery_low: bool = False
+    at: tuple[float, float] | None = None
+
+
+class EventDeriver:
+    """Observations in, ``EventDraft`` lists out; keeps only the last state of each robot."""
+
+    def __init__(self) -> None:
+        self._watches: dict[str, _Watch] = {}
+
+    def _watch(self, robot: str, now: float) -> _Watch:
+        watch = self._watches.get(robot)
+        if watch is None:
+            watch = self._watches[robot] = _Watch()
+        watch.heard = now
+        return watch
+
+    def _draft(
+        self,
+        watch: _Watch,
+        now: float,
+        kind: Kind,
+        severity: Severity,
+        robot: str,
+        message: str,
+        **data: Any,
+    ) -> EventDraft:
+        return EventDraft(
+            now, kind, severity, robot, message, f"robot:{robot}", watch.building, data
+        )
+
+    def watching(self) -> bool:
+        """True while a robot is watched (``tick`` has something to look at)."""
+        return bool(self._watches)
+
+    def connected(self, robot: str, now: float) -> list[EventDraft]:
+        watch = self._watch(robot, now)
+        watch.connected, watch.silent = True, False
+        return [self._draft(watch, now, Kind.CONNECTED, Severity.INFO, robot, f"{robot} connected")]
+
+    def disconnected(self, robot: str, now: float) -> list[EventDraft]:
+        watch = self._watch(robot, now)
+        watch.connected = False
+        watch.goal_active = False
+        return [
+            self._draft(
+                watch, now, Kind.DISCONNECTED, Severity.WARNING, robot, f"{robot} disconnected"
+            )
+        ]
+
+    def pose(self, robot: str, map_id: str, x: float, y: float, now: float) -> list[EventDraft]:
+        watch = self._watch(robot, now)
+        watch.silent = False
+        if "/" in map_id:
+            watch.building = map_id.split("/", 1)[0]
+        watch.at = (x, y)
+        anchor = watch.anchor
+        if anchor is None or math.hypot(x - anchor[0], y - anchor[1]) >= STUCK_METRES:
+            watch.anchor, watch.stuck = (x, y, now), False
+        return []
+
+    def heard(self, robot: str, now: float) -> None:
+        self._watch(robot, now).silent = False
+
+    def nav_status(self, robot: str, msg: Mapping[str, Any], now: float) -> list[EventDraft]:
+        """A GoalStatusArray: an aborted, rejected or lost goal once, with its reason."""
+        watch = self._watch(robot, now)
+        statuses = msg.get("status_list") or []
+        latest = statuses[-1] if statuses else None
+        if not isinstance(latest, Mapping):
+            watch.goal_active = False
+            return []
+        code = int(latest.get("status") or 0)
+        goal_id = str((latest.get("goal_id") or {}).get("id", ""))
+        was_active, watch.goal_active = watch.goal_active, code == _ACTIVE
+        if watch.goal_active and not was_active and watch.at is not None:
+            watch.anchor, watch.stuck = (*watch.at, now), False
+        key = (goal_id, code)
+        if code not in _FAILED or key == watch.status_key:
+            watch.status_key = key
+            return []
+        watch.status_key = key
+        reason = str(latest.get("text") or "no reason given")
+        return [
+            self._draft(
+                watch,
+                now,
+                Kind.GOAL_ABORTED,
+                Severity.ERROR,
+                robot,
+                f"{robot}: goal {_FAILED[code]}: {reason}",
+                goal=goal_id,
+                status=_FAILED[code],
+                reason=reason,
+            )
+        ]
+
+    def localisation(self, robot: str, msg: Mapping[str, Any], now: float) -> list[EventDraft]:
+        """A DiagnosticStatus whose ``state`` value says lost, entering or localised."""
+        watch = self._watch(robot, now)
+        values = {
+            v.get("key"): v.get("value") for v in msg.get("values") or [] if isinstance(v, Mapping)
+        }
+        state = str(values.get("state") or "")
+        before, watch.localisation = watch.localisation, state
+        if state != "lost" or before == "lost":
+            return []
+        return [
+            self._draft(
+                watch,
+                now,
+                Kind.LOST,
+                Severity.WARNING,
+                robot,
+                f"{robot} is lost: {msg.get('message') or 'looking for a tag'}",
+                detail=str(msg.get("message") or ""),
+            )
+        ]
+
+    def battery(self, robot: str, msg: Mapping[str, Any], now: float) -> list[EventDraft]:
+        """A BatteryState: an alert when ``percentage`` (0..1) falls under BATTERY_LOW."""
+        watch = self._watch(robot, now)
+        level = msg.get("percentage")
+        if not isinstance(level, int | float) or not math.isfinite(level):
+            return []
+        if level >= BATTERY_RECOVERED:
+            watch.battery_low = False
+        if level >= BATTERY_LOW or watch.battery_low:
+            return []
+        watch.battery_low = True
+        return [
+            self._draft(
+                watch,
+                now,
+                Kind.BATTERY_LOW,
+                Severity.WARNING,
+                robot,
+                f"{robot}: battery at {round(level * 100)} %",
+                percentage=float(level),
+            )
+        ]
+
+    def teleop(self, robot: str, kind: Kind, holder: str, now: float) -> list[EventDraft]:
+        """A dead-man stop or a lapsed teleop lock, caused by ``holder`` (its label)."""
+        watch = self._watch(robot, now)
+        text = {
+            Kind.DEADMAN_STOP: f"{robot} stopped: no command from {holder} for half a second",
+            Kind.TELEOP_LAPSED: f"{holder}'s teleop lock of {robot} lapsed",
+        }[kind]
+        severity = Severity.WARNING if kind is Kind.DEADMAN_STOP else Severity.INFO
+        return [
+            EventDraft(now, kind, severity, robot, text, holder, watch.building, {"holder": holder})
+        ]
+
+    def tick(self, now: float) -> list[EventDraft]:
+        """Events only time reveals: robots gone silent, robots stuck on their way."""
+        drafts: list[EventDraft] = []
+        for robot, watch in list(self._watches.items()):
+            if not watch.connected:
+                del self._watches[robot]
+                continue
+            if not watch.silent and now - watch.heard > SILENT_AFTER_S:
+                watch.silent = True
+                drafts.append(
+                    self._draft(
+                        watch,
+                        now,
+                        Kind.SILENT,
+                        Severity.WARNING,
+                        robot,
+                        f"{robot} has published nothing for {round(now - watch.heard)} s",
+                        seconds=round(now - watch.heard, 1),
+                    )
+                )
+            anchor = watch.anchor
+            if watch.goal_active and not watch.stuck and anchor and now - anchor[2] > STUCK_AFTER_S:
+                watch.stuck = True
+                drafts.append(
+                    self._draft(
+                        watch,
+                        now,
+                        Kind.STUCK,
+                        Severity.WARNING,
+                        robot,
+                        f"{robot} has a goal but moved less than {STUCK_METRES} m in "
+                        f"{round(now - anchor[2])} s",
+                        x=anchor[0],
+                        y=anchor[1],
+                    )
+                )
+        return drafts

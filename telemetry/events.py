@@ -1,0 +1,136 @@
+"""The event log of one server process: derives events in memory (``EventDeriver``) as the
+hub relays robots' messages and writes them in batches off the relay's path.
+
+The hub calls ``connected``, ``disconnected``, ``heard``, ``observe`` and ``teleop``: each
+touches only memory. ``run`` ticks the deriver (silent and stuck robots) and writes what
+was derived every ``interval`` seconds, one ``bulk_create`` per batch; it runs while a
+robot is watched or events wait, and is restarted by the next observation.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import time
+from collections.abc import Callable, Mapping
+from datetime import UTC, datetime
+from typing import Any
+
+from channels.db import database_sync_to_async
+
+from maps.models import Building
+from robots.models import Robot
+from telemetry.domain import names
+from telemetry.domain.events import EventDeriver, EventDraft, Kind
+from telemetry.domain.messages import pose_of
+
+from .models import Event
+
+logger = logging.getLogger(__name__)
+
+# Topic kinds (relative to a robot's namespace) whose messages events are derived from.
+OBSERVED = (names.POSE, names.NAV_STATUS, names.LOCALISATION, names.BATTERY)
+
+
+class EventLog:
+    """Events of the robots connected to this process, written in the background."""
+
+    def __init__(self, interval: float = 1.0, clock: Callable[[], float] = time.time) -> None:
+        self.interval = interval
+        self.clock = clock
+        self.deriver = EventDeriver()
+        self._pending: list[EventDraft] = []
+        self._task: asyncio.Task[None] | None = None
+
+    def connected(self, robot: str) -> None:
+        self._add(self.deriver.connected(robot, self.clock()))
+
+    def disconnected(self, robot: str) -> None:
+        self._add(self.deriver.disconnected(robot, self.clock()))
+
+    def heard(self, robot: str) -> None:
+        self.deriver.heard(robot, self.clock())
+
+    def observe(self, robot: str, kind: str, msg: Mapping[str, Any]) -> None:
+        """A message on one of ``robot``'s OBSERVED topics."""
+        now = self.clock()
+        if kind == names.POSE:
+            pose = pose_of(msg)
+            if pose is not None:
+                self.deriver.pose(robot, pose.map_id, pose.x, pose.y, now)
+        elif kind == names.NAV_STATUS:
+            self._add(self.deriver.nav_status(robot, msg, now))
+        elif kind == names.LOCALISATION:
+            self._add(self.deriver.localisation(robot, msg, now))
+        elif kind == names.BATTERY:
+            self._add(self.deriver.battery(robot, msg, now))
+
+    def teleop(self, robot: str, kind: Kind, holder: str) -> None:
+        self._add(self.deriver.teleop(robot, kind, holder, self.clock()))
+
+    def _add(self, drafts: list[EventDraft]) -> None:
+        self._pending.extend(drafts)
+        if self._task is None or self._task.done():
+            self._task = asyncio.get_running_loop().create_task(self.run())
+
+    async def run(self) -> None:
+        """Tick and write until nothing is watched and nothing waits."""
+        while True:
+            await asyncio.sleep(self.interval)
+            self._pending.extend(self.deriver.tick(self.clock()))
+            await self.flush()
+            if not self._pending and not self.deriver.watching():
+                return
+
+    async def flush(self) -> None:
+        batch, self._pending = self._pending, []
+        if not batch:
+            return
+        try:
+            await database_sync_to_async(write_events)(batch)
+        except Exception:
+            logger.exception("writing %d events failed; they are kept for the next try", len(batch))
+            self._pending[:0] = batch
+
+    async def close(self) -> None:
+        """Write what waits (a process shutting down)."""
+        if self._task is not None:
+            self._task.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await self._task
+        await self.flush()
+
+
+def write_events(batch: list[EventDraft]) -> list[Event]:
+    """Store ``batch``: two lookups (robots with their buildings, buildings by code) and one
+    insert. An event's building is the one its robot was last seen in, else the robot's
+    first building."""
+    robots = {
+        r.name: r
+        for r in Robot.objects.filter(
+            name__in={d.robot for d in batch if d.robot}
+        ).prefetch_related("buildings")
+    }
+    codes = {d.building for d in batch if d.building}
+    buildings = {b.code: b for b in Building.objects.filter(code__in=codes)}
+    rows = []
+    for draft in batch:
+        robot = robots.get(draft.robot or "")
+        building = buildings.get(draft.building or "")
+        if building is None and robot is not None:
+            building = next(iter(robot.buildings.all()), None)
+        rows.append(
+            Event(
+                time=datetime.fromtimestamp(draft.time, UTC),
+                building=building,
+                robot=robot,
+                kind=draft.kind.value,
+                severity=draft.severity.value,
+                actor=draft.actor,
+                message=draft.message[:500],
+                data=dict(draft.data),
+                alert=draft.alert,
+            )
+        )
+    return Event.objects.bulk_create(rows)

@@ -1,0 +1,84 @@
+"""Runs the missions of the robots this process serves: sends each goal, and moves on when
+the robot reports it reached it.
+
+What robots report is read on the relay's path in memory (``status``); once a tick the
+runner records the outcomes and collects the goals due in one database call, off the loop.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import time
+from collections.abc import Callable, Mapping
+from typing import Any
+
+from channels.db import database_sync_to_async
+
+from robots import missions
+from robots.missions import Goal
+
+logger = logging.getLogger(__name__)
+
+# After a goal is sent, the statuses of the goal before it are not its outcome.
+GRACE_S = 1.5
+# actionlib_msgs/GoalStatus codes.
+SUCCEEDED = 3
+FAILED = {4: "aborted", 5: "rejected", 9: "lost"}
+
+
+class MissionRunner:
+    def __init__(
+        self,
+        send: Callable[[Goal], None],
+        robots: Callable[[], set[str]],
+        interval: float = 1.0,
+        clock: Callable[[], float] = time.monotonic,
+    ) -> None:
+        self.send = send
+        self.robots = robots
+        self.interval = interval
+        self.clock = clock
+        self._sent: dict[str, tuple[int, float]] = {}  # robot -> (mission, when sent)
+        self._outcomes: dict[int, str] = {}
+        self._task: asyncio.Task[None] | None = None
+
+    def status(self, robot: str, msg: Mapping[str, Any]) -> None:
+        """A robot's GoalStatusArray: the outcome of the mission goal it was sent, if over."""
+        sent = self._sent.get(robot)
+        statuses = msg.get("status_list") or []
+        if sent is None or not statuses or self.clock() - sent[1] < GRACE_S:
+            return
+        latest = statuses[-1]
+        code = latest.get("status") if isinstance(latest, Mapping) else None
+        if code == SUCCEEDED:
+            self._outcomes[sent[0]] = missions.REACHED
+        elif code in FAILED:
+            self._outcomes[sent[0]] = f"goal {FAILED[code]}: {latest.get('text') or 'no reason'}"
+        else:
+            return
+        del self._sent[robot]
+
+    def ensure_running(self) -> None:
+        if self._task is None or self._task.done():
+            self._task = asyncio.get_running_loop().create_task(self.run())
+
+    async def run(self) -> None:
+        """Tick while this process serves robots."""
+        while self.robots():
+            await asyncio.sleep(self.interval)
+            outcomes, self._outcomes = self._outcomes, {}
+            try:
+                goals = await database_sync_to_async(_tick)(self.robots(), outcomes)
+            except Exception:
+                logger.exception("the mission tick failed; its outcomes are kept for the next")
+                self._outcomes = {**outcomes, **self._outcomes}
+                continue
+            for goal in goals:
+                self._sent[goal.robot] = (goal.mission, self.clock())
+                self.send(goal)
+
+
+def _tick(robots: set[str], outcomes: dict[int, str]) -> list[Goal]:
+    missions.record_outcomes(outcomes)
+    return missions.goals_due(robots)

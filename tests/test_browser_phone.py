@@ -1,0 +1,117 @@
+"""Every page at a phone's width (390 x 844): nothing wider than the screen, STOP always
+within reach on a robot's page, and the map zooms with two fingers."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+import pytest
+from playwright.sync_api import Browser, BrowserContext, Page, expect
+
+from tests.browser_support import BUILDING, ROBOT, Demo, screenshot
+
+pytest_plugins = ["tests.browser_support"]
+pytestmark = [pytest.mark.browser, pytest.mark.django_db(transaction=True)]
+
+PHONE = {"width": 390, "height": 844}
+PAGES = [
+    ("operator", "/"),
+    ("operator", "/buildings/"),
+    ("operator", f"/buildings/{BUILDING}/"),
+    ("operator", f"/buildings/{BUILDING}/map/"),
+    ("operator", f"/buildings/{BUILDING}/maps/CorridorA/"),
+    ("operator", f"/robots/{ROBOT}/"),
+    ("admin", "/robots/"),
+    ("admin", f"/buildings/{BUILDING}/upload/"),
+]
+
+
+def open_as(context: BrowserContext, demo: Demo, username: str, path: str) -> Page:
+    """As ``browser_support.open_as``, but ready once the document is: a robot page with no
+    robot keeps loading its camera stream."""
+    name, value = demo.cookies[username]
+    context.add_cookies([{"name": name, "value": value, "url": demo.server.url}])
+    page = context.new_page()
+    page.goto(demo.url(path), wait_until="domcontentloaded")
+    return page
+
+
+def pinch(page: Page, selector: str) -> None:
+    """Two fingers spreading apart on ``selector``, as a touch screen reports them."""
+    box = page.locator(selector).bounding_box()
+    assert box is not None
+    cx, cy = box["x"] + box["width"] / 2, box["y"] + box["height"] / 2
+    cdp = page.context.new_cdp_session(page)
+
+    def touch(kind: str, spread: float) -> None:
+        points = [{"x": cx - spread, "y": cy, "id": 1}, {"x": cx + spread, "y": cy, "id": 2}]
+        cdp.send("Input.dispatchTouchEvent", {"type": kind, "touchPoints": points})
+
+    touch("touchStart", 20)
+    for step in range(1, 8):
+        touch("touchMove", 20 + 10 * step)
+    cdp.send("Input.dispatchTouchEvent", {"type": "touchEnd", "touchPoints": []})
+
+
+@pytest.fixture
+def phone(browser: Browser) -> Iterator[BrowserContext]:
+    opened = browser.new_context(viewport=PHONE, has_touch=True)  # type: ignore[arg-type]
+    opened.set_default_timeout(15_000)
+    yield opened
+    opened.close()
+
+
+def test_no_page_is_wider_than_a_phone(phone: BrowserContext, demo: Demo) -> None:
+    wide = {}
+    for user, path in PAGES:
+        page = open_as(phone, demo, user, path)
+        page.wait_for_timeout(1500)  # the page's script fills it in
+        width = page.evaluate("document.documentElement.scrollWidth")
+        if width > PHONE["width"]:
+            wide[path] = width
+        screenshot(page, "phone" + path.replace("/", "-").rstrip("-"))
+        page.close()
+    assert wide == {}
+
+
+def test_stop_is_always_within_reach_and_the_map_pinch_zooms(
+    phone: BrowserContext, demo: Demo
+) -> None:
+    page = open_as(phone, demo, "operator", f"/robots/{ROBOT}/")
+    stop = page.locator("#stop-button")
+    expect(stop).to_be_in_viewport()
+    page.evaluate("window.scrollTo(0, document.body.scrollHeight)")
+    expect(stop).to_be_in_viewport()
+    page.evaluate("window.scrollTo(0, 0)")
+    before = page.evaluate("window.cloudnav.robotPage.view.view.scale")
+    pinch(page, "#map-canvas")
+    after = page.evaluate("window.cloudnav.robotPage.view.view.scale")
+    assert after > 2 * before
+
+
+def test_the_touch_joystick_drives_once_the_operator_holds_control(
+    phone: BrowserContext, demo: Demo
+) -> None:
+    page = open_as(phone, demo, "operator", f"/robots/{ROBOT}/")
+    expect(page.locator("#conn-state")).to_contain_text("Live")
+    page.click("#lock-acquire")
+    expect(page.locator("#lock-state")).to_have_text("You are driving")
+    pad = page.locator("#joystick")
+    pad.scroll_into_view_if_needed()
+    box = pad.bounding_box()
+    assert box is not None
+    cx, cy = box["x"] + box["width"] / 2, box["y"] + box["height"] / 2
+    cdp = page.context.new_cdp_session(page)
+    start = {"x": cx, "y": cy, "id": 1}
+    cdp.send("Input.dispatchTouchEvent", {"type": "touchStart", "touchPoints": [start]})
+    for step in range(1, 6):
+        point = {"x": cx, "y": cy - step * box["height"] / 10, "id": 1}
+        cdp.send("Input.dispatchTouchEvent", {"type": "touchMove", "touchPoints": [point]})
+        page.wait_for_timeout(50)  # a finger moves over frames
+    page.wait_for_function("window.cloudnav.robotPage.teleop.stick.y < -0.8")
+    stick = page.evaluate("window.cloudnav.robotPage.teleop.stick")
+    assert stick["y"] < -0.8  # pushed forward (up the screen)
+    assert abs(stick["x"]) < 0.2
+    cdp.send("Input.dispatchTouchEvent", {"type": "touchEnd", "touchPoints": []})
+    expect(page.locator("#stop-button")).to_be_in_viewport()
+    page.wait_for_function("window.cloudnav.robotPage.teleop.stick.y === 0")

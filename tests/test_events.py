@@ -1,0 +1,117 @@
+"""Events derived in memory from what robots publish and what the server does."""
+
+from __future__ import annotations
+
+from telemetry.domain.events import (
+    BATTERY_LOW,
+    SILENT_AFTER_S,
+    STUCK_AFTER_S,
+    EventDeriver,
+    Kind,
+    Severity,
+)
+
+
+def status(code: int, goal: str = "g1", text: str = "") -> dict:
+    return {"status_list": [{"goal_id": {"id": goal}, "status": code, "text": text}]}
+
+
+def localisation(state: str) -> dict:
+    return {"message": f"{state} now", "values": [{"key": "state", "value": state}]}
+
+
+def kinds(drafts: list) -> list[str]:
+    return [d.kind for d in drafts]
+
+
+def test_a_robot_connecting_is_news_and_leaving_is_an_alert() -> None:
+    deriver = EventDeriver()
+    [came] = deriver.connected("r1", 10.0)
+    [left] = deriver.disconnected("r1", 20.0)
+    assert (came.kind, came.alert, came.actor) == (Kind.CONNECTED, False, "robot:r1")
+    assert (left.kind, left.alert, left.time) == (Kind.DISCONNECTED, True, 20.0)
+
+
+def test_an_aborted_goal_is_an_alert_once_with_its_reason() -> None:
+    deriver = EventDeriver()
+    deriver.connected("r1", 0.0)
+    assert deriver.nav_status("r1", status(1), 1.0) == []
+    [aborted] = deriver.nav_status("r1", status(4, text="no path to the goal"), 2.0)
+    assert aborted.kind == Kind.GOAL_ABORTED
+    assert aborted.severity == Severity.ERROR
+    assert aborted.data["reason"] == "no path to the goal"
+    assert "no path to the goal" in aborted.message
+    assert deriver.nav_status("r1", status(4, text="no path to the goal"), 3.0) == []
+    assert kinds(deriver.nav_status("r1", status(5, goal="g2"), 4.0)) == [Kind.GOAL_ABORTED]
+
+
+def test_a_robot_getting_lost_is_an_alert_on_the_change_only() -> None:
+    deriver = EventDeriver()
+    assert kinds(deriver.localisation("r1", localisation("lost"), 1.0)) == [Kind.LOST]
+    assert deriver.localisation("r1", localisation("lost"), 2.0) == []
+    assert deriver.localisation("r1", localisation("localised"), 3.0) == []
+    assert kinds(deriver.localisation("r1", localisation("lost"), 4.0)) == [Kind.LOST]
+
+
+def test_a_low_battery_is_told_once_until_it_recovers() -> None:
+    deriver = EventDeriver()
+    assert deriver.battery("r1", {"percentage": 0.5}, 1.0) == []
+    [low] = deriver.battery("r1", {"percentage": BATTERY_LOW - 0.01}, 2.0)
+    assert low.kind == Kind.BATTERY_LOW
+    assert low.alert
+    assert deriver.battery("r1", {"percentage": 0.1}, 3.0) == []
+    assert deriver.battery("r1", {"percentage": 0.9}, 4.0) == []
+    assert kinds(deriver.battery("r1", {"percentage": 0.1}, 5.0)) == [Kind.BATTERY_LOW]
+    assert deriver.battery("r1", {"percentage": None}, 6.0) == []
+
+
+def test_a_connected_robot_that_says_nothing_goes_silent_once() -> None:
+    deriver = EventDeriver()
+    deriver.connected("r1", 0.0)
+    assert deriver.tick(SILENT_AFTER_S - 1) == []
+    assert kinds(deriver.tick(SILENT_AFTER_S + 1)) == [Kind.SILENT]
+    assert deriver.tick(SILENT_AFTER_S + 2) == []
+    deriver.heard("r1", SILENT_AFTER_S + 3)
+    assert deriver.tick(SILENT_AFTER_S + 4) == []
+
+
+def test_a_robot_with_a_goal_that_does_not_move_is_stuck() -> None:
+    deriver = EventDeriver()
+    deriver.connected("r1", 0.0)
+    deriver.pose("r1", "b/A", 1.0, 1.0, 0.0)
+    deriver.nav_status("r1", status(1), 0.0)
+    for t in range(1, int(STUCK_AFTER_S) + 5):
+        deriver.pose("r1", "b/A", 1.0 + 0.001 * t, 1.0, float(t))
+        drafts = deriver.tick(float(t))
+        if drafts:
+            break
+    assert kinds(drafts) == [Kind.STUCK]
+    assert drafts[0].building == "b"
+    assert deriver.tick(float(t) + 1) == []
+
+
+def test_a_moving_robot_or_one_without_a_goal_is_not_stuck() -> None:
+    deriver = EventDeriver()
+    deriver.connected("r1", 0.0)
+    deriver.nav_status("r1", status(1), 0.0)
+    for t in range(1, int(STUCK_AFTER_S) * 2):
+        deriver.pose("r1", "b/A", 0.1 * t, 0.0, float(t))
+        assert deriver.tick(float(t)) == []
+    deriver.nav_status("r1", status(3), 100.0)
+    for t in range(100, 100 + int(STUCK_AFTER_S) * 2):
+        deriver.pose("r1", "b/A", 0.0, 0.0, float(t))
+        assert deriver.tick(float(t)) == []
+
+
+def test_a_dead_man_stop_names_whoever_was_driving() -> None:
+    [stop] = EventDeriver().teleop("r1", Kind.DEADMAN_STOP, "user:operator", 1.0)
+    assert (stop.actor, stop.severity, stop.alert) == ("user:operator", Severity.WARNING, False)
+    assert "user:operator" in stop.message
+
+
+def test_a_robot_that_left_is_forgotten() -> None:
+    deriver = EventDeriver()
+    deriver.connected("r1", 0.0)
+    deriver.disconnected("r1", 1.0)
+    assert deriver.tick(100.0) == []
+    assert not deriver.watching()
