@@ -29,3 +29,6 @@ if DATABASES["default"]["ENGINE"] == "django.db.backends.sqlite3":
 if not env_bool("CLOUDNAV_LIVE_SERVER", False):
     REDIS_URL = ""
     CHANNEL_LAYERS = {"default": {"BACKEND": "channels.layers.InMemoryChannelLayer"}}
+
+# Servers under test record only when a test gives them a directory of its own.
+CLOUDNAV_RECORDING = bool(os.environ.get("CLOUDNAV_RECORDING_DIR"))

@@ -1,9 +1,10 @@
-"""HTTP routes of telemetry: video relays and statistics (added as they are built)."""
+"""HTTP routes of telemetry: video relays and statistics, recordings (added as they are built)."""
 
 from __future__ import annotations
 
 from django.urls import URLPattern, path
 
+from telemetry.recording import views as recording
 from telemetry.video import views as video
 
 urlpatterns: list[URLPattern] = [
@@ -13,4 +14,24 @@ urlpatterns: list[URLPattern] = [
     path("stream_viewer", video.stream_viewer, name="video-viewer"),
     path("video/", video.camera_topics, name="video-page"),
     path("api/video/stats", video.video_stats, name="video-stats"),
+    path(
+        "api/robots/<slug:name>/recording.mcap",
+        recording.RobotRecording.as_view(),
+        name="robot-recording",
+    ),
+    path(
+        "api/buildings/<slug:code>/recording.mcap",
+        recording.BuildingRecording.as_view(),
+        name="building-recording",
+    ),
+    path(
+        "api/robots/<slug:name>/recording.bag",
+        recording.RobotRecording.as_view(kind="bag"),
+        name="robot-recording-bag",
+    ),
+    path(
+        "api/buildings/<slug:code>/recording.bag",
+        recording.BuildingRecording.as_view(kind="bag"),
+        name="building-recording-bag",
+    ),
 ]
