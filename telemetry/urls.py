@@ -25,6 +25,11 @@ urlpatterns: list[URLPattern] = [
         name="building-recording",
     ),
     path(
+        "api/robots/<slug:name>/recording.json",
+        recording.RobotReplay.as_view(),
+        name="robot-replay",
+    ),
+    path(
         "api/robots/<slug:name>/recording.bag",
         recording.RobotRecording.as_view(kind="bag"),
         name="robot-recording-bag",

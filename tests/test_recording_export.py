@@ -139,3 +139,22 @@ def test_a_huge_range_is_streamed_in_pieces(tmp_path, monkeypatch):
     sizes = [len(p) for p in pieces]
     assert len(sizes) > 1
     assert max(sizes) < 2 * export.EXPORT_CHUNK_BYTES
+
+
+def test_the_replay_window_is_rosbridge_json_with_its_span(recordings, viewer):
+    url = "/api/robots/r1/recording.json?start=1010&end=1016&topics=pose&limit=3"
+    body = client_for(viewer).get(url).json()
+    assert body["span"][0] == 1000.0
+    assert [m["t"] for m in body["messages"]] == [1010.0, 1012.0, 1014.0]
+    assert body["messages"][0]["topic"] == "/r1/pose"
+    assert body["messages"][0]["msg"]["pose"]["position"]["x"] == 1010.0
+    assert body["messages"][0]["msg"]["header"]["frame_id"] == "b/Hall"
+    assert body["more"] is True
+    assert body["next"] == 1016.0
+    assert (
+        client_for(viewer).get(url.replace("topics=pose", "topics=scan")).json()["messages"] == []
+    )
+
+
+def test_the_replay_window_rejects_outsider(recordings, outsider):
+    assert client_for(outsider).get("/api/robots/r1/recording.json").status_code == 404

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import base64
 import binascii
+import math
 from collections.abc import Callable, Mapping
 from functools import cache
 from typing import Any
@@ -96,6 +97,25 @@ def encode(type_name: str, msg: Mapping[str, Any]) -> bytes:
 def decode(type_name: str, data: bytes) -> Any:
     """The rosbags object of ROS 1 bytes ``data`` (for tests and tools)."""
     return _store().deserialize_ros1(data, store_name(type_name))
+
+
+def to_json(obj: Any) -> Any:
+    """A rosbags message object as rosbridge JSON (times ``sec/nanosec``, ``uint8[]`` as
+    base64 text, NaN and infinity as ``null``), for pages replaying a recording."""
+    if isinstance(obj, np.ndarray):
+        if obj.dtype == np.uint8:
+            return base64.b64encode(obj.tobytes()).decode()
+        if obj.dtype.kind == "f":
+            return [v if math.isfinite(v) else None for v in obj.tolist()]
+        return obj.tolist()
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, list):
+        return [to_json(v) for v in obj]
+    fields = getattr(obj, "__dataclass_fields__", None)
+    if fields is None:
+        return obj
+    return {name: to_json(getattr(obj, name)) for name in fields if name != "__msgtype__"}
 
 
 Builder = Callable[[Any], Any]

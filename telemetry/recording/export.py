@@ -92,3 +92,28 @@ def bag_stream(source: Iterable[files.Record], scratch: Path) -> Iterator[bytes]
                 yield piece
     finally:
         path.unlink(missing_ok=True)
+
+
+def json_window(
+    source: Iterable[files.Record], topics: set[str] | None, limit: int
+) -> dict[str, Any]:
+    """At most ``limit`` messages of ``source`` (of ``topics``' suffixes when given) as
+    rosbridge JSON for a page replaying the recording; ``more`` says the window was cut."""
+    messages: list[dict[str, Any]] = []
+    for record in source:
+        suffix = record.topic.split("/", 2)[-1]
+        if topics is not None and suffix not in topics:
+            continue
+        if len(messages) >= limit:
+            return {"messages": messages, "more": True, "next": record.log_time / 1e9}
+        msg = ros1.to_json(ros1.decode(record.type_name, record.data))
+        messages.append({"t": record.log_time / 1e9, "topic": record.topic, "msg": msg})
+    return {"messages": messages, "more": False, "next": None}
+
+
+def span(root: Path, robot: str) -> tuple[float, float] | None:
+    """The first and last times (seconds) the robot's files may hold, None without files."""
+    found = files.files_of(root, robot)
+    if not found:
+        return None
+    return found[0].start_ns / 1e9, found[-1].last_ns / 1e9

@@ -18,6 +18,7 @@ from drf_spectacular.types import OpenApiTypes
 from drf_spectacular.utils import OpenApiParameter, extend_schema
 from rest_framework import serializers
 from rest_framework.request import Request
+from rest_framework.response import Response
 from rest_framework.views import APIView
 
 from maps.access import buildings_for
@@ -95,10 +96,46 @@ class RobotRecording(APIView):
     @extend_schema(parameters=RANGE, responses={(200, "application/mcap"): OpenApiTypes.BINARY})
     def get(self, request: Request, name: str) -> StreamingHttpResponse:
         start, end = time_range(request.query_params)
-        visible = Robot.objects.filter(name=name, buildings__in=buildings_for(request.user))
-        if not visible.exists():
-            raise Http404("No such robot.")
+        visible_robot(request, name)
         return recording_response([name], start, end, name, self.kind)
+
+
+REPLAY_LIMIT = 5000
+
+
+def visible_robot(request: Request, name: str) -> None:
+    """Raise Http404 unless the requester may see robot ``name``."""
+    visible = Robot.objects.filter(name=name, buildings__in=buildings_for(request.user))
+    if not visible.exists():
+        raise Http404("No such robot.")
+
+
+class RobotReplay(APIView):
+    """A window of a robot's recording as rosbridge JSON for the robot page's replay:
+    ``{"span": [first, last] | null, "messages": [{"t", "topic", "msg"}], "more", "next"}``
+    (times in Unix seconds); ``topics`` (comma separated, relative to the robot) narrows
+    it, and at most ``limit`` messages come back (``next`` is where to ask again)."""
+
+    @extend_schema(
+        parameters=[
+            *RANGE,
+            OpenApiParameter("topics", str, description="e.g. pose,scan,plan"),
+            OpenApiParameter("limit", int, description=f"at most {REPLAY_LIMIT}"),
+        ],
+        responses={200: OpenApiTypes.OBJECT},
+    )
+    def get(self, request: Request, name: str) -> Response:
+        start, end = time_range(request.query_params)
+        visible_robot(request, name)
+        raw_topics = request.query_params.get("topics")
+        topics = {t.strip() for t in raw_topics.split(",") if t.strip()} if raw_topics else None
+        try:
+            limit = min(max(int(request.query_params.get("limit", REPLAY_LIMIT)), 1), REPLAY_LIMIT)
+        except ValueError:
+            raise serializers.ValidationError({"limit": "Give a whole number."}) from None
+        root = recording_config().root
+        window = export.json_window(export.records(root, [name], start, end), topics, limit)
+        return Response({"span": export.span(root, name), **window})
 
 
 class BuildingRecording(APIView):
