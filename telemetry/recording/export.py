@@ -112,8 +112,9 @@ def json_window(
 
 
 def span(root: Path, robot: str) -> tuple[float, float] | None:
-    """The first and last times (seconds) the robot's files may hold, None without files."""
+    """The times (seconds) of the robot's first and last recorded messages (the last
+    file's last write while it is being written); None without files."""
     found = files.files_of(root, robot)
     if not found:
         return None
-    return found[0].start_ns / 1e9, found[-1].last_ns / 1e9
+    return found[0].start_ns / 1e9, files.end_of(found[-1]) / 1e9

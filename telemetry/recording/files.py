@@ -185,6 +185,20 @@ def finished(path: Path) -> bool:
         return False
 
 
+def end_of(f: RecordingFile) -> int:
+    """The time of the last message of a finished file (from its summary), else of its
+    last write."""
+    if finished(f.path):
+        try:
+            with open(f.path, "rb") as stream:
+                summary = make_reader(stream).get_summary()
+            if summary is not None and summary.statistics is not None:
+                return int(summary.statistics.message_end_time)
+        except (McapError, OSError, ValueError):
+            pass
+    return f.last_ns
+
+
 def open_messages(path: Path, start_ns: int, end_ns: int) -> Iterator[Record]:
     """The messages of ``path`` in ``[start_ns, end_ns]``, in time order for a finished
     file (by its chunk index, so a seek costs one chunk) and in file order for one still
