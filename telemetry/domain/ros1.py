@@ -188,8 +188,7 @@ def _array_builder(base: str) -> Builder:
             return np.frombuffer(base64.b64decode(value, validate=True), dtype=np.uint8)
         if not value:
             return np.zeros(0, dtype=dtype)
-        if base in _FLOATS:
-            value = [float("nan") if v is None else v for v in value]
+        # numpy reads None as NaN in a float array (rosbridge's null)
         return np.asarray(value, dtype=dtype)
 
     return build
