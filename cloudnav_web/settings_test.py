@@ -32,3 +32,5 @@ if not env_bool("CLOUDNAV_LIVE_SERVER", False):
 
 # Keyframe files of test runs go apart from the demo's (a live server inherits the path).
 CLOUDNAV_KEYFRAME_DIR = BASE_DIR / "var" / "test-keyframes"
+# Servers under test record only when a test gives them a directory of its own.
+CLOUDNAV_RECORDING = bool(os.environ.get("CLOUDNAV_RECORDING_DIR"))

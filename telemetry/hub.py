@@ -37,6 +37,7 @@ from telemetry.events import OBSERVED, EventLog
 from telemetry.exceptions import ActionFailed, NotAllowed, RosbridgeError, ServiceFailed
 from telemetry.missions import MissionRunner
 from telemetry.params import MemoryParams, ParamStore, RedisParams
+from telemetry.recording.recorder import Recorder
 from telemetry.relay import Relay
 from telemetry.revocation import AccessChange, RobotRecord, revoked, robot_records
 from telemetry.server_services import ServerService, ServiceCall, server_services
@@ -120,9 +121,23 @@ class Hub:
         self._directory: dict[str, set[str]] = {}
         self.registry = Registry()
         self.watchers: set[Watcher] = set()
+        self.recorder: Recorder | None = None
+
+    def record_with(self, recorder: Recorder) -> None:
+        """Record the robots connected here: the recorder taps the bus (its one seam)."""
+        self.recorder = recorder
+        self.bus.tap = recorder
+        for robot in self.robots():
+            recorder.connected(robot)
 
     async def start(self) -> None:
-        """Join the other server processes when ``REDIS_URL`` is set (scaled mode)."""
+        """Start recording if it is on; join the other server processes when
+        ``REDIS_URL`` is set (scaled mode)."""
+        from telemetry.recording.service import start_recorder
+
+        recorder = start_recorder()
+        if recorder is not None:
+            self.record_with(recorder)
         if not self.config.redis_url:
             return
         from channels.layers import get_channel_layer
@@ -146,6 +161,8 @@ class Hub:
             self.fleet.connected(client.robot_pk)
             self.events.connected(robot)
             self.missions.ensure_running()
+            if self.recorder is not None:
+                self.recorder.connected(robot)
             if self.relay is not None:
                 self.relay.put("robots", robot, "1")
 
@@ -186,6 +203,8 @@ class Hub:
         if robot in self.robots():
             return  # another connection of the same robot is still here
         self.events.disconnected(robot)
+        if self.recorder is not None:
+            self.recorder.disconnected(robot)
         for kind in {names.MAP_ID, *OBSERVED}:
             self._fleet_topics.pop(names.robot_topic(robot, kind), None)
         if self.relay is not None:

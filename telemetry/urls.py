@@ -1,10 +1,11 @@
-"""HTTP routes of telemetry: video relays and statistics (added as they are built)."""
+"""HTTP routes of telemetry: video relays and statistics, recordings (added as they are built)."""
 
 from __future__ import annotations
 
 from django.urls import URLPattern, path
 
 from telemetry import event_views as events
+from telemetry.recording import views as recording
 from telemetry.video import views as video
 
 urlpatterns: list[URLPattern] = [
@@ -17,4 +18,29 @@ urlpatterns: list[URLPattern] = [
     path("api/events/", events.EventList.as_view(), name="events"),
     path("api/events/<int:pk>/acknowledge", events.Acknowledge.as_view(), name="event-ack"),
     path("api/alerts/open", events.OpenAlerts.as_view(), name="alerts-open"),
+    path(
+        "api/robots/<slug:name>/recording.mcap",
+        recording.RobotRecording.as_view(),
+        name="robot-recording",
+    ),
+    path(
+        "api/buildings/<slug:code>/recording.mcap",
+        recording.BuildingRecording.as_view(),
+        name="building-recording",
+    ),
+    path(
+        "api/robots/<slug:name>/recording.json",
+        recording.RobotReplay.as_view(),
+        name="robot-replay",
+    ),
+    path(
+        "api/robots/<slug:name>/recording.bag",
+        recording.RobotRecording.as_view(kind="bag"),
+        name="robot-recording-bag",
+    ),
+    path(
+        "api/buildings/<slug:code>/recording.bag",
+        recording.BuildingRecording.as_view(kind="bag"),
+        name="building-recording-bag",
+    ),
 ]

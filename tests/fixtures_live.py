@@ -585,17 +585,18 @@ def scaled_template() -> Iterator[tuple[str, dict[str, Any]]]:
 @pytest.fixture
 def scaled_servers(
     tmp_path: Path, scaled_template: tuple[str, dict[str, Any]]
-) -> Iterator[Callable[[int], ScaledCluster]]:
-    """``scaled_servers(2)``: that many daphne processes in scaled mode on a fresh copy of
+) -> Iterator[Callable[..., ScaledCluster]]:
+    """``scaled_servers(2, env=...)``: that many daphne processes in scaled mode on a fresh copy of
     the seeded database and an emptied Redis; all stopped and dropped after the test."""
     template, seeded = scaled_template
     redis_url = scaled_redis_url()
     with contextlib.ExitStack() as stack:
 
-        def start(count: int = 2) -> ScaledCluster:
+        def start(count: int = 2, env: dict[str, str] | None = None) -> ScaledCluster:
             database_url = stack.enter_context(postgres_database(scaled_postgres_url(), template))
             flush_redis(redis_url)
-            servers = start_daphnes(count, tmp_path, database_url, {"REDIS_URL": redis_url})
+            environment = {"REDIS_URL": redis_url, **(env or {})}
+            servers = start_daphnes(count, tmp_path, database_url, environment)
             for server in servers:
                 stack.callback(server.stop)  # before the drop
             return ScaledCluster(servers, seeded["tokens"], seeded["cookies"], database_url)

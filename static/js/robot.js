@@ -8,6 +8,7 @@ import { MapView } from "./mapview.js";
 import { badge, connectFleet, fixed, navigationState, pageConfig, whereabouts } from "./page.js";
 import { TimePlot } from "./plot.js";
 import { RatesPanel } from "./rates.js";
+import { Replay } from "./replay.js";
 import { Teleop } from "./teleop.js";
 import { TopologyView } from "./topology.js";
 
@@ -124,7 +125,14 @@ function heard() {
   state.heard = Date.now();
 }
 
-connection.subscribe(`${ns}/pose`, "geometry_msgs/PoseStamped", (msg) => {
+// Each panel's topic handler, fed live by the connection or by a replayed recording.
+const handlers = new Map();
+function on(topic, type, handle, options) {
+  handlers.set(topic, handle);
+  connection.subscribe(topic, type, (msg) => { if (!replay.active) handle(msg); }, options);
+}
+
+on(`${ns}/pose`, "geometry_msgs/PoseStamped", (msg) => {
   heard();
   enterMap(msg.header.frame_id);
   state.pose = planarPose(msg.pose);
@@ -136,7 +144,7 @@ connection.subscribe(`${ns}/pose`, "geometry_msgs/PoseStamped", (msg) => {
   drawRobotLayers();
 });
 
-connection.subscribe(`${ns}/map_id`, "std_msgs/String", (msg) => {
+on(`${ns}/map_id`, "std_msgs/String", (msg) => {
   heard();
   const { mapId, version } = splitMapRef(msg.data);
   enterMap(mapId, version);
@@ -145,7 +153,7 @@ connection.subscribe(`${ns}/map_id`, "std_msgs/String", (msg) => {
 const linearPlot = new TimePlot($("plot-linear"), [{ label: "linear.x", color: "#2f6fed" }]);
 const angularPlot = new TimePlot($("plot-angular"), [{ label: "angular.z (°/s)", color: "#8a4ff0" }]);
 
-connection.subscribe(`${ns}/odom`, "nav_msgs/Odometry", (msg) => {
+on(`${ns}/odom`, "nav_msgs/Odometry", (msg) => {
   heard();
   const { linear, angular } = msg.twist.twist;
   const now = performance.now() / 1000;
@@ -157,13 +165,13 @@ connection.subscribe(`${ns}/odom`, "nav_msgs/Odometry", (msg) => {
   $("odom-turn").textContent = `${fixed(degrees(angular.z), 0)} °/s`;
 });
 
-connection.subscribe(`${ns}/scan`, "sensor_msgs/LaserScan", (msg) => {
+on(`${ns}/scan`, "sensor_msgs/LaserScan", (msg) => {
   heard();
   state.scan = msg;
   drawRobotLayers();
 }, { throttle_rate: 200, queue_length: 1 });
 
-connection.subscribe(`${ns}/plan`, "nav_msgs/Path", (msg) => {
+on(`${ns}/plan`, "nav_msgs/Path", (msg) => {
   state.plan = {
     frame: msg.header.frame_id,
     points: msg.poses.map((pose) => ({ x: pose.pose.position.x, y: pose.pose.position.y })),
@@ -171,7 +179,7 @@ connection.subscribe(`${ns}/plan`, "nav_msgs/Path", (msg) => {
   drawRobotLayers();
 });
 
-connection.subscribe(`${ns}/nav_status`, "actionlib_msgs/GoalStatusArray", (msg) => {
+on(`${ns}/nav_status`, "actionlib_msgs/GoalStatusArray", (msg) => {
   heard();
   state.nav = msg;
   const [word, kind, text] = navigationState(msg);
@@ -182,7 +190,7 @@ connection.subscribe(`${ns}/nav_status`, "actionlib_msgs/GoalStatusArray", (msg)
 
 // Where the robot says it is (its latched `localisation` DiagnosticStatus): a lost robot
 // shows no pose, so the page says so, with the way out.
-connection.subscribe(`${ns}/localisation`, "diagnostic_msgs/DiagnosticStatus", (msg) => {
+on(`${ns}/localisation`, "diagnostic_msgs/DiagnosticStatus", (msg) => {
   heard();
   state.whereabouts = whereabouts(msg);
   renderWhereabouts();
@@ -211,6 +219,24 @@ setInterval(() => {
   node.className = `badge ${online ? "ok" : "idle"}`;
   node.textContent = online ? "online" : state.heard ? `silent for ${Math.round(age / 1000)} s` : "waiting for data";
 }, 500);
+
+// ------------------------------------------------------------ replay of the recording
+
+function clearPanels() {
+  Object.assign(state, { robotMap: null, pose: null, trail: [], scan: null, plan: { frame: null, points: [] }, nav: null });
+  drawRobotLayers();
+}
+
+const replay = new Replay(robot, handlers, clearPanels, {
+  toggle: $("replay-toggle"),
+  bar: $("replay-bar"),
+  time: $("replay-time"),
+  play: $("replay-play"),
+  speed: $("replay-speed"),
+  clock: $("replay-clock"),
+  note: $("replay-note"),
+});
+window.cloudnav.robotPage.replay = replay;
 
 // ------------------------------------------------------------ rates, camera, topology
 

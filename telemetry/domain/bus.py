@@ -59,6 +59,13 @@ class BusListener(Protocol):
         """The topic gained its first publisher here, or lost its last one."""
 
 
+class Tap(Protocol):
+    """What sees every message the bus fans out, local or from another process (the
+    recorder): it must return at once and never raise."""
+
+    def offered(self, topic: Topic, msg: dict[str, Json]) -> None: ...
+
+
 @dataclass(slots=True, frozen=True)
 class SubscribeParams:
     throttle_rate: int = 0
@@ -218,6 +225,9 @@ class TopicBus:
         self.type_hint = type_hint
         self.latch_hint = latch_hint
         self.listener: BusListener | None = None
+        # the one seam recording taps: every message published here or received from
+        # another process for local subscribers (``publish``, ``receive_remote``)
+        self.tap: Tap | None = None
         self._topics: dict[str, Topic] = {}
         self._peer_topics: dict[str, set[str]] = {}
         # per peer key: subscription requests and advertisements it holds
@@ -317,6 +327,8 @@ class TopicBus:
             self._latched.take(peer.key, name, size)
         out = Outgoing(PublishFrame(op="publish", topic=name, msg=msg))
         self.fan_out(topic, out)
+        if self.tap is not None:
+            self.tap.offered(topic, msg)
         if self.listener is not None:
             self.listener.published(topic, msg)
         return out
@@ -338,6 +350,8 @@ class TopicBus:
             return
         topic.latched = topic.latched or latched
         self.fan_out(topic, Outgoing(PublishFrame(op="publish", topic=name, msg=msg)))
+        if self.tap is not None:
+            self.tap.offered(topic, msg)
 
     def subscribe(
         self,

@@ -1,0 +1,120 @@
+"""Any time range of one or several robots as one MCAP file (or ROS 1 bag), written as it
+is read.
+
+``mcap_stream`` yields the file in pieces as its chunks fill, so an hour or a month of
+recording is never held in memory: at most one chunk of output and one of input.
+"""
+
+from __future__ import annotations
+
+import heapq
+import uuid
+from collections.abc import Iterable, Iterator
+from pathlib import Path
+from typing import Any
+
+from telemetry.domain import ros1
+
+from . import files
+
+EXPORT_CHUNK_BYTES = 1024 * 1024
+
+
+class _Pipe:
+    """A write-only stream whose bytes are taken out as they come (``take``)."""
+
+    def __init__(self) -> None:
+        self._buffer = bytearray()
+        self._written = 0
+
+    def write(self, data: bytes) -> int:
+        self._buffer += data
+        self._written += len(data)
+        return len(data)
+
+    def tell(self) -> int:
+        return self._written
+
+    def take(self) -> bytes:
+        data = bytes(self._buffer)
+        self._buffer.clear()
+        return data
+
+
+def records(
+    root: Path, robots: Iterable[str], start_ns: int, end_ns: int
+) -> Iterator[files.Record]:
+    """The robots' messages in ``[start_ns, end_ns]``, merged in time order."""
+    streams = [_robot_records(root, robot, start_ns, end_ns) for robot in sorted(set(robots))]
+    return heapq.merge(*streams, key=lambda r: r.log_time)
+
+
+def _robot_records(root: Path, robot: str, start_ns: int, end_ns: int) -> Iterator[files.Record]:
+    for f in files.files_between(root, robot, start_ns, end_ns):
+        yield from files.open_messages(f.path, start_ns, end_ns)
+
+
+def mcap_stream(source: Iterable[files.Record]) -> Iterator[bytes]:
+    """One MCAP file (ROS 1 profile) of ``source``, yielded in pieces as it is written.
+    With no record it is a valid, empty MCAP file."""
+    pipe = _Pipe()
+    sink = files.McapSink(pipe, chunk_size=EXPORT_CHUNK_BYTES)  # type: ignore[arg-type]
+    for record in source:
+        sink.add(record)
+        if len(pipe._buffer) >= EXPORT_CHUNK_BYTES:
+            yield pipe.take()
+    sink.finish()
+    yield pipe.take()
+
+
+def bag_stream(source: Iterable[files.Record], scratch: Path) -> Iterator[bytes]:
+    """A ROS 1 bag of ``source`` written by ``rosbags`` into a scratch file (its writer
+    wants a path), then yielded in pieces and deleted; memory stays one piece."""
+    from rosbags.rosbag1 import Writer
+
+    scratch.mkdir(parents=True, exist_ok=True)
+    path = scratch / f"export-{uuid.uuid4().hex}.bag"
+    try:
+        with Writer(path) as bag:
+            connections: dict[str, Any] = {}
+            for record in source:
+                connection = connections.get(record.topic)
+                if connection is None:
+                    connection = connections[record.topic] = bag.add_connection(
+                        record.topic,
+                        ros1.store_name(record.type_name),
+                        msgdef=record.schema.decode(),
+                        md5sum=ros1.md5sum(record.type_name),
+                    )
+                bag.write(connection, record.log_time, record.data)
+        with open(path, "rb") as f:
+            while piece := f.read(EXPORT_CHUNK_BYTES):
+                yield piece
+    finally:
+        path.unlink(missing_ok=True)
+
+
+def json_window(
+    source: Iterable[files.Record], topics: set[str] | None, limit: int
+) -> dict[str, Any]:
+    """At most ``limit`` messages of ``source`` (of ``topics``' suffixes when given) as
+    rosbridge JSON for a page replaying the recording; ``more`` says the window was cut."""
+    messages: list[dict[str, Any]] = []
+    for record in source:
+        suffix = record.topic.split("/", 2)[-1]
+        if topics is not None and suffix not in topics:
+            continue
+        if len(messages) >= limit:
+            return {"messages": messages, "more": True, "next": record.log_time / 1e9}
+        msg = ros1.to_json(ros1.decode(record.type_name, record.data))
+        messages.append({"t": record.log_time / 1e9, "topic": record.topic, "msg": msg})
+    return {"messages": messages, "more": False, "next": None}
+
+
+def span(root: Path, robot: str) -> tuple[float, float] | None:
+    """The times (seconds) of the robot's first and last recorded messages (the last
+    file's last write while it is being written); None without files."""
+    found = files.files_of(root, robot)
+    if not found:
+        return None
+    return found[0].start_ns / 1e9, files.end_of(found[-1]) / 1e9

@@ -1,0 +1,280 @@
+"""The recorder of one server process: it taps the topic bus and writes MCAP off the loop.
+
+The tap (``Recorder.offered``, set as ``TopicBus.tap``) runs on the relay loop for every
+message the bus fans out, local or from another process, and does three dictionary
+look-ups and one append: is the topic a robot's, is that robot connected to this process
+(so in scaled mode each robot is recorded once, by the process it is connected to), does
+its plan record this topic (and is a camera frame due). The message goes into that
+robot's bounded queue; when the queue is full the message is counted in ``dropped`` and
+left, so the relay never waits. One writer thread drains the queues, serialises to ROS 1,
+writes the robot's rotating files, refreshes the plans from the database and applies
+each building's retention.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from collections import deque
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from django.conf import settings
+
+from telemetry.config import setting
+from telemetry.domain import names, ros1
+from telemetry.domain.bus import Topic
+from telemetry.models import CAMERA_TOPIC
+
+from . import files
+from .plans import Plan, Retention
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class RecorderConfig:
+    root: Path
+    queue_size: int = 4096
+    file_seconds: float = 3600.0
+    file_bytes: int = 256 * 2**20
+    plan_seconds: float = 30.0
+    retention_seconds: float = 60.0
+    poll_seconds: float = 0.05
+
+    @classmethod
+    def load(cls) -> RecorderConfig:
+        """The configuration from settings or the environment."""
+        default_root = Path(settings.BASE_DIR) / "var" / "recordings"
+        return cls(
+            root=Path(setting("CLOUDNAV_RECORDING_DIR", default_root, Path)),
+            queue_size=setting("CLOUDNAV_RECORDING_QUEUE", 4096, int),
+            file_seconds=setting("CLOUDNAV_RECORDING_FILE_SECONDS", 3600.0, float),
+            file_bytes=setting("CLOUDNAV_RECORDING_FILE_BYTES", 256 * 2**20, int),
+        )
+
+
+def env_flag(raw: str) -> bool:
+    return raw.strip().lower() not in {"0", "false", "no", "off"}
+
+
+def recording_on() -> bool:
+    """Whether this server records (``CLOUDNAV_RECORDING``); exports work either way."""
+    return bool(setting("CLOUDNAV_RECORDING", True, env_flag))
+
+
+@dataclass
+class RobotQueue:
+    """One robot's messages waiting for the writer, and what it had to drop."""
+
+    plan: Plan | None = None
+    queue: deque[tuple[str, str, Mapping[str, Any], int]] = field(default_factory=deque)
+    last_camera: float = 0.0
+    dropped: int = 0
+    written: int = 0
+    failed: int = 0
+
+
+PlanSource = Callable[[str], Plan]
+RetentionSource = Callable[[], Iterable[Retention]]
+
+
+class Recorder:
+    """Records the robots connected to this process (see the module's docstring)."""
+
+    def __init__(
+        self,
+        config: RecorderConfig,
+        plans: PlanSource,
+        retentions: RetentionSource,
+        clock: Callable[[], float] = time.time,
+    ) -> None:
+        self.config = config
+        self.plans = plans
+        self.retentions = retentions
+        self.clock = clock
+        self.robots: dict[str, RobotQueue] = {}
+        self._writers: dict[str, files.RotatingFiles] = {}
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._plans_at = 0.0
+        self._retention_at = 0.0
+        self._leaving: deque[RobotQueue] = deque()
+
+    # ------------------------------------------------------------ on the relay loop
+
+    def connected(self, robot: str) -> None:
+        self.robots.setdefault(robot, RobotQueue())
+
+    def disconnected(self, robot: str) -> None:
+        """Stop taking the robot's messages; what is queued is still written."""
+        entry = self.robots.pop(robot, None)
+        if entry is not None and entry.queue:
+            self._leaving.append(entry)
+
+    def offered(self, topic: Topic, msg: Mapping[str, Any]) -> None:
+        """The bus's tap: queue ``msg`` if its robot is here and its plan records it."""
+        name = topic.name
+        robot, _, suffix = name[1:].partition("/")
+        entry = self.robots.get(robot)
+        if entry is None or not suffix:
+            return
+        plan = entry.plan
+        if plan is not None and suffix not in plan.topics:
+            return
+        now = self.clock()
+        if suffix == CAMERA_TOPIC:
+            if plan is None or now - entry.last_camera < plan.camera_interval:
+                return
+            entry.last_camera = now
+        if len(entry.queue) >= self.config.queue_size:
+            entry.dropped += 1
+            return
+        type_name = topic.type or names.ROBOT_TOPIC_TYPES.get(suffix, "")
+        entry.queue.append((name, type_name, msg, int(now * 1e9)))
+
+    def stats(self) -> dict[str, dict[str, int]]:
+        return {
+            robot: {"queued": len(e.queue), "dropped": e.dropped, "written": e.written}
+            for robot, e in list(self.robots.items())
+        }
+
+    # ------------------------------------------------------------ the writer thread
+
+    def start(self) -> None:
+        self._thread = threading.Thread(target=self._run, name="recorder", daemon=True)
+        self._thread.start()
+
+    def stop(self, timeout: float = 10.0) -> None:
+        """Write what is queued, finish every file and stop the thread."""
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout)
+
+    def _run(self) -> None:
+        self._guarded(self._repair)
+        while not self._stop.is_set():
+            self._guarded(self.step)
+            self._stop.wait(self.config.poll_seconds)
+        self._guarded(self.step)
+        for writer in self._writers.values():
+            self._guarded(writer.close)
+        self._writers.clear()
+
+    def _guarded(self, work: Callable[[], object]) -> None:
+        """Run ``work``; a failure is logged, never the end of recording (or the server)."""
+        try:
+            work()
+        except Exception:
+            log.exception("recorder: %s failed", getattr(work, "__name__", work))
+
+    def _repair(self) -> None:
+        writing = {w.path for w in self._writers.values() if w.path is not None}
+        files.repair_all(self.config.root, writing, self.config.file_seconds + 60)
+
+    def step(self) -> None:
+        """One pass of the writer: plans when due, every queue drained, retention when due."""
+        now = time.monotonic()
+        if now - self._plans_at >= self.config.plan_seconds or self._unplanned():
+            self._refresh_plans()
+            self._plans_at = now
+        while self._leaving:
+            self._drain(self._leaving.popleft())
+        self._close_idle()
+        for robot, entry in list(self.robots.items()):
+            self._drain(entry, robot=robot)
+        if now - self._retention_at >= self.config.retention_seconds:
+            self._retention_at = now
+            self._guarded(self._apply_retention)
+
+    def _unplanned(self) -> bool:
+        return any(e.plan is None for e in list(self.robots.values()))
+
+    def _refresh_plans(self) -> None:
+        for robot, entry in list(self.robots.items()):
+            try:
+                entry.plan = self.plans(robot)
+            except Exception:
+                log.exception("recorder: no plan for %s", robot)
+
+    def _close_idle(self) -> None:
+        """Finish the files of robots that left."""
+        for robot in [r for r in self._writers if r not in self.robots]:
+            self._guarded(self._writers.pop(robot).close)
+
+    def _drain(self, entry: RobotQueue, robot: str | None = None) -> None:
+        plan = entry.plan
+        queue = entry.queue
+        while queue:
+            topic, type_name, msg, log_time = queue.popleft()
+            robot = robot or names.first_segment(topic)
+            suffix = topic[len(robot) + 2 :]
+            if plan is not None and suffix not in plan.topics:
+                continue
+            self._write(entry, robot, topic, type_name, msg, log_time)
+
+    def _write(
+        self,
+        entry: RobotQueue,
+        robot: str,
+        topic: str,
+        type_name: str,
+        msg: Mapping[str, Any],
+        log_time: int,
+    ) -> None:
+        if not type_name or not ros1.known(type_name):
+            entry.failed += 1
+            return
+        try:
+            data = ros1.encode(type_name, msg)
+        except ros1.Ros1EncodeError:
+            entry.failed += 1
+            return
+        schema = ros1.schema_text(type_name).encode()
+        record = files.Record(topic, ros1.ros1_name(type_name), schema, log_time, data)
+        writer = self._writers.get(robot)
+        if writer is None:
+            writer = self._writers[robot] = files.RotatingFiles(
+                self.config.root, robot, self.config.file_seconds, self.config.file_bytes
+            )
+        try:
+            writer.write(record)
+            entry.written += 1
+        except OSError:
+            # a full disk: make room from this robot's oldest files and carry on
+            entry.dropped += 1
+            self._guarded(writer.close)
+            self._writers.pop(robot, None)
+            self._guarded(lambda: self._free_space(robot))
+
+    def _free_space(self, robot: str) -> None:
+        for f in files.files_of(self.config.root, robot)[:-1][:1]:
+            f.path.unlink(missing_ok=True)
+
+    def _apply_retention(self) -> None:
+        writing = {w.path for w in self._writers.values() if w.path is not None}
+        for retention in self.retentions():
+            prune(self.config.root, retention, writing, self.clock())
+
+
+def prune(root: Path, retention: Retention, writing: set[Path], now: float) -> list[Path]:
+    """Delete the building's files older than its days, then its oldest files until its
+    robots hold at most its budget; files being written are kept. Returns what went."""
+    oldest_kept = int((now - retention.days * 86400) * 1e9)
+    candidates: list[files.RecordingFile] = []
+    for robot in retention.robots:
+        candidates.extend(files.files_of(root, robot))
+    candidates.sort()
+    gone = []
+    total = sum(f.size for f in candidates)
+    for f in candidates:
+        too_old = f.last_ns < oldest_kept
+        if f.path in writing or not (too_old or total > retention.budget):
+            continue
+        total -= f.size
+        f.path.unlink(missing_ok=True)
+        gone.append(f.path)
+    return gone

@@ -1,0 +1,53 @@
+"""The recorder of this process, made once with its configuration, plans and retention."""
+
+from __future__ import annotations
+
+import atexit
+from collections.abc import Callable
+from typing import TypeVar
+
+from django.db import connection
+
+from .plans import Plan, Retention, plan_for, retentions
+from .recorder import Recorder, RecorderConfig, recording_on
+
+T = TypeVar("T")
+
+_recorder: Recorder | None = None
+
+
+def start_recorder() -> Recorder | None:
+    """This process's recorder, started on first call; None when recording is off.
+
+    It is stopped at exit, finishing its files; a process killed outright leaves files
+    that are read up to their last chunk and repaired by the next start."""
+    global _recorder
+    if _recorder is None:
+        if not recording_on():
+            return None
+        _recorder = Recorder(RecorderConfig.load(), _plan, _retentions)
+        _recorder.start()
+        atexit.register(_recorder.stop)
+    return _recorder
+
+
+def recording_config() -> RecorderConfig:
+    """Where recordings are read from (the settings, as the recorder read them)."""
+    return RecorderConfig.load()
+
+
+def _closing(query: Callable[[], T]) -> T:
+    """Run ``query`` on the recorder's thread and close its database connection after, so
+    the thread never holds one between passes."""
+    try:
+        return query()
+    finally:
+        connection.close()
+
+
+def _plan(robot: str) -> Plan:
+    return _closing(lambda: plan_for(robot))
+
+
+def _retentions() -> list[Retention]:
+    return _closing(retentions)

@@ -1,0 +1,103 @@
+"""Replay in a real browser: the robot page switches from live to a recording, and the
+timeline and the map follow the recording."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import pytest
+from playwright.sync_api import BrowserContext, expect
+
+from telemetry.domain import ros1
+from telemetry.recording import files
+from tests.browser_support import BUILDING, ROBOT, Demo, drawn_robot
+from tests.fixtures_live import LiveServer, LiveServers
+
+pytest_plugins = ["tests.browser_support"]
+pytestmark = [pytest.mark.browser, pytest.mark.django_db(transaction=True)]
+
+NS = 1_000_000_000
+CORRIDOR_A = f"{BUILDING}/CorridorA"
+START = int(time.time()) - 600  # ten minutes ago: 20 s of the robot driving along x
+
+
+def x_at(second: float) -> float:
+    return 2.0 + 0.5 * second
+
+
+@pytest.fixture
+def recordings(tmp_path: Path) -> Path:
+    root = tmp_path / "recordings"
+    writer = files.RotatingFiles(root, ROBOT, max_seconds=3600, max_bytes=2**30)
+    pose_type = "geometry_msgs/PoseStamped"
+    map_type = "std_msgs/String"
+    writer.write(
+        files.Record(
+            f"/{ROBOT}/map_id",
+            map_type,
+            ros1.schema_text(map_type).encode(),
+            START * NS,
+            ros1.encode(map_type, {"data": CORRIDOR_A}),
+        )
+    )
+    for tenth in range(201):
+        second = tenth / 10
+        msg = {
+            "header": {"stamp": {"sec": START, "nanosec": 0}, "frame_id": CORRIDOR_A},
+            "pose": {"position": {"x": x_at(second), "y": 23.2}, "orientation": {"w": 1.0}},
+        }
+        writer.write(
+            files.Record(
+                f"/{ROBOT}/pose",
+                pose_type,
+                ros1.schema_text(pose_type).encode(),
+                int((START + second) * NS),
+                ros1.encode(pose_type, msg),
+            )
+        )
+    writer.close()
+    return root
+
+
+@pytest.fixture
+def daphne_server(daphne_servers: LiveServers, recordings: Path) -> LiveServer:
+    return daphne_servers.start(env={"CLOUDNAV_RECORDING_DIR": str(recordings)})
+
+
+def test_the_robot_page_replays_a_recording_with_its_timeline(
+    context: BrowserContext, demo: Demo
+) -> None:
+    # no robot is live, so the camera's stream never sends a first frame: do not wait for
+    # the page's load event, only for its scripts
+    name, value = demo.cookies["viewer"]
+    context.add_cookies([{"name": name, "value": value, "url": demo.server.url}])
+    page = context.new_page()
+    page.goto(demo.url(f"/robots/{ROBOT}/"), wait_until="domcontentloaded")
+    page.wait_for_function("() => window.cloudnav?.robotPage?.replay")
+    page.click("#replay-toggle")
+    expect(page.locator("#replay-bar")).to_be_visible()
+    expect(page.locator("#replay-time")).to_have_attribute("min", str(START))
+    expect(page.locator("#replay-time")).to_have_attribute("max", str(START + 20))
+    expect(page.locator("#map-wrap")).to_have_attribute("data-robot", f"{x_at(0):.3f},23.200")
+    # seek to the middle: the map shows where the robot was then
+    page.eval_on_selector(
+        "#replay-time",
+        "(el, t) => { el.value = String(t); el.dispatchEvent(new Event('input')); }",
+        START + 10,
+    )
+    expect(page.locator("#map-wrap")).to_have_attribute("data-robot", f"{x_at(10):.3f},23.200")
+    expect(page.locator("#map-wrap")).to_have_attribute("data-loaded", CORRIDOR_A)
+    # play at 10x: the robot drives on to where the recording ends
+    page.select_option("#replay-speed", "10")
+    page.click("#replay-play")
+    expect(page.locator("#map-wrap")).to_have_attribute(
+        "data-robot", f"{x_at(20):.3f},23.200", timeout=15_000
+    )
+    where = drawn_robot(page)
+    assert where is not None
+    assert where[0] == pytest.approx(x_at(20))
+    expect(page.locator("#replay-play")).to_have_text("Play")
+    # and back to live
+    page.click("#replay-toggle")
+    expect(page.locator("#replay-bar")).to_be_hidden()

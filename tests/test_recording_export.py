@@ -1,0 +1,160 @@
+"""Export: any time range of a robot or a building as one MCAP file (or a ROS 1 bag)."""
+
+from __future__ import annotations
+
+import io
+from pathlib import Path
+
+import pytest
+from mcap.reader import make_reader
+from mcap_ros1.decoder import DecoderFactory
+from rosbags.rosbag1 import Reader as BagReader
+
+from telemetry.domain import ros1
+from telemetry.recording import export, files
+from tests.conftest import client_for, make_building, make_robot
+
+NS = 1_000_000_000
+POSE = {"header": {"frame_id": "b/Hall"}, "pose": {"position": {"x": 1.0}}}
+
+
+def record_poses(root: Path, robot: str, seconds: range) -> None:
+    writer = files.RotatingFiles(root, robot, max_seconds=10, max_bytes=2**30)
+    schema = ros1.schema_text("geometry_msgs/PoseStamped").encode()
+    for second in seconds:
+        msg = {**POSE, "pose": {"position": {"x": float(second)}}}
+        data = ros1.encode("geometry_msgs/PoseStamped", msg)
+        writer.write(
+            files.Record(f"/{robot}/pose", "geometry_msgs/PoseStamped", schema, second * NS, data)
+        )
+    writer.close()
+
+
+def read_mcap(body: bytes) -> list[tuple[str, int, float]]:
+    reader = make_reader(io.BytesIO(body), decoder_factories=[DecoderFactory()])
+    return [
+        (channel.topic, message.log_time // NS, ros.pose.position.x)
+        for _s, channel, message, ros in reader.iter_decoded_messages()
+    ]
+
+
+@pytest.fixture
+def recordings(settings, tmp_path, building):
+    settings.CLOUDNAV_RECORDING_DIR = tmp_path
+    robot, _token = make_robot(name="r1")
+    robot.buildings.add(building)
+    other, _ = make_robot(name="r2")
+    other.buildings.add(building)
+    record_poses(tmp_path, "r1", range(1000, 1100, 2))
+    record_poses(tmp_path, "r2", range(1001, 1100, 2))
+    return tmp_path
+
+
+def body_of(response) -> bytes:
+    assert response.streaming
+    return b"".join(response.streaming_content)
+
+
+def test_it_streams_a_robots_range_in_unix_seconds(recordings, viewer):
+    response = client_for(viewer).get("/api/robots/r1/recording.mcap?start=1010&end=1020")
+    assert response.status_code == 200
+    assert response["Content-Type"] == "application/mcap"
+    assert "r1-1010-1020.mcap" in response["Content-Disposition"]
+    messages = read_mcap(body_of(response))
+    assert messages == [("/r1/pose", s, float(s)) for s in range(1010, 1021, 2)]
+
+
+def test_it_takes_iso_8601_times(recordings, viewer):
+    url = "/api/robots/r1/recording.mcap?start=1970-01-01T00:16:50Z&end=1970-01-01T00:17:00"
+    response = client_for(viewer).get(url)
+    assert [m[1] for m in read_mcap(body_of(response))] == list(range(1010, 1021, 2))
+
+
+def test_a_building_export_merges_its_robots_in_time_order(recordings, viewer):
+    response = client_for(viewer).get(
+        "/api/buildings/boccioni_1/recording.mcap?start=1010&end=1015"
+    )
+    assert read_mcap(body_of(response)) == [
+        ("/r1/pose", 1010, 1010.0),
+        ("/r2/pose", 1011, 1011.0),
+        ("/r1/pose", 1012, 1012.0),
+        ("/r2/pose", 1013, 1013.0),
+        ("/r1/pose", 1014, 1014.0),
+        ("/r2/pose", 1015, 1015.0),
+    ]
+
+
+def test_a_range_without_data_is_a_valid_empty_file(recordings, viewer):
+    response = client_for(viewer).get("/api/robots/r1/recording.mcap?start=5000&end=6000")
+    assert response.status_code == 200
+    assert read_mcap(body_of(response)) == []
+
+
+def test_it_answers_400_naming_the_field_for_bad_times(recordings, viewer):
+    client = client_for(viewer)
+    response = client.get("/api/robots/r1/recording.mcap?start=yesterday")
+    assert response.status_code == 400
+    assert "start" in response.json()
+    response = client.get("/api/robots/r1/recording.mcap?start=20&end=10")
+    assert response.status_code == 400
+    assert "start" in response.json()
+
+
+def test_it_rejects_outsider(recordings, outsider):
+    client = client_for(outsider)
+    assert client.get("/api/robots/r1/recording.mcap").status_code == 404
+    assert client.get("/api/buildings/boccioni_1/recording.mcap").status_code == 404
+    assert client_for(None).get("/api/robots/r1/recording.mcap").status_code in (401, 403)
+
+
+def test_a_robot_of_another_building_is_not_found(recordings, viewer):
+    hidden, _ = make_robot(name="r3")
+    hidden.buildings.add(make_building(code="elsewhere"))
+    assert client_for(viewer).get("/api/robots/r3/recording.mcap").status_code == 404
+
+
+def test_rosbags_opens_the_ros1_bag_export(recordings, viewer, tmp_path):
+    response = client_for(viewer).get("/api/robots/r1/recording.bag?start=1010&end=1014")
+    assert response.status_code == 200
+    path = tmp_path / "out.bag"
+    path.write_bytes(body_of(response))
+    with BagReader(path) as bag:
+        [connection] = bag.connections
+        assert (connection.topic, connection.msgtype) == (
+            "/r1/pose",
+            "geometry_msgs/msg/PoseStamped",
+        )
+        read = [
+            (t // NS, ros1.decode("geometry_msgs/PoseStamped", raw).pose.position.x)
+            for _c, t, raw in bag.messages()
+        ]
+    assert read == [(1010, 1010.0), (1012, 1012.0), (1014, 1014.0)]
+    assert not list((recordings / ".exports").glob("*.bag"))
+
+
+def test_a_huge_range_is_streamed_in_pieces(tmp_path, monkeypatch):
+    monkeypatch.setattr(export, "EXPORT_CHUNK_BYTES", 16 * 1024)
+    record_poses(tmp_path, "r1", range(0, 5000))
+    pieces = export.mcap_stream(export.records(tmp_path, ["r1"], 0, 10**12 * NS))
+    sizes = [len(p) for p in pieces]
+    assert len(sizes) > 1
+    assert max(sizes) < 2 * export.EXPORT_CHUNK_BYTES
+
+
+def test_the_replay_window_is_rosbridge_json_with_its_span(recordings, viewer):
+    url = "/api/robots/r1/recording.json?start=1010&end=1016&topics=pose&limit=3"
+    body = client_for(viewer).get(url).json()
+    assert body["span"][0] == 1000.0
+    assert [m["t"] for m in body["messages"]] == [1010.0, 1012.0, 1014.0]
+    assert body["messages"][0]["topic"] == "/r1/pose"
+    assert body["messages"][0]["msg"]["pose"]["position"]["x"] == 1010.0
+    assert body["messages"][0]["msg"]["header"]["frame_id"] == "b/Hall"
+    assert body["more"] is True
+    assert body["next"] == 1016.0
+    assert (
+        client_for(viewer).get(url.replace("topics=pose", "topics=scan")).json()["messages"] == []
+    )
+
+
+def test_the_replay_window_rejects_outsider(recordings, outsider):
+    assert client_for(outsider).get("/api/robots/r1/recording.json").status_code == 404

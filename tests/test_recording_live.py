@@ -1,0 +1,109 @@
+"""Recording over real sockets: what a robot publishes to a live daphne is what its MCAP
+file holds, read back message by message with the ``mcap`` reader."""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import time
+
+import pytest
+import websockets
+from mcap.reader import make_reader
+from mcap_ros1.decoder import DecoderFactory
+
+from telemetry.recording import files
+from tests.conftest import make_robot
+
+DEADLINE = 20.0
+
+
+def pose(i: int) -> dict:
+    return {
+        "header": {"stamp": {"sec": 100 + i, "nanosec": i}, "frame_id": "boccioni_1/Hall"},
+        "pose": {"position": {"x": i * 0.5, "y": -i}, "orientation": {"z": 0.0, "w": 1.0}},
+    }
+
+
+def scan(i: int) -> dict:
+    return {
+        "header": {"stamp": {"sec": 100 + i, "nanosec": 0}, "frame_id": "laser"},
+        "angle_min": -1.0,
+        "angle_max": 1.0,
+        "angle_increment": 1.0,
+        "range_min": 0.1,
+        "range_max": 8.0,
+        "ranges": [float(i), 2.0, 3.0],
+    }
+
+
+async def publish_all(url: str) -> None:
+    async with websockets.connect(url) as ws:
+        await ws.send(json.dumps({"op": "publish", "topic": "map_id", "msg": {"data": "b/Hall"}}))
+        for i in range(20):
+            await ws.send(json.dumps({"op": "publish", "topic": "pose", "msg": pose(i)}))
+            await ws.send(json.dumps({"op": "publish", "topic": "scan", "msg": scan(i)}))
+            # the camera is not in the default plan: it must not be recorded
+            frame = {"format": "jpeg", "data": "AAEC"}
+            await ws.send(
+                json.dumps({"op": "publish", "topic": "camera/image/compressed", "msg": frame})
+            )
+        await ws.send(json.dumps({"op": "call_service", "id": "t", "service": "rosapi/get_time"}))
+        while json.loads(await asyncio.wait_for(ws.recv(), 10)).get("id") != "t":
+            pass
+
+
+def finished_files(root, robot):
+    deadline = time.monotonic() + DEADLINE
+    while time.monotonic() < deadline:
+        found = files.files_of(root, robot)
+        if found and all(files.finished(f.path) for f in found):
+            return found
+        time.sleep(0.05)
+    raise TimeoutError(f"no finished recording of {robot} within {DEADLINE} s")
+
+
+def read_back(path):
+    with open(path, "rb") as f:
+        reader = make_reader(f, decoder_factories=[DecoderFactory()])
+        got = [
+            (channel.topic, schema.name, schema.encoding, channel.message_encoding, ros)
+            for schema, channel, _m, ros in reader.iter_decoded_messages(log_time_order=False)
+            if schema is not None
+        ]
+        return reader.get_header().profile, got
+
+
+@pytest.fixture
+def token(building):
+    return make_robot(name="r1", buildings=[building])[1]
+
+
+async def test_what_a_robot_publishes_is_recorded_message_by_message(
+    daphne_servers, token, tmp_path
+):
+    root = tmp_path / "recordings"
+    server = daphne_servers.start(env={"CLOUDNAV_RECORDING_DIR": str(root)})
+    await publish_all(server.rosbridge_url(token))
+    # the robot has gone: its file is finished
+    [recording] = await asyncio.to_thread(finished_files, root, "r1")
+    profile, got = read_back(recording.path)
+    assert profile == "ros1"
+    assert [(t, s, e, m) for t, s, e, m, _ in got[:3]] == [
+        ("/r1/map_id", "std_msgs/String", "ros1msg", "ros1"),
+        ("/r1/pose", "geometry_msgs/PoseStamped", "ros1msg", "ros1"),
+        ("/r1/scan", "sensor_msgs/LaserScan", "ros1msg", "ros1"),
+    ]
+    assert got[0][4].data == "b/Hall"
+    poses = [ros for topic, *_rest, ros in got if topic == "/r1/pose"]
+    scans = [ros for topic, *_rest, ros in got if topic == "/r1/scan"]
+    assert len(got) == 41
+    assert len(poses) == 20
+    assert len(scans) == 20
+    for i, (p, s) in enumerate(zip(poses, scans, strict=True)):
+        sent = pose(i)
+        assert (p.header.stamp.secs, p.header.stamp.nsecs) == (100 + i, i)
+        assert p.header.frame_id == sent["header"]["frame_id"]
+        assert (p.pose.position.x, p.pose.position.y) == (i * 0.5, -i)
+        assert list(s.ranges) == [float(i), 2.0, 3.0]
+        assert s.header.stamp.secs == 100 + i
