@@ -9,6 +9,8 @@ Many in one process, with the tokens ``manage.py seed_demo`` wrote::
     python -m robots.agent --server http://127.0.0.1:8000 \
         --tokens-file var/demo_tokens.json --count 3
 
+``--people 8 --people-seed 3`` puts eight people on seeded routes through the building;
+the robots see them, and one another, in their lasers and cameras.
 ``--time-scale 4`` runs the simulation four times faster than the wall clock (every rate
 and timeout of the robot is in simulated time). Ctrl-C (or SIGTERM) stops the robots.
 """
@@ -48,8 +50,8 @@ def arguments(argv: Sequence[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--log-level", default="INFO")
     options = parser.parse_args(argv)
-    if options.time_scale <= 0 or options.count < 1:
-        parser.error("--time-scale must be positive and --count at least 1")
+    if options.time_scale <= 0 or options.count < 1 or options.people < 0:
+        parser.error("--time-scale must be positive, --count at least 1, --people at least 0")
     return options
 
 
@@ -70,6 +72,8 @@ async def main(options: argparse.Namespace) -> None:
         particles=options.particles,
         seed=options.seed,
         robot=RobotConfig(camera_rate=options.camera_rate),
+        people=options.people,
+        people_seed=options.people_seed,
     )
     fleet = build_fleet(tokens_of(options), fleet_options)
     running = asyncio.create_task(run_fleet(fleet, options.time_scale))
