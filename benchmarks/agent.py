@@ -87,7 +87,7 @@ def report(result: Result) -> str:
 
 async def measure(url: str, tokens: dict[str, str], options: dict[str, Any]) -> Result:
     pairs = list(tokens.items())[: options["robots"]]
-    robot_config = RobotConfig(camera_rate=options["camera_rate"])
+    robot_config = RobotConfig(camera_rate=options["camera_rate"], local_planner=options["planner"])
     fleet_options = FleetOptions(
         url,
         particles=options["particles"],

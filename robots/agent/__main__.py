@@ -9,6 +9,7 @@ Many in one process, with the tokens ``manage.py seed_demo`` wrote::
     python -m robots.agent --server http://127.0.0.1:8000 \
         --tokens-file var/demo_tokens.json --count 3
 
+``--planner teb`` drives with the timed elastic band instead of the dynamic window.
 ``--people 8 --people-seed 3`` puts eight people on seeded routes through the building;
 the robots see them, and one another, in their lasers and cameras.
 ``--time-scale 4`` runs the simulation four times faster than the wall clock (every rate
@@ -71,7 +72,7 @@ async def main(options: argparse.Namespace) -> None:
         start=options.start,
         particles=options.particles,
         seed=options.seed,
-        robot=RobotConfig(camera_rate=options.camera_rate),
+        robot=RobotConfig(camera_rate=options.camera_rate, local_planner=options.planner),
         people=options.people,
         people_seed=options.people_seed,
     )

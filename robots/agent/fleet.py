@@ -50,7 +50,7 @@ class FleetOptions:
 
 def add_robot_arguments(parser: argparse.ArgumentParser) -> None:
     """The command-line options of how simulated robots run: ``--time-scale``,
-    ``--camera-rate``, ``--particles`` (defaults: ``RobotConfig``'s),
+    ``--camera-rate``, ``--particles``, ``--planner`` (defaults: ``RobotConfig``'s),
     ``--people`` and ``--people-seed``."""
     defaults = RobotConfig()
     parser.add_argument("--time-scale", type=float, default=1.0, help="simulated s per wall s")
@@ -61,6 +61,12 @@ def add_robot_arguments(parser: argparse.ArgumentParser) -> None:
         "--particles",
         type=int,
         help=f"0: odometry and tags only (default {defaults.localisation.particles})",
+    )
+    parser.add_argument(
+        "--planner",
+        choices=("dwa", "teb"),
+        default=defaults.local_planner,
+        help="local planner: dynamic window or timed elastic band",
     )
     parser.add_argument("--people", type=int, default=0, help="people walking in the building")
     parser.add_argument("--people-seed", type=int, default=0, help="seed of their routes")
