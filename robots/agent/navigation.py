@@ -13,7 +13,8 @@
   with the laser's returns marked on the grid, as Nav2's obstacle layer does in its
   global costmap. Blocked for ``BLOCKED_REPLAN`` seconds, or without progress for
   ``STUCK_AFTER``, it does the same; after ``MAX_REPLANS`` of those with no progress
-  between them it gives up.
+  between them it gives up. A plan around what the laser sees that finds no way keeps
+  the last path and waits: what blocks a doorway is often a person who will move on.
 - ``Navigator`` joins them to the Maps Supervisor: each tick the supervisor says which
   leg comes next (search, approach a tag, the goal itself), the driver drives it, and
   the board records how the goal ends.
@@ -392,9 +393,8 @@ class Driver:
     ) -> Drive:
         carrot = self._carrot(pose)
         if self._path_obstructed(pose, obstacles, seconds):
-            failure = self._replan_around(obstacles, pose, seconds)
-            if failure:
-                return Drive(STOP, DriveState.FAILED, failure)
+            # No way round what is seen (a person in a doorway): keep the path, they move.
+            self._replan_around(obstacles, pose, seconds)
             carrot = self._carrot(pose)
         local = compose(inverse(pose), (*carrot, 0.0))
         bearing = math.atan2(local[1], local[0])
@@ -452,7 +452,7 @@ class Driver:
         progress.replans += 1
         progress.blocked_since = None
         failure = self._replan_around(obstacles, pose, seconds)
-        return Drive(STOP, DriveState.FAILED, failure) if failure else drive
+        return Drive(STOP) if failure else drive  # no way round yet: wait, and count it
 
     def _replan_around(self, obstacles: LocalObstacles, pose: Pose, seconds: float) -> str:
         """Plan again with the laser's near returns on the grid; why it failed, or ''."""

@@ -51,7 +51,7 @@ from robots.domain.se2 import Point, Pose, inverse, transform, wrap
 Floats = NDArray[np.float64]
 Command = tuple[float, float]
 
-OBSTACLE_REACH = 1.5
+OBSTACLE_REACH = 1.0
 """Metres from the band beyond which laser returns are left out of its optimisation."""
 LSMR_ITERATIONS = 12
 """Iterations of the inner least-squares solver per step: an approximate step is enough
@@ -273,12 +273,19 @@ class _Terms:
         self.jacobians.append(root * jacobian)
 
     def _put(
-        self, jac: Floats, rows: NDArray[np.intp], pose: NDArray[np.intp], part: int, values: Floats
+        self,
+        jac: Floats,
+        rows: NDArray[np.intp],
+        pose: NDArray[np.intp],
+        values: Floats,
+        part: int = 0,
     ) -> None:
-        """Add ``values`` at ``rows`` to the column of component ``part`` (0 x, 1 y,
-        2 yaw) of each ``pose`` (0..n; the fixed start and goal have none)."""
+        """Add ``values`` (one row of k per entry of ``rows``) at ``rows`` to the columns
+        of components ``part`` to ``part + k - 1`` (0 x, 1 y, 2 yaw) of each ``pose``
+        (0..n; the fixed start and goal have none)."""
         free = (pose > 0) & (pose < self.n)
-        jac[rows[free], 3 * (pose[free] - 1) + part] += values[free]
+        columns = 3 * (pose[free] - 1)[:, None] + part + np.arange(values.shape[1])
+        jac[rows[free][:, None], columns] += values[free]
 
     def _put_dt(
         self, jac: Floats, rows: NDArray[np.intp], interval: NDArray[np.intp], values: Floats
@@ -298,16 +305,15 @@ class _Terms:
         velocity (``which``) to ``rows``."""
         i = segment
         if which == "linear":
-            gx = self.sign[i] * self.dx[i] / (self.dist[i] * self.dts[i])
-            gy = self.sign[i] * self.dy[i] / (self.dist[i] * self.dts[i])
-            self._put(jac, rows, i, 0, -scale * gx)
-            self._put(jac, rows, i + 1, 0, scale * gx)
-            self._put(jac, rows, i, 1, -scale * gy)
-            self._put(jac, rows, i + 1, 1, scale * gy)
+            factor = scale * self.sign[i] / (self.dist[i] * self.dts[i])
+            step = factor[:, None] * np.column_stack([self.dx[i], self.dy[i]])
+            self._put(jac, rows, i, -step)
+            self._put(jac, rows, i + 1, step)
             self._put_dt(jac, rows, i, -scale * self.linear[i] / self.dts[i])
         else:
-            self._put(jac, rows, i, 2, -scale / self.dts[i])
-            self._put(jac, rows, i + 1, 2, scale / self.dts[i])
+            turn = (scale / self.dts[i])[:, None]
+            self._put(jac, rows, i, -turn, part=2)
+            self._put(jac, rows, i + 1, turn, part=2)
             self._put_dt(jac, rows, i, -scale * self.angular[i] / self.dts[i])
 
     # --- the objectives ---
@@ -318,23 +324,17 @@ class _Terms:
         cc, ss = c[:-1] + c[1:], s[:-1] + s[1:]
         values = cc * self.dy - ss * self.dx
         jac = self._block(self.n)
-        self._put(jac, i, i, 0, ss)
-        self._put(jac, i, i + 1, 0, -ss)
-        self._put(jac, i, i, 1, -cc)
-        self._put(jac, i, i + 1, 1, cc)
-        self._put(jac, i, i, 2, -s[:-1] * self.dy - c[:-1] * self.dx)
-        self._put(jac, i, i + 1, 2, -s[1:] * self.dy - c[1:] * self.dx)
+        self._put(jac, i, i, np.column_stack([ss, -cc, -s[:-1] * self.dy - c[:-1] * self.dx]))
+        self._put(jac, i, i + 1, np.column_stack([-ss, cc, -s[1:] * self.dy - c[1:] * self.dx]))
         self._add(weight, values, jac)
 
     def _backwards(self, weight: float) -> None:
         i, active = np.arange(self.n), (self.forward < 0).astype(np.float64)
         c, s = self.c[:-1], self.s[:-1]
         jac = self._block(self.n)
-        self._put(jac, i, i, 0, active * c)
-        self._put(jac, i, i + 1, 0, -active * c)
-        self._put(jac, i, i, 1, active * s)
-        self._put(jac, i, i + 1, 1, -active * s)
-        self._put(jac, i, i, 2, active * (self.dx * s - self.dy * c))
+        heading = np.column_stack([c, s, self.dx * s - self.dy * c])
+        self._put(jac, i, i, active[:, None] * heading)
+        self._put(jac, i, i + 1, -active[:, None] * heading[:, :2])
         self._add(weight, np.maximum(-self.forward, 0.0), jac)
 
     def _speed_limits(self, weight: float, max_linear: float, max_angular: float) -> None:
@@ -402,8 +402,7 @@ class _Terms:
             active = (distance < reach).astype(np.float64)
             jac = self._block(count)
             for pose, part in ((first, share), (second, 1 - share)):
-                self._put(jac, rows, pose, 0, -active * part * away[:, 0])
-                self._put(jac, rows, pose, 1, -active * part * away[:, 1])
+                self._put(jac, rows, pose, -(active * part)[:, None] * away)
             self._add(weight, np.maximum(reach - distance, 0.0), jac)
 
     def _vias(self, weight: float) -> None:
@@ -412,8 +411,8 @@ class _Terms:
         values = (self.poses[1:-1][pulled, :2] - self.problem.vias).ravel()
         jac = self._block(2 * count)
         rows = np.arange(2 * count)
-        self._put(jac, rows[0::2], pulled + 1, 0, np.ones(count))
-        self._put(jac, rows[1::2], pulled + 1, 1, np.ones(count))
+        self._put(jac, rows[0::2], pulled + 1, np.ones((count, 1)))
+        self._put(jac, rows[1::2], pulled + 1, np.ones((count, 1)), part=1)
         self._add(weight, values, jac)
 
 
