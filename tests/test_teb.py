@@ -17,6 +17,7 @@ from robots.agent.teb import (
 )
 from robots.agent.tracking import ObstacleTracker, SeenObstacles
 from robots.domain.params import RobotConfig
+from robots.domain.se2 import compose, inverse, transform
 
 CONFIG = RobotConfig(local_planner="teb")
 BODY = CONFIG.body
@@ -93,11 +94,21 @@ def test_a_band_swerves_round_something_on_the_path_and_keeps_clear_of_it() -> N
     assert_within_limits(band)
 
 
-def test_a_blocked_path_stops_the_robot() -> None:
-    across = np.array([[0.6, y] for y in np.arange(-1.2, 1.21, 0.05)])
-    choice = plan([(0.0, 0.0), (2.5, 0.0)], np.concatenate([corridor_walls(), across]))
-    assert choice.blocked
-    assert choice.command == (0.0, 0.0)
+def test_a_blocked_path_stops_the_robot_short_of_what_blocks_it() -> None:
+    planner = TimedElasticBand(CONFIG)
+    across = np.array([[1.0, y] for y in np.arange(-1.2, 1.21, 0.05)])
+    seen = np.concatenate([corridor_walls(), across])  # a wall right across, 1 m ahead
+    pose, velocity, blocked = (0.0, 0.0, 0.0), (0.0, 0.0), False
+    for cycle in range(80):
+        path = transform(inverse(pose), np.array([pose[:2], (2.5, 0.0)]))
+        local = transform(inverse(pose), seen)
+        choice = planner.choose(path, -pose[2], False, velocity, local, pose, 0.1 * cycle)
+        blocked |= choice.blocked
+        velocity = choice.command
+        pose = compose(pose, (velocity[0] * 0.1, 0.0, velocity[1] * 0.1))
+        assert pose[0] < 1.0 - BODY.radius
+    assert blocked
+    assert velocity == (0.0, 0.0)
 
 
 def test_the_band_grows_and_shrinks_to_keep_its_intervals_near_dt_ref() -> None:

@@ -21,10 +21,12 @@ Each control cycle:
    replaces the g2o graph optimiser of the original: the same Levenberg-Marquardt-like
    step on the same sparse structure, from a well-kept library with no build step.
    Obstacle times are fixed at the start of each cycle, as the original does.
-4. The optimised band is checked against hard constraints over its first
+4. The optimised band is checked against the hard constraint over its first
    ``feasibility_time`` seconds: clearance of at least the body's radius from every
-   predicted return, and the speed limits. A band that fails is rebuilt from the path
-   and optimised once more; if that fails too the robot stops (and the driver plans the
+   predicted return, at its poses and midway between them. A band that runs into
+   something anywhere is also rebuilt from the path and bent either way round it, each
+   optimised, and the best kept; if none is feasible, or every one runs into something
+   standing still (a wall across the way), the robot stops (and the driver plans the
    global path again around what it sees, as it does for a blocked DWA).
 5. The command is the first interval's velocity, clamped to what the body can reach
    within one period.
@@ -437,7 +439,6 @@ class TimedElasticBand:
         self.config = config
         self.tracker = ObstacleTracker()
         self.band: Band | None = None  # the last band, odometry frame
-        self.last_solve_ms = 0.0
 
     def reset(self) -> None:
         self.band = None
@@ -470,7 +471,7 @@ class TimedElasticBand:
             solved += [self._optimised(start, path, velocity, seen, final) for start in tries]
         ranked = sorted(solved, key=lambda found: self._rank(found, seen))
         band = ranked[0][0]
-        if not feasible(band, seen, self.config):
+        if not feasible(band, seen, self.config) or _walled_in(solved, seen, self.config):
             self.band = None
             return TebChoice((0.0, 0.0), True, band)
         self.band = band.moved(inverse(odom))
@@ -610,24 +611,31 @@ def _swerved(band: Band, seen: SeenObstacles, side: float, config: RobotConfig) 
 def feasible(
     band: Band, seen: SeenObstacles, config: RobotConfig, within: float | None = None
 ) -> bool:
-    """Whether the band's first ``within`` seconds (``feasibility_time`` by default) keep
-    the body clear of every predicted return and within the speed limits (10 % slack for
-    the optimiser's soft penalties)."""
+    """Whether the band's first ``within`` seconds (``feasibility_time`` by default), at
+    its poses and midway between them, keep the body's radius from every return
+    predicted for that time (TEB's ``isTrajectoryFeasible``; speeds are no hard
+    constraint: the command is clamped to the limits)."""
+    if len(seen.points) == 0:
+        return True
     times = band.times
     ahead = times <= (config.teb.feasibility_time if within is None else within)
     ahead[: min(2, len(ahead))] = True
-    poses = band.poses[ahead]
-    if len(seen.points):
-        predicted = seen.at(times[ahead])
-        gap = np.hypot(*(predicted - poses[:, None, :2]).transpose(2, 0, 1)).min(axis=1)
-        if (gap[1:] < config.body.radius).any():
-            return False
-    linear, angular = band.velocities()
-    body, count = config.body, max(int(ahead.sum()) - 1, 1)
-    return bool(
-        (np.abs(linear[:count]) <= 1.1 * body.max_linear).all()
-        and (np.abs(angular[:count]) <= 1.1 * body.max_angular).all()
-    )
+    last = int(ahead.sum())
+    xy, when = band.poses[:last, :2], times[:last]
+    xy = np.concatenate([xy[1:], (xy[:-1] + xy[1:]) / 2])
+    when = np.concatenate([when[1:], (when[:-1] + when[1:]) / 2])
+    gap = np.hypot(*(seen.at(when) - xy[:, None, :]).transpose(2, 0, 1)).min(axis=1)
+    return bool((gap >= config.body.radius).all())
+
+
+def _walled_in(solved: list[tuple[Band, float]], seen: SeenObstacles, config: RobotConfig) -> bool:
+    """Whether every band tried runs into something that stands still: no band gets
+    through, however long it waits, so the global path must change."""
+    if len(solved) < 2:
+        return False  # the warm band was clear all along
+    still = ~np.any(seen.velocities != 0, axis=1)
+    standing = SeenObstacles(seen.points[still], seen.velocities[still])
+    return not any(feasible(band, standing, config, math.inf) for band, _ in solved)
 
 
 def _clamp(value: float, low: float, high: float) -> float:

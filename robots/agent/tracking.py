@@ -54,10 +54,6 @@ class SeenObstacles:
         t = np.asarray(seconds, np.float64)[..., None, None]
         return np.asarray(self.points + self.velocities * t, np.float64)
 
-    @property
-    def moving(self) -> NDArray[np.bool_]:
-        return np.asarray(np.hypot(self.velocities[:, 0], self.velocities[:, 1]) > 0)
-
 
 @dataclass
 class _Track:
