@@ -87,10 +87,15 @@ def report(result: Result) -> str:
 
 async def measure(url: str, tokens: dict[str, str], options: dict[str, Any]) -> Result:
     pairs = list(tokens.items())[: options["robots"]]
-    robot_config = RobotConfig(camera_rate=options["camera_rate"])
-    fleet = build_fleet(
-        pairs, FleetOptions(url, particles=options["particles"], robot=robot_config)
+    robot_config = RobotConfig(camera_rate=options["camera_rate"], local_planner=options["planner"])
+    fleet_options = FleetOptions(
+        url,
+        particles=options["particles"],
+        robot=robot_config,
+        people=options["people"],
+        people_seed=options["people_seed"],
     )
+    fleet = build_fleet(pairs, fleet_options)
     running = asyncio.create_task(run_fleet(fleet, options["time_scale"]))
     await asyncio.sleep(0.5)  # connected and subscribed
     for member in fleet:

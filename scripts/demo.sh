@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Seed the demo building and run the server on 127.0.0.1:8000 with simulated robots.
-# Variables (README, "Two commands"): HOST, PORT, ROBOTS, CLOUDNAV_PUBLIC_URL,
+# Variables (README, "Two commands"): HOST, PORT, ROBOTS, PEOPLE, PEOPLE_SEED, CLOUDNAV_PUBLIC_URL,
 # CLOUDNAV_DEMO_PASSWORD, and the settings' own (DATABASE_URL, REDIS_URL, ...).
 # Ctrl-C stops everything.
 set -euo pipefail
@@ -9,6 +9,8 @@ PY=.venv/bin/python
 HOST=${HOST:-127.0.0.1}
 PORT=${PORT:-8000}
 ROBOTS=${ROBOTS:-3}
+PEOPLE=${PEOPLE:-0}
+PEOPLE_SEED=${PEOPLE_SEED:-0}
 export CLOUDNAV_PUBLIC_URL=${CLOUDNAV_PUBLIC_URL:-http://$HOST:$PORT}
 # The demo may run with the public default SECRET_KEY; nothing else may (README, Production).
 export CLOUDNAV_DEMO=1
@@ -29,7 +31,7 @@ done
 
 if [ -f robots/agent/__main__.py ]; then
   $PY -m robots.agent --server "$CLOUDNAV_PUBLIC_URL" --tokens-file var/demo_tokens.json \
-    --count "$ROBOTS" &
+    --count "$ROBOTS" --people "$PEOPLE" --people-seed "$PEOPLE_SEED" &
   pids+=($!)
 fi
 

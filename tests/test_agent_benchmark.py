@@ -25,6 +25,9 @@ def test_it_reports_cpu_per_robot(daphne_server, tmp_path: Path):
         "time_scale": 2.0,
         "camera_rate": 1.0,
         "particles": 100,
+        "planner": "dwa",
+        "people": 0,
+        "people_seed": 0,
         "url": daphne_server.url,
         "tokens_file": str(tokens),
     }

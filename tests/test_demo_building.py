@@ -258,6 +258,15 @@ def test_the_demo_robots_start_where_their_cameras_read_the_entrance_tag(
         assert read == ["CorridorA"] * 3, start
 
 
+def test_the_demo_robots_start_clear_of_one_another(building: DemoBuilding) -> None:
+    # Robots see and bump into one another: none may start touching another.
+    from robots.domain.params import BodyLimits
+
+    starts = building.robot_starts
+    gaps = [math.dist(a[:2], b[:2]) for i, a in enumerate(starts) for b in starts[i + 1 :]]
+    assert min(gaps) > 2 * BodyLimits().radius + 0.05
+
+
 def test_the_cheapest_route_is_the_main_corridor_route(building: DemoBuilding) -> None:
     graph = nx.Graph()
     graph.add_edges_from((e.a, e.b, {"cost": e.cost}) for e in building.edges)

@@ -6,6 +6,9 @@ arrives. Sent back to Corridor A, it downloads nothing. What is checked comes fr
 server's side: its access log (every bundle request and its status) and the robot's
 ``/robot_0/pose`` and ``nav_status`` topics as an operator receives them.
 
+The building is alive: ``PEOPLE`` people walk seeded routes through it (crossing the
+robot's way, pausing, some walking towards it), seen by its laser and camera.
+
 The agent runs the simulation ``TIME_SCALE`` times faster than the wall clock.
 """
 
@@ -31,6 +34,7 @@ from tests.fixtures_live import LiveServer, agent_process
 pytestmark = [pytest.mark.django_db(transaction=True), pytest.mark.slow]
 
 TIME_SCALE = 8.0
+PEOPLE, PEOPLE_SEED = 6, 2
 ROBOT = "robot_0"
 BUILDING = "boccioni_1"
 ROUTE = list(PAPER_ROUTE)
@@ -48,6 +52,7 @@ def agent(daphne_server: LiveServer, demo_token: str, tmp_path: Path) -> Iterato
     # its keyframes (a megabyte each) at 8 x real time would load this one's server.
     options = ["--time-scale", str(TIME_SCALE), "--camera-rate", "1", "--depth-rate", "0"]
     options.append("--no-visual")
+    options += ["--people", str(PEOPLE), "--people-seed", str(PEOPLE_SEED)]
     with agent_process(daphne_server.url, demo_token, tmp_path / "agent.log", *options) as log:
         yield log
 

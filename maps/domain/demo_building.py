@@ -60,11 +60,13 @@ PAPER_ROUTE = (
 START_DISTANCE = 1.2
 """How far in front of the entrance tag the paper's robot with no maps begins: it sees the
 marker from there, but must drive closer to read the QR code."""
-ROBOT_STARTS = ((0.5, 0.0), (0.45, 35.0), (0.45, -35.0))
+ROBOT_STARTS = ((0.5, 12.0), (0.5, 62.0), (0.45, -40.0))
 """Where the demo's simulated robots begin, as (metres from the entrance tag, degrees off
 its outward normal), facing it: near enough to read its QR code at once (a 6 cm code reads
 to about 0.7 m head on, less at an angle), so ``make demo``'s robots localise on their own
-instead of waiting, lost, for a goal. More robots than places reuse them in turn."""
+instead of waiting, lost, for a goal; and over 0.41 m apart, so robots of 0.18 m radius (which
+see and bump into one another) stand clear of each other. More robots than places reuse
+them in turn."""
 
 OCCUPIED, FREE, UNKNOWN = 100, 0, -1
 """``nav_msgs/OccupancyGrid`` values of the world grid."""

@@ -10,9 +10,12 @@ Many in one process, with the tokens ``manage.py seed_demo`` wrote::
         --tokens-file var/demo_tokens.json --count 3
 
 ``--changes 7`` runs a building that differs from its stored maps in ways drawn from
-seed 7 (``robots/agent/sim/changes.py``). ``--time-scale 4`` runs the simulation four
-times faster than the wall clock (every rate and timeout of the robot is in simulated
-time). Ctrl-C (or SIGTERM) stops the robots.
+seed 7 (``robots/agent/sim/changes.py``).
+``--planner teb`` drives with the timed elastic band instead of the dynamic window.
+``--people 8 --people-seed 3`` puts eight people on seeded routes through the building;
+the robots see them, and one another, in their lasers and cameras.
+``--time-scale 4`` runs the simulation four times faster than the wall clock (every rate
+and timeout of the robot is in simulated time). Ctrl-C (or SIGTERM) stops the robots.
 """
 
 from __future__ import annotations
@@ -58,8 +61,8 @@ def arguments(argv: Sequence[str] | None = None) -> argparse.Namespace:
     )
     parser.add_argument("--log-level", default="INFO")
     options = parser.parse_args(argv)
-    if options.time_scale <= 0 or options.count < 1:
-        parser.error("--time-scale must be positive and --count at least 1")
+    if options.time_scale <= 0 or options.count < 1 or options.people < 0:
+        parser.error("--time-scale must be positive, --count at least 1, --people at least 0")
     return options
 
 
@@ -79,9 +82,15 @@ async def main(options: argparse.Namespace) -> None:
         start=options.start,
         particles=options.particles,
         seed=options.seed,
-        robot=RobotConfig(camera_rate=options.camera_rate, depth_rate=options.depth_rate),
+        robot=RobotConfig(
+            camera_rate=options.camera_rate,
+            depth_rate=options.depth_rate,
+            local_planner=options.planner,
+        ),
         changes=None if options.changes is None else plan_changes(options.changes),
         visual=options.visual,
+        people=options.people,
+        people_seed=options.people_seed,
     )
     fleet = build_fleet(tokens_of(options), fleet_options)
     running = asyncio.create_task(run_fleet(fleet, options.time_scale))

@@ -1,8 +1,10 @@
 """Many simulated robots in one process: one asyncio loop, one rosbridge connection and one
 HTTP client per robot, one shared simulated world.
 
-Robots are ghosts to each other: each one's sensors see the building, its tags and its
-extra obstacles, not the other robots.
+The robots share one ``Crowd``: each one's laser, camera and bumpers see the building,
+its tags, the other robots and, with ``people`` > 0, that many people walking seeded
+routes through the building's corridors, atria and rooms (``--people``,
+``--people-seed``).
 """
 
 from __future__ import annotations
@@ -16,12 +18,14 @@ from dataclasses import dataclass, field
 from urllib.parse import urlsplit, urlunsplit
 
 import httpx
+import numpy as np
 
 from maps.domain.demo_building import demo_building
 from maps.domain.planning import warm_up
 from robots.agent.client import RosbridgeClient
 from robots.agent.robot import PoseTracker, Robot, SimHardware, declare, particle_filter
 from robots.agent.sim.changes import WorldChanges, changed_demo_world
+from robots.agent.sim.crowd import Crowd
 from robots.agent.sim.world import World, demo_world
 from robots.agent.supervisor import BundleCache, MapsSupervisor
 from robots.agent.visual import VisualMap
@@ -44,11 +48,14 @@ class FleetOptions:
     robot: RobotConfig = field(default_factory=RobotConfig)
     changes: WorldChanges | None = None  # how the building differs from its maps
     visual: bool = True  # send keyframes, and ask the cloud where it is when lost
+    people: int = 0
+    people_seed: int = 0
 
 
 def add_robot_arguments(parser: argparse.ArgumentParser) -> None:
     """The command-line options of how simulated robots run: ``--time-scale``,
-    ``--camera-rate`` and ``--particles`` (defaults: ``RobotConfig``'s)."""
+    ``--camera-rate``, ``--particles``, ``--planner`` (defaults: ``RobotConfig``'s),
+    ``--people`` and ``--people-seed``."""
     defaults = RobotConfig()
     parser.add_argument("--time-scale", type=float, default=1.0, help="simulated s per wall s")
     parser.add_argument(
@@ -67,6 +74,14 @@ def add_robot_arguments(parser: argparse.ArgumentParser) -> None:
         type=int,
         help=f"0: odometry and tags only (default {defaults.localisation.particles})",
     )
+    parser.add_argument(
+        "--planner",
+        choices=("dwa", "teb"),
+        default=defaults.local_planner,
+        help="local planner: dynamic window or timed elastic band",
+    )
+    parser.add_argument("--people", type=int, default=0, help="people walking in the building")
+    parser.add_argument("--people-seed", type=int, default=0, help="seed of their routes")
 
 
 def endpoints(server: str) -> tuple[str, str]:
@@ -90,7 +105,12 @@ class FleetRobot:
 
 
 def build_robot(
-    name: str, token: str, world: World, options: FleetOptions, index: int = 0
+    name: str,
+    token: str,
+    world: World,
+    options: FleetOptions,
+    index: int = 0,
+    crowd: Crowd | None = None,
 ) -> FleetRobot:
     """A robot named ``name`` with its rosbridge and HTTP clients (not started)."""
     http_base, ws_url = endpoints(options.server)
@@ -99,7 +119,7 @@ def build_robot(
     )
     seed, config = options.seed + 10 * index, options.robot
     start = options.start or demo_start(index)
-    hardware = SimHardware(world, start, seed=seed, limits=config.body)
+    hardware = SimHardware(world, start, seed=seed, limits=config.body, crowd=crowd)
     particles = config.localisation.particles if options.particles is None else options.particles
     tracker = PoseTracker(particle_filter(particles, seed, config.localisation))
     supervisor = MapsSupervisor(BundleCache(http), tracker)
@@ -119,15 +139,23 @@ def demo_start(index: int) -> Pose:
 
 def build_fleet(tokens: Iterable[tuple[str, str]], options: FleetOptions) -> list[FleetRobot]:
     """Robots for ``(name, token)`` pairs in the demo building (as ``options.changes``
-    left it), its tags naming the server as their cloud."""
+    left it), its tags naming the server as their cloud, with ``options.people`` people
+    walking in it."""
     cloud = endpoints(options.server)[0]
     world = (
         demo_world(cloud) if options.changes is None else changed_demo_world(options.changes, cloud)
     )
+    crowd = demo_crowd(world, options.people, options.people_seed)
     return [
-        build_robot(name, token, world, options, index)
+        build_robot(name, token, world, options, index, crowd)
         for index, (name, token) in enumerate(tokens)
     ]
+
+
+def demo_crowd(world: World, people: int, seed: int) -> Crowd:
+    """``people`` people on seeded routes inside the demo building (never in the street)."""
+    inside = np.asarray(demo_building().world) == 0  # free and mapped: not the street
+    return Crowd.seeded(world, people, seed, inside) if people else Crowd(world)
 
 
 async def run_fleet(fleet: list[FleetRobot], time_scale: float = 1.0) -> None:

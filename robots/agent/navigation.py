@@ -4,13 +4,17 @@
   active one (PREEMPTED), a cancel preempts it too, and each ends SUCCEEDED or ABORTED;
   ``status_array`` turns it into ``nav_status``.
 - ``Driver`` drives to one target pose: A* on the current sub-map's inflated grid
-  (``maps.domain.planning``, the planner the server uses), then a dynamic window
-  controller (``DynamicWindow``) that follows the path and keeps clear of what the laser
-  sees now (``LocalObstacles``), mapped or not. When the path ahead runs into something
-  the laser sees (at most every ``REPLAN_INTERVAL`` seconds), the driver plans again
+  (``maps.domain.planning``, the planner the server uses), then a local planner that
+  follows the path and keeps clear of what the laser sees, mapped or not: a dynamic
+  window controller (``DynamicWindow``) on what it sees now (``LocalObstacles``), or
+  the timed elastic band (``robots.agent.teb``) on what it sees with the velocities of
+  what moves, as the robot's ``local_planner`` parameter says. When the path ahead runs
+  into something the laser sees (at most every ``REPLAN_INTERVAL`` seconds), the driver plans again
   with the laser's returns marked on the grid, as Nav2's obstacle layer does in its
   global costmap. Blocked for ``BLOCKED_REPLAN`` seconds, or without progress for
-  ``STUCK_AFTER``, it does the same; after ``MAX_REPLANS`` of those it gives up.
+  ``STUCK_AFTER``, it does the same; after ``MAX_REPLANS`` of those with no progress
+  between them it gives up. A plan around what the laser sees that finds no way keeps
+  the last path and waits: what blocks a doorway is often a person who will move on.
 - ``Navigator`` joins them to the Maps Supervisor: each tick the supervisor says which
   leg comes next (search, approach a tag, the goal itself), the driver drives it, and
   the board records how the goal ends.
@@ -35,6 +39,7 @@ from numpy.typing import NDArray
 
 from maps.domain.planning import Costmap, OutOfMapError, PlanningError, plan_on
 from robots.agent.supervisor import SEARCH_RATE, Destination, Leg, LegKind, MapsSupervisor, SubMap
+from robots.agent.teb import TimedElasticBand, heading_at_end, local_path
 from robots.domain.params import RobotConfig
 from robots.domain.se2 import Point, Pose, compose, inverse, transform, wrap
 from telemetry.domain.messages import GoalStatus, StatusEntry
@@ -283,6 +288,8 @@ class Driver:
         self.config = config or RobotConfig()
         self.tuning = self.config.controller
         self.controller = DynamicWindow(self.config)
+        self.teb = TimedElasticBand(self.config) if self.config.local_planner == "teb" else None
+        self._band_plan = 0  # the plan_version the band follows
         self.path: list[Point] = []
         self.plan_version = 0
         self._target: Pose | None = None
@@ -306,8 +313,10 @@ class Driver:
         velocity: Command,
         obstacles: LocalObstacles,
         seconds: float,
+        odom: Pose = (0.0, 0.0, 0.0),
     ) -> Drive:
-        """One command toward ``target`` from ``pose`` at ``velocity``."""
+        """One command toward ``target`` from ``pose`` at ``velocity``; ``odom`` (the
+        odometry pose) lets the TEB planner track what moves."""
         if self._retargeted(target, submap):
             failure = self._plan(target, submap, pose, seconds, obstacles=None)
             if failure:
@@ -320,7 +329,7 @@ class Driver:
             self._aligning = False
         if self._aligning:
             return self._align(pose, target)
-        return self._follow(pose, velocity, obstacles, seconds, distance)
+        return self._follow(pose, velocity, obstacles, seconds, distance, odom)
 
     # --- planning ------------------------------------------------------------------------
 
@@ -380,12 +389,12 @@ class Driver:
         obstacles: LocalObstacles,
         seconds: float,
         distance: float,
+        odom: Pose,
     ) -> Drive:
         carrot = self._carrot(pose)
         if self._path_obstructed(pose, obstacles, seconds):
-            failure = self._replan_around(obstacles, pose, seconds)
-            if failure:
-                return Drive(STOP, DriveState.FAILED, failure)
+            # No way round what is seen (a person in a doorway): keep the path, they move.
+            self._replan_around(obstacles, pose, seconds)
             carrot = self._carrot(pose)
         local = compose(inverse(pose), (*carrot, 0.0))
         bearing = math.atan2(local[1], local[0])
@@ -394,19 +403,46 @@ class Driver:
         else:
             # Slow enough to stop at the target within the braking limit, with a margin.
             cap = math.sqrt(2 * self.config.body.linear_accel * distance) * 0.7
-            choice = self.controller.choose(velocity, (local[0], local[1]), obstacles, cap)
+            if self.teb is None:
+                choice = self.controller.choose(velocity, (local[0], local[1]), obstacles, cap)
+            else:
+                choice = self._band_choice(pose, odom, velocity, obstacles, cap, seconds)
             self._note_blocked(choice.blocked, seconds)
             command = choice.command
         return self._after(Drive(command), pose, obstacles, seconds, distance)
+
+    def _band_choice(
+        self,
+        pose: Pose,
+        odom: Pose,
+        velocity: Command,
+        obstacles: LocalObstacles,
+        cap: float,
+        seconds: float,
+    ) -> Choice:
+        """The TEB planner's command along the next ``teb.horizon`` metres of the path."""
+        assert self.teb is not None
+        if self.plan_version != self._band_plan:
+            self.teb.reset()  # a new global path: the old band may cross what it avoids
+            self._band_plan = self.plan_version
+        path, index = self.path, self._index
+        start = _projection(pose[:2], path[index], path[index + 1]) if len(path) > 1 else path[0]
+        local = local_path(path, start, index, pose, self.config.teb.horizon)
+        final = bool(np.allclose(local[-1], transform(inverse(pose), np.array([path[-1]]))[0]))
+        band = self.teb.choose(
+            local, heading_at_end(local), final, velocity, obstacles.points, odom, seconds, cap
+        )
+        return Choice(band.command, band.blocked)
 
     def _after(
         self, drive: Drive, pose: Pose, obstacles: LocalObstacles, seconds: float, distance: float
     ) -> Drive:
         """Watch progress: replan around obstacles when blocked or stuck; give up after
-        ``MAX_REPLANS``."""
+        ``MAX_REPLANS`` in a row with no progress between them."""
         progress = self._progress
         if distance < progress.best - PROGRESS:
-            progress.best, progress.since = distance, seconds
+            # Getting on: earlier blockages (people who have since moved) no longer count.
+            progress.best, progress.since, progress.replans = distance, seconds, 0
         since_blocked = progress.blocked_since
         blocked = since_blocked is not None and seconds - since_blocked >= BLOCKED_REPLAN
         if not blocked and seconds - progress.since < STUCK_AFTER:
@@ -416,7 +452,7 @@ class Driver:
         progress.replans += 1
         progress.blocked_since = None
         failure = self._replan_around(obstacles, pose, seconds)
-        return Drive(STOP, DriveState.FAILED, failure) if failure else drive
+        return Drive(STOP) if failure else drive  # no way round yet: wait, and count it
 
     def _replan_around(self, obstacles: LocalObstacles, pose: Pose, seconds: float) -> str:
         """Plan again with the laser's near returns on the grid; why it failed, or ''."""
@@ -548,13 +584,19 @@ class Navigator:
             return 0.0, SEARCH_RATE
         if leg.kind is LegKind.HOLD or leg.target is None:
             return STOP
-        return self._drive(leg, pose, velocity, obstacles, seconds)
+        return self._drive(leg, pose, odom, velocity, obstacles, seconds)
 
     def _drive(
-        self, leg: Leg, pose: Pose, velocity: Command, obstacles: LocalObstacles, seconds: float
+        self,
+        leg: Leg,
+        pose: Pose,
+        odom: Pose,
+        velocity: Command,
+        obstacles: LocalObstacles,
+        seconds: float,
     ) -> Command:
         assert leg.target is not None
-        drive = self.driver.drive(leg.target, leg.submap, pose, velocity, obstacles, seconds)
+        drive = self.driver.drive(leg.target, leg.submap, pose, velocity, obstacles, seconds, odom)
         if drive.state is DriveState.FAILED:
             self._end(GoalStatus.ABORTED, drive.reason)
         elif drive.state is DriveState.ARRIVED and leg.kind is LegKind.FINAL:

@@ -51,6 +51,7 @@ from robots.agent.relocalise import PoseEstimate
 from robots.agent.sim.battery import SimBattery
 from robots.agent.sim.body import DiffDriveBody
 from robots.agent.sim.camera import Camera, compressed_image_message, encode_jpeg
+from robots.agent.sim.crowd import Crowd
 from robots.agent.sim.laser import Laser, LaserSpec
 from robots.agent.sim.world import World
 from robots.agent.supervisor import BundleError, MapsSupervisor, SubMap
@@ -85,14 +86,28 @@ TELEOP_HOLD = 0.5
 
 class SimHardware:
     """The body, laser and camera of one robot in ``world``, starting at ``pose``; the
-    body moves within ``limits`` (the default robot's without)."""
+    body moves within ``limits`` (the default robot's without).
+
+    With a ``crowd``, the body joins it: this robot's laser, camera and bumpers see its
+    people and the other robots in it, and they see this one. Advancing the hardware
+    walks the crowd on to the body's time (the first robot there moves it)."""
 
     def __init__(
-        self, world: World, pose: Pose, seed: int = 0, limits: BodyLimits | None = None
+        self,
+        world: World,
+        pose: Pose,
+        seed: int = 0,
+        limits: BodyLimits | None = None,
+        crowd: Crowd | None = None,
     ) -> None:
+        self.crowd = crowd
         self.body = DiffDriveBody(world, pose, limits=limits, seed=seed)
-        self.laser = Laser(world, LaserSpec(), seed=seed + 1)
-        self.camera = Camera(world, CameraModel(), seed=seed + 2)
+        movers = None
+        if crowd is not None:
+            crowd.join(self.body)
+            movers = self.body.others = crowd.movers_for(self.body)
+        self.laser = Laser(world, LaserSpec(), seed=seed + 1, movers=movers)
+        self.camera = Camera(world, CameraModel(), seed=seed + 2, movers=movers)
         self.battery = SimBattery()
         self.scan_angles = self.laser.spec.angles()
 
@@ -114,6 +129,8 @@ class SimHardware:
     def advance(self, seconds: float) -> None:
         self.body.advance(seconds)
         self.battery.drain(seconds, *self.body.velocity)
+        if self.crowd is not None:
+            self.crowd.advance_to(self.body.time)
 
     def command(self, linear: float, angular: float) -> None:
         """Ask for a velocity; the body clamps it to its limits."""

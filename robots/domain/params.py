@@ -16,6 +16,8 @@ from dataclasses import dataclass, field
 from typing import Literal, get_args
 
 LaserModel = Literal["likelihood_field_prob", "likelihood_field"]
+LocalPlanner = Literal["dwa", "teb"]
+"""The local planners: the dynamic window approach, the timed elastic band."""
 """AMCL's ``laser_model_type`` values that the particle filter implements."""
 
 
@@ -114,7 +116,8 @@ class PlannerConfig:
 
 @dataclass(frozen=True)
 class ControllerConfig:
-    """The local controller's tuning (the dynamic window approach)."""
+    """The local controller's tuning: the dynamic window approach's, and the path
+    following both local planners share (lookahead, tolerances, turning on the spot)."""
 
     safety: float = 0.04
     """m of clearance a trajectory keeps beyond the body's radius."""
@@ -133,9 +136,46 @@ class ControllerConfig:
 
 
 @dataclass(frozen=True)
+class TebConfig:
+    """The timed elastic band's tuning (``robots.agent.teb``); the names follow
+    teb_local_planner's where they match. Weights multiply squared errors."""
+
+    horizon: float = 2.5
+    """m of the global path the band covers (its local goal lies this far along)."""
+    dt_ref: float = 0.3
+    """s: the time interval between poses the band is resized towards."""
+    dt_hysteresis: float = 0.1
+    """s either side of ``dt_ref`` before a pose is added or removed."""
+    min_poses: int = 3
+    max_poses: int = 30
+    via_spacing: float = 0.5
+    """m between the via-points taken from the global path."""
+    min_obstacle_dist: float = 0.08
+    """m of clearance beyond the body's radius the band keeps from what the laser sees."""
+    inflation: float = 0.6
+    """m from a return within which the band pays a little to keep away."""
+    feasibility_time: float = 1.2
+    """s of the optimised band checked against collisions and speed limits."""
+    iterations: int = 6
+    """Evaluations of the Jacobian's worth of optimisation per control cycle (max_nfev)."""
+    weight_viapoint: float = 1.0
+    weight_obstacle: float = 50.0
+    weight_inflation: float = 0.5
+    weight_kinematics: float = 1000.0
+    """The non-holonomic constraint: headings agree with the steps between poses."""
+    weight_forward: float = 10.0
+    """Driving backwards."""
+    weight_velocity: float = 10.0
+    weight_acceleration: float = 1.0
+    weight_time: float = 1.0
+
+
+@dataclass(frozen=True)
 class RobotConfig:
     """One robot's parameters: the control period, what it publishes how often, and its
-    body, filter, planner and controller."""
+    body, filter, global planner and local planner (its choice and both tunings).
+
+    Raises ValueError for an unknown ``local_planner``."""
 
     period: float = 0.1
     """s: the control period (body, laser, controller); the other rates count in it."""
@@ -156,10 +196,17 @@ class RobotConfig:
     """Times per second the robot asks again, conditionally, for the bundle of the sub-map
     it is in, so a new version reaches it while it drives there (0: only on entering)."""
     jpeg_quality: int = 80
+    local_planner: LocalPlanner = "dwa"
+    """``dwa`` (``controller``) or ``teb`` (``teb``)."""
     body: BodyLimits = field(default_factory=BodyLimits)
     localisation: FilterParams = field(default_factory=FilterParams)
     planner: PlannerConfig = field(default_factory=PlannerConfig)
     controller: ControllerConfig = field(default_factory=ControllerConfig)
+    teb: TebConfig = field(default_factory=TebConfig)
+
+    def __post_init__(self) -> None:
+        if self.local_planner not in get_args(LocalPlanner):
+            raise ValueError(f"unknown local_planner {self.local_planner!r}")
 
     @property
     def planning_radius(self) -> float:

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from robots.agent.sim.crowd import NO_DISCS, Movers, disc_clearance
 from robots.agent.sim.world import World
 from robots.domain.params import BodyLimits
 from robots.domain.se2 import Pose, wrap
@@ -59,10 +60,12 @@ class DiffDriveBody:
         rate_hz: float = 50.0,
         watchdog: float = 0.5,
         seed: int = 0,
+        others: Movers | None = None,
     ) -> None:
         if rate_hz < 20:
             raise ValueError("the body integrates at 20 Hz or more")
         self.world = world
+        self.others = others or (lambda: NO_DISCS)  # people and robots that bump it too
         self.limits = limits or BodyLimits()
         self.noise = noise or OdometryNoise()
         self.dt = 1.0 / rate_hz
@@ -78,6 +81,10 @@ class DiffDriveBody:
         self.odom_variance = (0.0, 0.0)
         self._wanted = (0.0, 0.0)
         self._last_command = -math.inf
+
+    @property
+    def radius(self) -> float:
+        return self.limits.radius
 
     def command(self, linear: float, angular: float) -> None:
         """Set the wanted velocity (a ``cmd_vel``), clamped to the limits, at ``self.time``."""
@@ -124,11 +131,16 @@ class DiffDriveBody:
         return distance, turn
 
     def _blocked(self, start: tuple[float, float], end: tuple[float, float]) -> bool:
-        """Whether moving from ``start`` to ``end`` touches a wall, or moves nearer one
-        while already touching (a robot placed too close may still leave)."""
+        """Whether moving from ``start`` to ``end`` touches a wall, a person or another
+        robot, or moves nearer one while already touching (a robot placed too close, or
+        walked into, may still leave)."""
         radius = self.limits.radius
         after = self.world.clearance(*end, radius)
-        return after < radius and after <= self.world.clearance(*start, radius)
+        if after < radius and after <= self.world.clearance(*start, radius):
+            return True
+        others = self.others()
+        after = disc_clearance(*end, others)
+        return after < radius and after <= disc_clearance(*start, others)
 
     def _integrate_odometry(self, distance: float, turn: float) -> None:
         """Add the step's motion, as the wheels misreport it, to ``odom_pose``."""

@@ -9,7 +9,9 @@ prints (``tagart.tag_face``): warped at 4x the image resolution and reduced with
 A tag column is drawn only where the tag is not farther than that column's wall (to a
 few centimetres: tags are flush with their wall), so anything standing between the
 camera and a tag hides it. A tag any of whose corners is behind the camera is not drawn.
-Last, a mild Gaussian blur and sensor noise.
+People and other robots (``movers``) are drawn after the static world as flat-shaded
+cylinders (one ray per column against their discs), in front of the walls they hide,
+and they hide tags too. Last, a mild Gaussian blur and sensor noise.
 
 The image is grey (``mono8``), ``model.height`` x ``model.width``.
 """
@@ -25,6 +27,7 @@ from numpy.typing import NDArray
 
 from maps.domain.tagart import TagFace, face_size, plate_right_axis, tag_face
 from robots.agent.perception import CameraModel
+from robots.agent.sim.crowd import Discs, Movers, cast_discs
 from robots.agent.sim.wallpaper import EAST, FAR_LEVELS, NORTH, PANEL_WIDTH, SOUTH, TEXEL, WEST
 from robots.agent.sim.world import OBSTACLE, RayHits, SimTag, World
 from robots.domain.se2 import Pose, ahead
@@ -58,8 +61,10 @@ class Camera:
         noise_sigma: float = 2.0,
         max_depth: float = 30.0,
         seed: int = 0,
+        movers: Movers | None = None,
     ) -> None:
         self.world = world
+        self.movers = movers
         self.model = model or CameraModel()
         self.blur_sigma = blur_sigma
         self.max_depth = max_depth
@@ -92,9 +97,12 @@ class Camera:
         angles = eye[2] - self._column_angles
         hits = self.world.cast(eye[0], eye[1], angles, self.max_depth)
         image = self._walls(eye, angles, hits)
+        nearest = hits.distance
+        if self.movers is not None:
+            nearest = self._draw_movers(image, self.movers(), eye, angles, nearest)
         for tag in self.world.tags:
-            self._draw_tag(image, tag, eye, hits.distance)
-        return self._degraded(image), (self._depth(hits.distance) if depth else None)
+            self._draw_tag(image, tag, eye, nearest)
+        return self._degraded(image), (self._depth(nearest) if depth else None)
 
     # --- walls -------------------------------------------------------------------------
 
@@ -172,6 +180,30 @@ class Camera:
             )
         depth = np.minimum(planes, walls[None, :])
         return np.where(depth <= self.max_depth, depth, np.inf).astype(np.float32)
+
+    # --- people and robots ------------------------------------------------------------
+
+    def _draw_movers(
+        self, image: Image, discs: Discs, eye: Pose, angles: Floats, walls: Floats
+    ) -> Floats:
+        """Draw each column's nearest disc standing in front of its wall, from the floor
+        to the disc's height; return each column's distance to what it shows."""
+        distance, index = cast_discs(eye[0], eye[1], angles, discs)
+        front = distance < walls
+        if not front.any():
+            return walls
+        model, which = self.model, index[front].astype(np.intp)
+        depth = distance[front] * np.cos(self._column_angles[front])
+        scale = model.fy / np.maximum(depth, 1e-3)
+        top = model.cy - scale * (discs.height[which] - model.mount_height)
+        bottom = model.cy + scale * model.mount_height
+        # People mid-grey, robots dark; each a little different, dimmed by distance.
+        base = np.where(discs.person[which], 105.0 + 12.0 * (which % 4), 60.0)
+        shade = (base * (0.6 + 0.4 * np.exp(-distance[front] / 8.0))).astype(np.uint8)
+        band = (self._rows >= top) & (self._rows <= bottom)
+        columns = image[:, front]
+        image[:, front] = np.where(band, shade[None, :], columns)
+        return np.where(front, distance, walls)
 
     # --- tags --------------------------------------------------------------------------
 

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from robots.agent.sim.crowd import Movers, cast_discs
 from robots.agent.sim.world import World
 from robots.domain.se2 import Pose, ahead
 from telemetry.domain.messages import Json, laser_scan
@@ -47,10 +48,18 @@ class LaserSpec:
 
 
 class Laser:
-    """Scans of ``world`` with noise drawn from a generator seeded with ``seed``."""
+    """Scans of ``world``, and of what ``movers`` returns at each scan (people and other
+    robots), with noise drawn from a generator seeded with ``seed``."""
 
-    def __init__(self, world: World, spec: LaserSpec | None = None, seed: int = 0) -> None:
+    def __init__(
+        self,
+        world: World,
+        spec: LaserSpec | None = None,
+        seed: int = 0,
+        movers: Movers | None = None,
+    ) -> None:
         self.world = world
+        self.movers = movers  # people and other robots, seen like walls
         self.spec = spec or LaserSpec()
         self.rng = np.random.default_rng(seed)
         self._angles = self.spec.angles()
@@ -62,8 +71,11 @@ class Laser:
         """
         spec = self.spec
         origin = ahead(pose, spec.mount_x)
-        hits = self.world.cast(*origin, self._angles + pose[2], spec.range_max)
-        ranges = hits.distance + self.rng.normal(0.0, spec.noise_sigma, spec.beams)
+        angles = self._angles + pose[2]
+        distance = self.world.cast(*origin, angles, spec.range_max).distance
+        if self.movers is not None:
+            distance = np.minimum(distance, cast_discs(*origin, angles, self.movers())[0])
+        ranges = distance + self.rng.normal(0.0, spec.noise_sigma, spec.beams)
         valid = (ranges >= spec.range_min) & (ranges <= spec.range_max)
         return np.where(valid, ranges, np.inf).astype(np.float32)
 
