@@ -6,9 +6,11 @@ Scaled mode: ``DATABASE_URL=postgres://...`` and ``REDIS_URL=redis://...``.
 
 from __future__ import annotations
 
+import json
 import os
 from datetime import timedelta
 from pathlib import Path
+from typing import Any
 
 import dj_database_url
 import django_stubs_ext
@@ -75,6 +77,13 @@ CLOUDNAV_VIDEO_ENCODER_MEMORY_BYTES = int(
     os.environ.get("CLOUDNAV_VIDEO_ENCODER_MEMORY_BYTES", str(2**30))
 )
 CLOUDNAV_VIDEO_ENCODER_PER_CLIENT = int(os.environ.get("CLOUDNAV_VIDEO_ENCODER_PER_CLIENT", "4"))
+# WebRTC (/whep): ICE servers as a JSON list of {"urls": ..., "username": ..., "credential":
+# ...} (STUN or TURN, for peers behind NAT; none: host candidates only, enough on a LAN),
+# and how many WebRTC sessions one client (a person or a robot) may hold at a time.
+CLOUDNAV_WEBRTC_ICE_SERVERS: list[dict[str, Any]] = json.loads(
+    os.environ.get("CLOUDNAV_WEBRTC_ICE_SERVERS", "[]")
+)
+CLOUDNAV_WHEP_PER_CLIENT = int(os.environ.get("CLOUDNAV_WHEP_PER_CLIENT", "8"))
 
 INSTALLED_APPS = [
     "daphne",

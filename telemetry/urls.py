@@ -13,6 +13,9 @@ urlpatterns: list[URLPattern] = [
     path("stream", video.stream, name="video-stream"),
     path("snapshot", video.snapshot_view, name="video-snapshot"),
     path("stream_viewer", video.stream_viewer, name="video-viewer"),
+    # WebRTC by WHEP: POST an SDP offer, DELETE the Location answered
+    path("whep", video.whep, name="video-whep"),
+    path("whep/<str:session>", video.whep_session, name="video-whep-session"),
     path("video/", video.camera_topics, name="video-page"),
     path("api/video/stats", video.video_stats, name="video-stats"),
     path("api/events/", events.EventList.as_view(), name="events"),

@@ -202,7 +202,8 @@ class StreamParams:
 
     type: str
     image: ImageParams = ImageParams()
-    vp8: Vp8Params | None = None
+    vp8: Vp8Params | None = None  # the encoder's settings (VP8 over WebM, and WebRTC)
+    fps: int | None = None  # a cap on the frame rate sent (WebRTC); None: the camera's
 
     def label(self) -> str:
         """Return a short human-readable description, e.g. ``mjpeg q=90 320x-``."""
@@ -217,6 +218,8 @@ class StreamParams:
         if self.vp8 is not None:
             v = self.vp8
             parts.append(f"{v.bitrate // 1000}kbit/s q{v.qmin}-{v.qmax} gop={v.gop}")
+        if self.fps is not None:
+            parts.append(f"<={self.fps}fps")
         return " ".join(parts)
 
 
@@ -230,11 +233,11 @@ def encoder_memory(params: StreamParams) -> int:
     """Estimate the bytes an encoder of ``params`` holds: 0 for a stream that passes the
     camera's own JPEG through, else its frames at the size it sends."""
     image = params.image
-    if params.type != VP8 and image.untouched:
+    if params.vp8 is None and image.untouched:
         return 0
     width = image.width or ASSUMED_SOURCE[0]
     height = image.height or ASSUMED_SOURCE[1]
-    if params.type == VP8:
+    if params.vp8 is not None:
         return width * height * 3 // 2 * VP8_FRAMES_HELD + 2 * 2**20  # + a keyframe interval
     return width * height * 3 * 2  # the decoded frame and its resized copy
 
@@ -271,21 +274,21 @@ def parse_stream_request(
 
 def _image_params(query: Mapping[str, str], quality: bool) -> ImageParams:
     return ImageParams(
-        quality=_int(query, "quality", 1, 100) if quality else None,
-        width=_side(query, "width"),
-        height=_side(query, "height"),
+        quality=int_param(query, "quality", 1, 100) if quality else None,
+        width=side_param(query, "width"),
+        height=side_param(query, "height"),
         invert="invert" in query,
     )
 
 
 def _vp8_params(query: Mapping[str, str]) -> Vp8Params:
-    qmin = _int(query, "qmin", 0, 63)
-    qmax = _int(query, "qmax", 0, 63)
+    qmin = int_param(query, "qmin", 0, 63)
+    qmax = int_param(query, "qmax", 0, 63)
     params = Vp8Params(
-        bitrate=_int(query, "bitrate", 1000, MAX_BITRATE) or DEFAULT_BITRATE,
+        bitrate=int_param(query, "bitrate", 1000, MAX_BITRATE) or DEFAULT_BITRATE,
         qmin=DEFAULT_QMIN if qmin is None else qmin,
         qmax=DEFAULT_QMAX if qmax is None else qmax,
-        gop=_int(query, "gop", 1, MAX_GOP) or DEFAULT_GOP,
+        gop=int_param(query, "gop", 1, MAX_GOP) or DEFAULT_GOP,
         deadline=query.get("quality") or "realtime",
     )
     if params.qmin > params.qmax:
@@ -295,15 +298,15 @@ def _vp8_params(query: Mapping[str, str]) -> Vp8Params:
     return params
 
 
-def _side(query: Mapping[str, str], name: str) -> int | None:
+def side_param(query: Mapping[str, str], name: str) -> int | None:
     """A width or height: absent, empty, 0 or -1 (web_video_server's "as the source") is None."""
     raw = query.get(name, "")
     if raw.strip() in {"", "-1", "0"}:
         return None
-    return _int(query, name, 1, MAX_SIDE)
+    return int_param(query, name, 1, MAX_SIDE)
 
 
-def _int(query: Mapping[str, str], name: str, low: int, high: int) -> int | None:
+def int_param(query: Mapping[str, str], name: str, low: int, high: int) -> int | None:
     raw = query.get(name)
     if raw is None or raw.strip() == "":
         return None

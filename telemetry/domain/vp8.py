@@ -13,6 +13,7 @@ Input is a camera JPEG, decoded by OpenCV and converted to YUV 4:2:0 (about 0.5 
 from __future__ import annotations
 
 from fractions import Fraction
+from typing import Any
 
 import av
 import cv2
@@ -26,6 +27,7 @@ from .webm import DEFAULT_FRAME_MS, EncodedFrame
 CPU_USED = 8
 # Frame rate hint for libvpx's rate control; the stream's timestamps are the real times.
 NOMINAL_RATE = 30
+MILLISECONDS = Fraction(1, 1000)
 
 
 class Vp8Encoder:
@@ -54,11 +56,6 @@ class Vp8Encoder:
 
         Raises BadFrame if the image cannot be decoded.
         """
-        frame = self._yuv_frame(jpeg.decode(image.data))
-        frame.pts = timestamp_ms
-        if self._force_key:
-            frame.pict_type = av.video.frame.PictureType.I
-            self._force_key = False
         return [
             EncodedFrame(
                 bytes(packet),
@@ -68,8 +65,21 @@ class Vp8Encoder:
                 image.received,
                 duration_ms,
             )
-            for packet in self._open(frame).encode(frame)
+            for packet in self.packets(image, timestamp_ms)
         ]
+
+    def packets(self, image: Frame, timestamp_ms: int) -> list[av.Packet[Any]]:
+        """Encode one camera frame shown at ``timestamp_ms``; return the codec's packets
+        (``time_base`` 1/1000 s), as WebRTC senders take them. Raises BadFrame."""
+        frame = self._yuv_frame(jpeg.decode(image.data))
+        frame.pts = timestamp_ms
+        if self._force_key:
+            frame.pict_type = av.video.frame.PictureType.I
+            self._force_key = False
+        packets = self._open(frame).encode(frame)
+        for packet in packets:
+            packet.time_base = MILLISECONDS
+        return packets
 
     def _yuv_frame(self, pixels: jpeg.Image) -> VideoFrame:
         if self.size is None:
@@ -83,8 +93,11 @@ class Vp8Encoder:
 
     def _open(self, frame: VideoFrame) -> av.VideoCodecContext:
         if self._context is None:
-            self._context = _codec_context(self.params, (frame.width, frame.height))
+            self._context = self._codec_context((frame.width, frame.height))
         return self._context
+
+    def _codec_context(self, size: tuple[int, int]) -> av.VideoCodecContext:
+        return _codec_context(self.params, size)
 
     def close(self) -> None:
         """Release the encoder; pending frames are dropped (live video has no use for them)."""
@@ -97,7 +110,7 @@ def _codec_context(params: Vp8Params, size: tuple[int, int]) -> av.VideoCodecCon
     assert isinstance(context, av.VideoCodecContext)  # libvpx is a video codec
     context.width, context.height = size
     context.pix_fmt = "yuv420p"
-    context.time_base = Fraction(1, 1000)
+    context.time_base = MILLISECONDS
     context.framerate = Fraction(NOMINAL_RATE, 1)
     context.bit_rate = params.bitrate
     context.gop_size = params.gop

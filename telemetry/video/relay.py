@@ -23,6 +23,7 @@ from typing import Any
 from cloudnav_web import shutdown
 from cloudnav_web.heavy import Ticket, video_budget
 from telemetry.domain.video import SOURCE, VP8, StreamParams, encoder_memory
+from telemetry.domain.webrtc import MIME_TYPES
 from telemetry.hub import Hub, get_hub
 from telemetry.video.feeds import CameraFeed
 from telemetry.video.pipelines import ImagePipeline, Pipeline, Vp8Pipeline
@@ -68,7 +69,7 @@ class VideoRelay:
         pipeline = self.pipelines.get((topic, params))
         if pipeline is None:
             feed = self._feed(topic)
-            kind = Vp8Pipeline if params.type == VP8 else ImagePipeline
+            kind = _pipeline_kind(params)
             pipeline = self.pipelines[(topic, params)] = kind(feed, params, self.executor)
             pipeline.ticket = ticket.handover() if ticket is not None else None
             pipeline.start()
@@ -114,6 +115,14 @@ class VideoRelay:
             for topic, feed in self.feeds.items()
         ]
         return streams + sources
+
+
+def _pipeline_kind(params: StreamParams) -> type[Pipeline]:
+    from telemetry.video.webrtc import RtcPipeline  # it builds on this module
+
+    if params.type in MIME_TYPES:
+        return RtcPipeline
+    return Vp8Pipeline if params.type == VP8 else ImagePipeline
 
 
 def _entry(topic: str, kind: str, params: str, viewers: int) -> dict[str, Any]:

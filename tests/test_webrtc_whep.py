@@ -1,0 +1,187 @@
+"""WebRTC by WHEP over real HTTP and real UDP against daphne, with aiortc as the viewer.
+
+A robot publishes JPEG frames at 30 Hz over rosbridge; viewers POST offers to
+``/whep?topic=T`` and decode what they receive. Expected: pictures of the asked size in
+VP8 and H.264; one encoder for all the viewers of one parameter set, stopped with the
+last; DELETE ends a session; a viewer that vanishes is dropped within seconds; the
+access rules of ``/stream``; offers beyond a client's share refused.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import sys
+from collections.abc import AsyncIterator
+from dataclasses import dataclass
+from typing import Any
+
+import httpx
+import pytest
+
+from telemetry.domain.camera_feed import Camera, camera_frames
+from telemetry.domain.whep_client import SDP, WhepRefused, WhepViewer
+from tests.conftest import make_building, make_robot
+from tests.fixtures_live import until, video_stats
+
+pytestmark = pytest.mark.django_db(transaction=True)
+
+TOPIC = "/r1/camera/image/compressed"
+WAIT = 20.0
+RATE = 30.0
+
+
+@dataclass
+class Site:
+    url: str
+    rosbridge: str
+    token: str
+
+    @property
+    def headers(self) -> dict[str, str]:
+        return {"Authorization": f"Token {self.token}"}
+
+    def rtc_streams(self) -> list[dict[str, Any]]:
+        return [s for s in video_stats(self.url, self.token) if s["type"].startswith("webrtc")]
+
+
+async def publish(site: Site, jpegs: list[bytes]) -> None:
+    camera = await Camera.connect(site.rosbridge)
+    try:
+        i = 0
+        while True:
+            await camera.send(jpegs[i % len(jpegs)])
+            i += 1
+            await asyncio.sleep(1 / RATE)  # the camera's own rate
+    finally:
+        await camera.close()
+
+
+@pytest.fixture
+def jpegs() -> list[bytes]:
+    return camera_frames(320, 240, quality=85, count=30)
+
+
+@pytest.fixture
+def tokens(daphne_servers) -> dict[str, str]:
+    """r1 (the camera's robot) and r2, a robot of no building."""
+    return {
+        "r1": make_robot(name="r1", buildings=[make_building()])[1],
+        "r2": make_robot(name="r2", buildings=[])[1],
+    }
+
+
+@pytest.fixture
+async def site(daphne_servers, tokens, jpegs) -> AsyncIterator[Site]:
+    token = tokens["r1"]
+    server = await asyncio.to_thread(daphne_servers.start, {"CLOUDNAV_WHEP_PER_CLIENT": "4"})
+    site = Site(server.url, server.rosbridge_url(token), token)
+    camera = asyncio.create_task(publish(site, jpegs))
+    yield site
+    camera.cancel()
+
+
+async def decoded(viewer: WhepViewer, count: int) -> list[tuple[int, int]]:
+    sizes = []
+    async with asyncio.timeout(WAIT):
+        async for frame in viewer.frames(WAIT):
+            sizes.append((frame.width, frame.height))
+            if len(sizes) == count:
+                return sizes
+    raise AssertionError("the stream ended")
+
+
+@pytest.mark.parametrize("codec", ["vp8", "h264"])
+async def test_an_aiortc_viewer_decodes_the_camera_and_delete_ends_it(site, codec):
+    viewer = await WhepViewer.open(
+        site.url, f"topic={TOPIC}&type={codec}&width=160&height=120", site.headers
+    )
+    assert f"{codec.upper()}/90000" in viewer.answer.upper()
+    assert "typ host" in viewer.answer
+    assert await decoded(viewer, 10) == [(160, 120)] * 10
+    [stream] = await asyncio.to_thread(site.rtc_streams)
+    assert stream["type"] == f"webrtc/{codec}"
+    assert stream["viewers"] == 1
+    assert await viewer.delete() == 200
+    await viewer.peer.close()
+    await until(lambda: not site.rtc_streams(), "the encoder to stop", WAIT)
+    assert await viewer.delete() == 404
+
+
+async def test_viewers_of_one_parameter_set_share_one_encoder(site):
+    query = f"topic={TOPIC}&type=vp8&bitrate=300000"
+    viewers = [await WhepViewer.open(site.url, query, site.headers) for _ in range(3)]
+    results = await asyncio.gather(*(decoded(v, 10) for v in viewers))
+    assert all(len(sizes) == 10 for sizes in results)
+    [stream] = await asyncio.to_thread(site.rtc_streams)
+    assert stream["viewers"] == 3
+    assert stream["params"].startswith("webrtc/vp8 300kbit/s")
+    for viewer in viewers[:2]:
+        await viewer.close()
+    [stream] = await asyncio.to_thread(site.rtc_streams)
+    assert stream["viewers"] == 1
+    await viewers[2].close()
+    await until(lambda: not site.rtc_streams(), "the encoder to stop", WAIT)
+
+
+VANISHING_VIEWER = """
+import asyncio, json, os, sys
+from telemetry.domain.whep_client import WhepViewer
+async def main():
+    viewer = await WhepViewer.open(sys.argv[1], sys.argv[2], json.loads(sys.argv[3]))
+    async for _ in viewer.frames(20):
+        print("playing", flush=True)
+        await asyncio.sleep(3600)
+asyncio.run(main())
+"""
+
+
+async def test_a_viewer_that_vanishes_without_delete_is_dropped_within_seconds(site):
+    query = f"topic={TOPIC}&type=vp8"
+    process = await asyncio.create_subprocess_exec(
+        sys.executable,
+        "-c",
+        VANISHING_VIEWER,
+        site.url,
+        query,
+        json.dumps(site.headers),
+        stdout=asyncio.subprocess.PIPE,
+    )
+    assert process.stdout is not None
+    try:
+        line = await asyncio.wait_for(process.stdout.readline(), WAIT)
+        assert line.strip() == b"playing"
+        assert [s["viewers"] for s in await asyncio.to_thread(site.rtc_streams)] == [1]
+    finally:
+        process.kill()  # no DELETE, no DTLS goodbye: the peer is simply gone
+        await process.wait()
+    await until(lambda: not site.rtc_streams(), "the vanished viewer to be dropped", 10)
+
+
+async def test_offers_beyond_the_clients_share_are_refused(site):
+    viewers = [await WhepViewer.open(site.url, f"topic={TOPIC}", site.headers) for _ in range(4)]
+    with pytest.raises(WhepRefused) as refused:
+        await WhepViewer.open(site.url, f"topic={TOPIC}", site.headers)
+    assert refused.value.status == 429
+    for viewer in viewers:
+        await viewer.close()
+
+
+async def post(site: Site, query: str, headers: dict[str, str], body: str = "v=0\r\n") -> int:
+    async with httpx.AsyncClient(base_url=site.url, timeout=WAIT) as http:
+        answer = await http.post(f"/whep?{query}", content=body, headers=headers)
+    return answer.status_code
+
+
+async def test_it_answers_as_stream_does_to_bad_requests_and_strangers(site, tokens):
+    sdp = {"Content-Type": SDP}
+    other = tokens["r2"]
+    assert await post(site, f"topic={TOPIC}", sdp) == 401
+    assert await post(site, f"topic={TOPIC}", sdp | {"Authorization": "Token nope"}) == 401
+    assert await post(site, f"topic={TOPIC}", sdp | {"Authorization": f"Token {other}"}) == 403
+    assert await post(site, "topic=/r1/nothing", sdp | site.headers) == 404
+    assert await post(site, f"topic={TOPIC}&type=av1", sdp | site.headers) == 404
+    assert await post(site, f"topic={TOPIC}&bitrate=abc", sdp | site.headers) == 400
+    assert await post(site, f"topic={TOPIC}", site.headers | {"Content-Type": "text/plain"}) == 415
+    assert await post(site, f"topic={TOPIC}", sdp | site.headers, "not sdp") == 400
+    assert not await asyncio.to_thread(site.rtc_streams)  # nothing left behind
