@@ -20,6 +20,8 @@ import httpx
 import pytest
 
 from telemetry.domain.camera_feed import Camera, camera_frames
+from telemetry.domain.video import Frame
+from telemetry.domain.webrtc import new_encoder, parse_whep_request
 from telemetry.domain.whep_client import SDP, WhepRefused, WhepViewer
 from tests.conftest import make_building, make_robot
 from tests.fixtures_live import until, video_stats
@@ -45,12 +47,12 @@ class Site:
         return [s for s in video_stats(self.url, self.token) if s["type"].startswith("webrtc")]
 
 
-async def publish(site: Site, jpegs: list[bytes]) -> None:
+async def publish(site: Site, jpegs: list[bytes], image_format: str = "jpeg") -> None:
     camera = await Camera.connect(site.rosbridge)
     try:
         i = 0
         while True:
-            await camera.send(jpegs[i % len(jpegs)])
+            await camera.send(jpegs[i % len(jpegs)], image_format=image_format)
             i += 1
             await asyncio.sleep(1 / RATE)  # the camera's own rate
     finally:
@@ -81,6 +83,23 @@ async def site(daphne_servers, tokens, jpegs) -> AsyncIterator[Site]:
     camera.cancel()
 
 
+@pytest.fixture
+async def h264_site(daphne_servers, tokens, jpegs) -> AsyncIterator[Site]:
+    """A robot whose camera publishes H.264 (``format: h264``), a keyframe every 30 frames."""
+    token = tokens["r1"]
+    server = await asyncio.to_thread(daphne_servers.start)
+    site = Site(server.url, server.rosbridge_url(token), token)
+    params = parse_whep_request({"topic": TOPIC, "type": "h264"}).params
+    encoder = new_encoder(params)
+    units = [
+        b"".join(bytes(p) for p in encoder.packets(Frame(jpeg, "jpeg", None, 0.0), i * 33))
+        for i, jpeg in enumerate(jpegs)
+    ]
+    camera = asyncio.create_task(publish(site, units, "h264"))
+    yield site
+    camera.cancel()
+
+
 async def decoded(viewer: WhepViewer, count: int) -> list[tuple[int, int]]:
     sizes = []
     async with asyncio.timeout(WAIT):
@@ -106,6 +125,15 @@ async def test_an_aiortc_viewer_decodes_the_camera_and_delete_ends_it(site, code
     await viewer.peer.close()
     await until(lambda: not site.rtc_streams(), "the encoder to stop", WAIT)
     assert await viewer.delete() == 404
+
+
+async def test_an_h264_camera_is_relayed_without_decoding(h264_site):
+    site = h264_site
+    viewer = await WhepViewer.open(site.url, f"topic={TOPIC}&type=h264", site.headers)
+    assert await decoded(viewer, 10) == [(320, 240)] * 10
+    [stream] = await asyncio.to_thread(site.rtc_streams)
+    assert stream["encoder_cpu"] == 0
+    await viewer.close()
 
 
 async def test_viewers_of_one_parameter_set_share_one_encoder(site):

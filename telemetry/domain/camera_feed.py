@@ -39,15 +39,16 @@ def camera_frames(width: int, height: int, quality: int, count: int = 150) -> li
     return frames
 
 
-def image_message(jpeg: bytes, stamp: float) -> dict[str, Any]:
-    """Return a JPEG ``sensor_msgs/CompressedImage`` stamped ``stamp`` (Unix seconds)."""
+def image_message(jpeg: bytes, stamp: float, image_format: str = "jpeg") -> dict[str, Any]:
+    """Return a ``sensor_msgs/CompressedImage`` (JPEG unless ``image_format`` says
+    otherwise) stamped ``stamp`` (Unix seconds)."""
     sec = int(stamp)
     return {
         "header": {
             "frame_id": "camera",
             "stamp": {"sec": sec, "nanosec": int((stamp - sec) * 1e9)},
         },
-        "format": "jpeg",
+        "format": image_format,
         "data": jpeg,
     }
 
@@ -68,10 +69,12 @@ class Camera:
         await ws.send(json.dumps({**advertise, "type": "sensor_msgs/CompressedImage"}))
         return cls(ws, cbor)
 
-    async def send(self, jpeg: bytes, stamp: float | None = None) -> float:
+    async def send(
+        self, jpeg: bytes, stamp: float | None = None, image_format: str = "jpeg"
+    ) -> float:
         """Publish one frame; return its stamp (now, unless given)."""
         stamp = time.time() if stamp is None else stamp
-        msg = image_message(jpeg, stamp)
+        msg = image_message(jpeg, stamp, image_format)
         frame = {"op": "publish", "topic": "camera/image/compressed", "msg": msg}
         if self.cbor:
             await self.ws.send(cbor2.dumps(frame))

@@ -93,6 +93,10 @@ class Frame:
         return content_type_of(self.format)
 
     @property
+    def is_h264(self) -> bool:
+        return is_h264(self.format)
+
+    @property
     def is_jpeg(self) -> bool:
         return self.content_type == "image/jpeg"
 
@@ -113,15 +117,23 @@ def content_type_of(image_format: str) -> str | None:
     return None
 
 
+def is_h264(image_format: str) -> bool:
+    """True for an H.264 ``CompressedImage`` (``format`` ``h264``: Annex B access units),
+    which the WebRTC relay passes through; the image relays cannot decode it."""
+    return "h264" in image_format.lower()
+
+
 def frame_from_message(msg: Mapping[str, Any], received: float | None = None) -> Frame:
     """Return the frame in a ``sensor_msgs/CompressedImage`` message.
 
     ``data`` may be base64 text (rosbridge JSON), bytes (CBOR) or a list of byte values.
-    Raises BadFrame when the data is missing or undecodable, or the format is not an image
-    format a browser can show.
+    Raises BadFrame when the data is missing or undecodable, or the format is neither an
+    image format a browser can show nor H.264.
     """
     image_format = msg.get("format")
-    if not isinstance(image_format, str) or content_type_of(image_format) is None:
+    if not isinstance(image_format, str) or not (
+        content_type_of(image_format) or is_h264(image_format)
+    ):
         raise BadFrame(f"unsupported image format {image_format!r}")
     data = _image_bytes(msg.get("data"))
     if not data:

@@ -104,3 +104,16 @@ class H264Encoder(Vp8Encoder):
         except av.error.FFmpegError as error:
             raise BadFrame(f"libx264 refused the settings: {error}") from None
         return context
+
+
+# NAL unit types that start a picture a decoder can begin with: IDR slice, SPS.
+_KEY_NAL_TYPES = {5, 7}
+
+
+def h264_keyframe(access_unit: bytes) -> bool:
+    """True if an Annex B H.264 access unit holds an IDR slice or a sequence parameter set
+    (a viewer can start decoding there)."""
+    for chunk in access_unit.split(b"\x00\x00\x01")[1:]:
+        if chunk and chunk[0] & 0x1F in _KEY_NAL_TYPES:
+            return True
+    return False

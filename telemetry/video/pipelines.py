@@ -137,6 +137,8 @@ class ImagePipeline(Pipeline):
         self.output: Newest[Part] = Newest()
 
     async def _take(self, frame: Frame) -> None:
+        if frame.content_type is None:  # H.264, which only the WebRTC relay passes on
+            raise BadFrame(f"{frame.format} frames are relayed by WebRTC (/whep) only")
         payload = await self._payload(frame)
         if payload is None:
             return

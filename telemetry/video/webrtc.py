@@ -40,8 +40,9 @@ from aiortc.mediastreams import MediaStreamError, MediaStreamTrack
 from django.conf import settings
 
 from telemetry.domain.newest import Closed, Newest
-from telemetry.domain.video import Frame, StreamParams
-from telemetry.domain.webrtc import MIME_TYPES, new_encoder
+from telemetry.domain.video import BadFrame, Frame, StreamParams
+from telemetry.domain.vp8 import MILLISECONDS
+from telemetry.domain.webrtc import MIME_TYPES, WEBRTC_H264, h264_keyframe, new_encoder
 from telemetry.video.pipelines import Pipeline
 
 if TYPE_CHECKING:
@@ -95,10 +96,24 @@ class RtcPipeline(Pipeline):
         if self.epoch is None:
             self.epoch = frame.received
         stamp = int((frame.received - self.epoch) * 1000)
-        packets = await self._in_worker(lambda: self.encoder.packets(frame, stamp))
+        if frame.is_h264:
+            packets: list[av.Packet[Any]] | None = [self._passed_through(frame, stamp)]
+        else:
+            packets = await self._in_worker(lambda: self.encoder.packets(frame, stamp))
         for packet in packets or []:
             self.output.put(packet)
             self.stats.produced(time.time(), packet.size)
+
+    def _passed_through(self, frame: Frame, stamp: int) -> av.Packet[Any]:
+        """The robot's own H.264 access unit as a packet, never decoded. Raises BadFrame
+        unless the stream asks for H.264 as the robot sends it."""
+        if self.params.type != WEBRTC_H264 or not self.params.image.untouched:
+            raise BadFrame("an H.264 camera is relayed as it is: ask type=h264, no width/height")
+        packet = av.Packet(frame.data)
+        packet.pts = stamp
+        packet.time_base = MILLISECONDS
+        packet.is_keyframe = h264_keyframe(frame.data)
+        return packet
 
     def _closed(self) -> None:
         self.output.close()
