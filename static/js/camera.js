@@ -1,17 +1,23 @@
-// The camera panel: the robot's camera through the video relays, MJPEG as an <img> or VP8
-// as a live WebM stream played through Media Source Extensions (`liveplayer.js`), or
-// straight from the rosbridge topic when the relays are not available. Counts the frames
-// it shows, and shows the relay's figures of the very stream it plays.
+// The camera panel: the robot's camera through the video relays, WebRTC by WHEP (the
+// default), MJPEG as an <img> or VP8 as a live WebM stream played through Media Source
+// Extensions (`liveplayer.js`), or straight from the rosbridge topic when the relays are
+// not available. WebRTC that fails falls back to MJPEG by itself. Counts the frames it
+// shows, and shows the relay's figures of the very stream it plays (and, for WebRTC, the
+// browser's own: frame rate, bitrate, delay in its jitter buffer and decoder).
 
-import { LiveWebmPlayer } from "./liveplayer.js";
+import { LiveRtcPlayer, LiveWebmPlayer } from "./liveplayer.js";
 import { el, fixed } from "./page.js";
 
 const STATS_MS = 2000;
 // What the relay's statistics call each mode's stream (`topic`: the camera as published).
-const STATS_TYPE = { mjpeg: "mjpeg", vp8: "vp8", topic: "source" };
+const STATS_TYPE = { webrtc: "webrtc/vp8", mjpeg: "mjpeg", vp8: "vp8", topic: "source" };
 
 export function streamUrl(topic, type) {
   return `/stream?topic=${encodeURIComponent(topic)}&type=${type}`;
+}
+
+export function whepUrl(topic, type = "vp8") {
+  return `/whep?topic=${encodeURIComponent(topic)}&type=${type}`;
 }
 
 export class CameraPanel {
@@ -39,7 +45,14 @@ export class CameraPanel {
     }
     this.ui.frame.dataset.mode = mode;
     this.ui.stats.hidden = true; // until the figures of this mode's stream arrive
-    const start = { mjpeg: () => this.#mjpeg(), vp8: () => this.#vp8(), topic: () => this.#viaTopic() };
+    this.ui.rtc.hidden = true;
+    delete this.ui.frame.dataset.fallback;
+    const start = {
+      webrtc: () => this.#webrtc(),
+      mjpeg: () => this.#mjpeg(),
+      vp8: () => this.#vp8(),
+      topic: () => this.#viaTopic(),
+    };
     this.stopCurrent = start[mode]();
   }
 
@@ -72,17 +85,54 @@ export class CameraPanel {
     };
   }
 
+  #webrtc() {
+    const video = this.#mount("video", { muted: true, autoplay: true, playsinline: true });
+    const player = new LiveRtcPlayer(video, whepUrl(this.topic), (error) => {
+      this.show("mjpeg");
+      this.ui.frame.dataset.fallback = "mjpeg";
+      this.#message(`${error}: showing MJPEG.`);
+    });
+    this.rtc = player;
+    this.#countFrames(video);
+    const timer = setInterval(() => this.#renderRtc(player), 1000);
+    return () => {
+      clearInterval(timer);
+      player.stop();
+      this.rtc = null;
+      video.remove();
+    };
+  }
+
+  async #renderRtc(player) {
+    const stats = await player.stats();
+    if (!stats || this.rtc !== player) return;
+    const ms = (value) => (value === null ? "—" : `${Math.round(value)} ms`);
+    this.ui.frame.dataset.rtcFps = stats.fps.toFixed(1);
+    this.ui.frame.dataset.rtcKbits = stats.kbit_per_s.toFixed(0);
+    this.ui.rtc.hidden = false;
+    this.ui.rtc.replaceChildren(
+      ...figures([
+        ["WebRTC received", `${fixed(stats.fps, 1)} fps · ${fixed(stats.kbit_per_s, 0)} kbit/s · ${stats.codec}`],
+        ["Delay in the browser", `jitter buffer ${ms(stats.buffer_ms)} · decode ${ms(stats.decode_ms)}`],
+        ["Frames dropped here", String(stats.frames_dropped)],
+      ]),
+    );
+  }
+
+  #countFrames(video) {
+    if (!("requestVideoFrameCallback" in video)) return;
+    const count = () => {
+      this.#frame();
+      if (video.isConnected) video.requestVideoFrameCallback(count);
+    };
+    video.requestVideoFrameCallback(count);
+  }
+
   #vp8() {
     const video = this.#mount("video", { muted: true, autoplay: true, playsinline: true });
     const player = new LiveWebmPlayer(video, streamUrl(this.topic, "vp8"), (error) => this.#message(error));
     this.player = player;
-    if ("requestVideoFrameCallback" in video) {
-      const count = () => {
-        this.#frame();
-        if (video.isConnected) video.requestVideoFrameCallback(count);
-      };
-      video.requestVideoFrameCallback(count);
-    }
+    this.#countFrames(video);
     return () => {
       player.stop();
       this.player = null;

@@ -107,3 +107,131 @@ function append(buffer, chunk) {
     else wait();
   });
 }
+
+// ---------------------------------------------------------------- WebRTC (WHEP)
+//
+// A camera as a WebRTC stream: a receive-only offer POSTed to /whep (WHEP), the answer
+// applied, the session DELETEd when the player stops. The server gathers its candidates
+// before answering and so do we (no trickle), so one request sets the call up. The
+// browser's jitter buffer is kept at its minimum: a teleoperation picture must be now.
+
+const GATHER_MS = 2000; // candidates not gathered by then are left out
+const FIRST_FRAME_MS = 8000; // no picture by then: WebRTC counts as failed here
+
+function csrfToken() {
+  const match = document.cookie.match(/(?:^|;\s*)csrftoken=([^;]+)/);
+  return match ? decodeURIComponent(match[1]) : "";
+}
+
+export function canPlayWebRtc() {
+  return typeof RTCPeerConnection === "function";
+}
+
+export class LiveRtcPlayer {
+  /** Play `url` (`/whep?topic=...`) in `video`; `onError(text)` is told once if it fails. */
+  constructor(video, url, onError = () => {}) {
+    this.video = video;
+    this.failed = false;
+    this.onError = (text) => {
+      if (this.failed || this.stopped) return;
+      this.failed = true;
+      onError(text);
+    };
+    this.previous = null; // the last getStats figures, for rates
+    if (!canPlayWebRtc()) {
+      this.onError("This browser has no WebRTC.");
+      return;
+    }
+    this.peer = new RTCPeerConnection();
+    this.#start(url).catch((error) => this.onError(`WebRTC unavailable: ${error.message}`));
+  }
+
+  async #start(url) {
+    const peer = this.peer;
+    const transceiver = peer.addTransceiver("video", { direction: "recvonly" });
+    peer.addEventListener("track", (event) => {
+      if ("jitterBufferTarget" in event.receiver) event.receiver.jitterBufferTarget = 0;
+      this.video.srcObject = new MediaStream([event.track]);
+      this.video.play().catch(() => {});
+    });
+    peer.addEventListener("connectionstatechange", () => {
+      if (peer.connectionState === "failed") this.onError("WebRTC connection failed");
+    });
+    this.firstFrame = setTimeout(() => {
+      if (!this.video.videoWidth) this.onError("WebRTC sent no picture");
+    }, FIRST_FRAME_MS);
+    await peer.setLocalDescription(await peer.createOffer());
+    await gathered(peer);
+    const response = await fetch(url, {
+      method: "POST",
+      credentials: "same-origin",
+      headers: { "Content-Type": "application/sdp", "X-CSRFToken": csrfToken() },
+      body: peer.localDescription.sdp,
+    });
+    if (response.status !== 201) throw new Error(`the server answered ${response.status}`);
+    this.location = new URL(response.headers.get("Location"), window.location.href).href;
+    if (this.stopped) return this.#delete();
+    await peer.setRemoteDescription({ type: "answer", sdp: await response.text() });
+    this.transceiver = transceiver;
+  }
+
+  /** The receiver's figures now: frames/s shown, kbit/s received, and the browser's own
+   * share of the delay (jitter buffer and decoding), averaged since the last call. */
+  async stats() {
+    if (!this.peer) return null;
+    const report = await this.peer.getStats();
+    let inbound = null;
+    report.forEach((entry) => {
+      if (entry.type === "inbound-rtp" && entry.kind === "video") inbound = entry;
+    });
+    if (!inbound) return null;
+    const last = this.previous || inbound;
+    this.previous = inbound;
+    const seconds = (inbound.timestamp - last.timestamp) / 1000 || 1;
+    const emitted = inbound.jitterBufferEmittedCount - (last.jitterBufferEmittedCount || 0);
+    const buffered = inbound.jitterBufferDelay - (last.jitterBufferDelay || 0);
+    const decoded = inbound.framesDecoded - (last.framesDecoded || 0);
+    const decoding = inbound.totalDecodeTime - (last.totalDecodeTime || 0);
+    return {
+      fps: inbound.framesPerSecond ?? 0,
+      kbit_per_s: ((inbound.bytesReceived - last.bytesReceived) * 8) / 1000 / seconds,
+      buffer_ms: emitted > 0 ? (buffered / emitted) * 1000 : null,
+      decode_ms: decoded > 0 ? (decoding / decoded) * 1000 : null,
+      frames_dropped: inbound.framesDropped ?? 0,
+      codec: report.get(inbound.codecId)?.mimeType ?? "",
+    };
+  }
+
+  #delete() {
+    if (!this.location) return;
+    fetch(this.location, {
+      method: "DELETE",
+      credentials: "same-origin",
+      headers: { "X-CSRFToken": csrfToken() },
+      keepalive: true, // outlives the page when it is closed
+    }).catch(() => {});
+    this.location = null;
+  }
+
+  stop() {
+    this.stopped = true;
+    clearTimeout(this.firstFrame);
+    this.#delete();
+    this.peer?.close();
+    this.video.srcObject = null;
+  }
+}
+
+/** Resolves when `peer` has gathered its candidates, or after GATHER_MS. */
+function gathered(peer) {
+  if (peer.iceGatheringState === "complete") return Promise.resolve();
+  return new Promise((resolve) => {
+    const done = () => {
+      if (peer.iceGatheringState !== "complete") return;
+      peer.removeEventListener("icegatheringstatechange", done);
+      resolve();
+    };
+    peer.addEventListener("icegatheringstatechange", done);
+    setTimeout(resolve, GATHER_MS);
+  });
+}

@@ -253,8 +253,9 @@ const camera = new CameraPanel(connection, `${ns}/camera/image/compressed`, {
   note: $("camera-note"),
   fps: $("camera-fps"),
   stats: $("camera-stats"),
+  rtc: $("camera-rtc"),
 });
-camera.show("mjpeg");
+camera.show("webrtc");
 camera.watchStats(VIDEO_STATS_URL);
 
 /** Before the robot speaks: its last known sub-map from the fleet state, and its building. */

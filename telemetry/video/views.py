@@ -34,7 +34,7 @@ from django.http import (
     JsonResponse,
     StreamingHttpResponse,
 )
-from django.middleware.csrf import CsrfViewMiddleware
+from django.middleware.csrf import CsrfViewMiddleware, get_token
 from django.shortcuts import render
 from django.urls import reverse
 from django.views.decorators.csrf import csrf_exempt
@@ -265,6 +265,7 @@ async def stream_viewer(request: HttpRequest) -> HttpResponse:
     except VideoError as error:
         return error_response(error)
     query = request.META.get("QUERY_STRING", "")
+    get_token(request)  # the CSRF cookie the WebRTC player's POST to /whep sends back
     context = {
         "topic": camera.topic,
         "robot": camera.robot,
