@@ -160,7 +160,7 @@ async def whep(request: HttpRequest) -> HttpResponseBase:
         ticket = relay.reserve(camera.topic, asked.params, principal.label)
         offer = request.body.decode("utf-8")
         session, answer = await sessions_of(relay).open(
-            camera.topic, asked.params, principal.label, offer, ticket
+            camera, asked.params, principal, offer, ticket
         )
     except Overloaded as busy:
         return busy_response(busy)

@@ -49,6 +49,8 @@ if TYPE_CHECKING:
     from concurrent.futures import Executor
 
     from cloudnav_web.heavy import Ticket
+    from telemetry.domain.rules import Principal
+    from telemetry.video.cameras import Camera
     from telemetry.video.feeds import CameraFeed
 from telemetry.video.relay import VideoRelay
 
@@ -189,12 +191,19 @@ class WhepSessions:
         return sum(1 for s in self.sessions.values() if s.client == client)
 
     async def open(
-        self, topic: str, params: StreamParams, client: str, offer: str, ticket: Ticket | None
+        self,
+        camera: Camera,
+        params: StreamParams,
+        principal: Principal,
+        offer: str,
+        ticket: Ticket | None,
     ) -> tuple[WhepSession, str]:
-        """Answer ``offer`` with a peer sending the stream ``params`` of ``topic``; return
-        the session and the SDP answer (all candidates gathered: WHEP without trickle).
+        """Answer ``offer`` with a peer sending the stream ``params`` of ``camera``; return
+        the session and the SDP answer (all candidates gathered: WHEP without trickle). The
+        session ends by itself when the principal's access to the camera is revoked.
 
         Raises TooManySessions, OfferRefused, RosbridgeError (TypeConflict) as the relay."""
+        topic, client = camera.topic, principal.label
         if self.count(client) >= self.per_client:
             if ticket is not None:
                 ticket.release()
@@ -203,6 +212,10 @@ class WhepSessions:
         session = WhepSession(secrets.token_urlsafe(18), client, topic, params, peer)
         self.sessions[session.id] = session
         try:
+            ended = session.resources.enter_context(
+                self.relay.hub.watching(principal, camera.robot, camera.robot_pk)
+            )
+            self._end_when(session, ended)
             pipeline = await session.resources.enter_async_context(
                 self.relay.watch(topic, params, ticket)
             )
@@ -234,6 +247,15 @@ class WhepSessions:
         if sending.mid is None:
             raise OfferRefused("the offer has no video m-line")
         return peer.localDescription.sdp
+
+    def _end_when(self, session: WhepSession, ended: asyncio.Event) -> None:
+        """Close ``session`` once ``ended`` is set (its access was revoked)."""
+
+        async def _revoked() -> None:
+            await ended.wait()
+            await self.close(session.id)
+
+        session.resources.push_async_callback(_cancel, asyncio.create_task(_revoked()))
 
     def _watch_state(self, session: WhepSession) -> None:
         @session.peer.on("connectionstatechange")
