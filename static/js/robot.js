@@ -93,7 +93,10 @@ function enterMap(mapId, version = undefined) {
   const sameMap = mapId === state.robotMap;
   if (sameMap && (version === undefined || version === state.robotMapVersion)) return;
   state.robotMapVersion = version ?? null;
-  $("robot-map").textContent = state.robotMapVersion === null ? mapId : `${mapId} (version ${state.robotMapVersion})`;
+  $("robot-map").textContent = mapId;
+  const held = $("robot-map-version");
+  held.textContent = state.robotMapVersion === null ? "" : `version ${state.robotMapVersion}`;
+  held.hidden = state.robotMapVersion === null;
   if (sameMap) {
     // A new version of the map the robot is in: draw it anew.
     grids.delete(mapId);
