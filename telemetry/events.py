@@ -42,6 +42,9 @@ class EventLog:
         self.deriver = EventDeriver()
         self._pending: list[EventDraft] = []
         self._task: asyncio.Task[None] | None = None
+        # Called on the loop with each event as it is derived (the recorder's queue); it
+        # must return at once and never raise.
+        self.on_event: Callable[[EventDraft], None] | None = None
 
     def connected(self, robot: str) -> None:
         self._add(self.deriver.connected(robot, self.clock()))
@@ -70,7 +73,7 @@ class EventLog:
         self._add(self.deriver.teleop(robot, kind, holder, self.clock()))
 
     def _add(self, drafts: list[EventDraft]) -> None:
-        self._pending.extend(drafts)
+        self._derived(drafts)
         if self._task is None or self._task.done():
             self._task = asyncio.get_running_loop().create_task(self.run())
 
@@ -78,10 +81,16 @@ class EventLog:
         """Tick and write until nothing is watched and nothing waits."""
         while True:
             await asyncio.sleep(self.interval)
-            self._pending.extend(self.deriver.tick(self.clock()))
+            self._derived(self.deriver.tick(self.clock()))
             await self.flush()
             if not self._pending and not self.deriver.watching():
                 return
+
+    def _derived(self, drafts: list[EventDraft]) -> None:
+        self._pending.extend(drafts)
+        if self.on_event is not None:
+            for draft in drafts:
+                self.on_event(draft)
 
     async def flush(self) -> None:
         batch, self._pending = self._pending, []

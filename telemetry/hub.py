@@ -127,6 +127,7 @@ class Hub:
         """Record the robots connected here: the recorder taps the bus (its one seam)."""
         self.recorder = recorder
         self.bus.tap = recorder
+        self.events.on_event = recorder.event
         for robot in self.robots():
             recorder.connected(robot)
 
@@ -159,10 +160,10 @@ class Hub:
             for kind in {names.MAP_ID, *OBSERVED}:
                 self._fleet_topics[names.robot_topic(robot, kind)] = (client.robot_pk, kind)
             self.fleet.connected(client.robot_pk)
+            if self.recorder is not None:
+                self.recorder.connected(robot)  # first, so it records the robot's arrival
             self.events.connected(robot)
             self.missions.ensure_running()
-            if self.recorder is not None:
-                self.recorder.connected(robot)
             if self.relay is not None:
                 self.relay.put("robots", robot, "1")
 

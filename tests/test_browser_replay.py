@@ -3,6 +3,7 @@ timeline and the map follow the recording."""
 
 from __future__ import annotations
 
+import re
 import time
 from pathlib import Path
 
@@ -10,6 +11,7 @@ import pytest
 from playwright.sync_api import BrowserContext, expect
 
 from telemetry.domain import ros1
+from telemetry.domain.events import EVENT_TYPE, EventDraft, Kind, Severity, as_log
 from telemetry.recording import files
 from tests.browser_support import BUILDING, ROBOT, Demo, drawn_robot
 from tests.fixtures_live import LiveServer, LiveServers
@@ -56,8 +58,29 @@ def recordings(tmp_path: Path) -> Path:
                 ros1.encode(pose_type, msg),
             )
         )
+        if tenth in EVENTS:
+            writer.write(event_record(EVENTS[tenth], START + second))
     writer.close()
     return root
+
+
+# events the server derived while recording, by the tenth of a second they happened at
+EVENTS = {
+    50: (Kind.CONNECTED, Severity.INFO, f"{ROBOT} connected"),
+    150: (Kind.GOAL_ABORTED, Severity.ERROR, f"{ROBOT}: goal aborted: no path"),
+}
+
+
+def event_record(event: tuple[Kind, Severity, str], at: float) -> files.Record:
+    kind, severity, message = event
+    draft = EventDraft(at, kind, severity, ROBOT, message)
+    return files.Record(
+        f"/{ROBOT}/events",
+        EVENT_TYPE,
+        ros1.schema_text(EVENT_TYPE).encode(),
+        int(at * NS),
+        ros1.encode(EVENT_TYPE, as_log(draft)),
+    )
 
 
 @pytest.fixture
@@ -80,6 +103,21 @@ def test_the_robot_page_replays_a_recording_with_its_timeline(
     expect(page.locator("#replay-time")).to_have_attribute("min", str(START))
     expect(page.locator("#replay-time")).to_have_attribute("max", str(START + 20))
     expect(page.locator("#map-wrap")).to_have_attribute("data-robot", f"{x_at(0):.3f},23.200")
+    # the robot's events are marks on the timeline, coloured by severity
+    marks = page.locator("#replay-marks .replay-mark")
+    expect(marks).to_have_count(2)
+    expect(marks.nth(0)).to_have_attribute("data-kind", "robot_connected")
+    expect(marks.nth(0)).to_have_class("replay-mark info")
+    aborted = marks.nth(1)
+    expect(aborted).to_have_attribute("data-kind", "goal_aborted")
+    expect(aborted).to_have_class("replay-mark error")
+    expect(aborted).to_have_attribute(
+        "title", re.compile(rf"goal_aborted: {ROBOT}: goal aborted: no path$")
+    )
+    # a click on a mark seeks to its event: the map shows where the robot was then
+    aborted.click()
+    expect(page.locator("#map-wrap")).to_have_attribute("data-robot", f"{x_at(15):.3f},23.200")
+    assert float(page.locator("#replay-time").input_value()) == pytest.approx(START + 15)
     # seek to the middle: the map shows where the robot was then
     page.eval_on_selector(
         "#replay-time",

@@ -4,18 +4,21 @@ file holds, read back message by message with the ``mcap`` reader."""
 from __future__ import annotations
 
 import asyncio
+import io
 import json
 import time
 
 import pytest
 import websockets
+from django.http import StreamingHttpResponse
 from mcap.reader import make_reader
 from mcap_ros1.decoder import DecoderFactory
 
 from telemetry.recording import files
-from tests.conftest import make_robot
+from tests.conftest import client_for, make_robot
 
 DEADLINE = 20.0
+NS = 1_000_000_000
 
 
 def pose(i: int) -> dict:
@@ -74,6 +77,10 @@ def read_back(path):
         return reader.get_header().profile, got
 
 
+def without_events(got):
+    return [item for item in got if item[0] != "/r1/events"]
+
+
 @pytest.fixture
 def token(building):
     return make_robot(name="r1", buildings=[building])[1]
@@ -88,6 +95,7 @@ async def test_what_a_robot_publishes_is_recorded_message_by_message(
     # the robot has gone: its file is finished
     [recording] = await asyncio.to_thread(finished_files, root, "r1")
     profile, got = read_back(recording.path)
+    got = without_events(got)  # the robot's events: see the test below
     assert profile == "ros1"
     assert [(t, s, e, m) for t, s, e, m, _ in got[:3]] == [
         ("/r1/map_id", "std_msgs/String", "ros1msg", "ros1"),
@@ -107,3 +115,59 @@ async def test_what_a_robot_publishes_is_recorded_message_by_message(
         assert (p.pose.position.x, p.pose.position.y) == (i * 0.5, -i)
         assert list(s.ranges) == [float(i), 2.0, 3.0]
         assert s.header.stamp.secs == 100 + i
+
+
+ABORTED = {
+    "header": {"stamp": {"sec": 0, "nanosec": 0}, "frame_id": ""},
+    "status_list": [
+        {"goal_id": {"id": "g7"}, "status": 4, "text": "no path to the dock"},
+    ],
+}
+
+
+async def abort_a_goal(url: str) -> None:
+    async with websockets.connect(url) as ws:
+        await ws.send(json.dumps({"op": "publish", "topic": "pose", "msg": pose(0)}))
+        await ws.send(json.dumps({"op": "publish", "topic": "nav_status", "msg": ABORTED}))
+        await ws.send(json.dumps({"op": "call_service", "id": "t", "service": "rosapi/get_time"}))
+        while json.loads(await asyncio.wait_for(ws.recv(), 10)).get("id") != "t":
+            pass
+
+
+def exported(user, url: str) -> bytes:
+    response = client_for(user).get(url)
+    assert response.status_code == 200
+    assert isinstance(response, StreamingHttpResponse)
+    return b"".join(response.streaming_content)
+
+
+async def test_the_events_derived_for_a_robot_are_in_its_exported_recording(
+    daphne_servers, token, tmp_path, settings, viewer
+):
+    root = tmp_path / "recordings"
+    settings.CLOUDNAV_RECORDING_DIR = root  # the export below reads what the server wrote
+    server = daphne_servers.start(env={"CLOUDNAV_RECORDING_DIR": str(root)})
+    began = time.time()
+    await abort_a_goal(server.rosbridge_url(token))
+    await asyncio.to_thread(finished_files, root, "r1")
+    url = f"/api/robots/r1/recording.mcap?start={began - 5}&end={time.time() + 5}"
+    body = await asyncio.to_thread(exported, viewer, url)
+    reader = make_reader(io.BytesIO(body), decoder_factories=[DecoderFactory()])
+    events = [
+        (schema.name, schema.encoding, message.log_time, ros)
+        for schema, channel, message, ros in reader.iter_decoded_messages()
+        if channel.topic == "/r1/events" and schema is not None
+    ]
+    assert [(name, encoding) for name, encoding, *_ in events] == [
+        ("rosgraph_msgs/Log", "ros1msg")
+    ] * 3
+    kinds = [ros.name for *_, ros in events]
+    assert kinds == ["robot_connected", "goal_aborted", "robot_disconnected"]
+    _n, _e, log_time, aborted = events[1]
+    assert aborted.level == aborted.ERROR
+    assert aborted.msg == "r1: goal aborted: no path to the dock"
+    assert "goal=g7" in aborted.topics
+    assert "actor=robot:r1" in aborted.topics
+    # stamped with the event's time, which is the message's log time
+    assert aborted.header.stamp.secs * NS + aborted.header.stamp.nsecs == log_time
+    assert began - 1 <= log_time / NS <= time.time()

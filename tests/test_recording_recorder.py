@@ -6,9 +6,11 @@ import os
 import time
 from pathlib import Path
 
+from telemetry.domain import ros1
 from telemetry.domain.bus import Topic
+from telemetry.domain.events import EventDraft, Kind, Severity
 from telemetry.recording import files
-from telemetry.recording.plans import DEFAULT, Plan, Retention
+from telemetry.recording.plans import DEFAULT, NOTHING, Plan, Retention
 from telemetry.recording.recorder import Recorder, RecorderConfig, prune
 
 POSE = {"header": {"frame_id": "b/Hall"}, "pose": {"position": {"x": 1.0}}}
@@ -130,3 +132,42 @@ def test_retention_deletes_files_past_their_days_then_the_oldest_past_the_budget
     assert new.exists()
     assert writing.exists()
     assert kept_elsewhere.exists()
+
+
+def lapsed(robot: str, at: float) -> EventDraft:
+    return EventDraft(
+        at, Kind.TELEOP_LAPSED, Severity.WARNING, robot, "lock lapsed", actor="user:ann"
+    )
+
+
+def test_events_go_on_the_robots_events_channel_at_their_time_through_its_queue(tmp_path):
+    recorder = make_recorder(tmp_path, queue_size=2)
+    recorder.event(lapsed("r1", 1000.5))  # not connected here: another process records it
+    recorder.connected("r1")
+    recorder.event(lapsed("r1", 1000.5))
+    recorder.offered(POSE_TOPIC, POSE)
+    recorder.event(lapsed("r1", 1001.0))  # the queue is full: counted, the relay never waits
+    assert recorder.stats()["r1"] == {"queued": 2, "dropped": 1, "written": 0}
+    recorder.step()
+    recorder.disconnected("r1")
+    recorder.step()
+    [event, _pose] = recorded(tmp_path)
+    assert (event.topic, event.type_name, event.log_time) == (
+        "/r1/events",
+        "rosgraph_msgs/Log",
+        1_000_500_000_000,
+    )
+    log = ros1.decode(event.type_name, event.data)
+    assert (log.level, log.name, log.msg) == (4, "teleop_lapsed", "lock lapsed")
+    assert "actor=user:ann" in list(log.topics)
+
+
+def test_a_robot_recording_nothing_records_no_event(tmp_path):
+    recorder = make_recorder(tmp_path, NOTHING)
+    recorder.connected("r1")
+    recorder.event(lapsed("r1", 1000.0))  # before its plan is read: dropped when written
+    recorder.step()
+    recorder.event(lapsed("r1", 1001.0))
+    recorder.disconnected("r1")
+    recorder.step()
+    assert recorded(tmp_path) == []

@@ -57,4 +57,5 @@ async def test_a_robot_is_recorded_once_by_the_process_it_is_connected_to(scaled
     recorded = await asyncio.to_thread(finished_files, root, "r1")
     assert len(recorded) == 1
     poses = list(files.open_messages(recorded[0].path, 0, 2**62))
-    assert [r.topic for r in poses] == ["/r1/pose"] * 10
+    # with its arrival and its leaving, recorded once too
+    assert [r.topic for r in poses] == ["/r1/events", *["/r1/pose"] * 10, "/r1/events"]

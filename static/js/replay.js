@@ -1,6 +1,8 @@
 // Replay of a robot's recording on its page: a timeline with play, pause, speed and seek
 // that feeds the page's own topic handlers (the same panels as live) from
 // GET /api/robots/{name}/recording.json, fetched a window at a time ahead of the clock.
+// The events the server derived for the robot (its /{robot}/events channel, as
+// rosgraph_msgs/Log) are marks on the timeline, coloured by severity; a click seeks there.
 
 import { api } from "./api.js";
 
@@ -8,10 +10,13 @@ const WINDOW_S = 60; // seconds of recording fetched at once
 const AHEAD_S = 20; // fetch the next window when less than this is buffered
 const BEFORE_S = 30; // on a seek, the seconds before the point replayed at once (trail, map)
 const TICK_MS = 50;
+const MAX_MARKS = 2000; // events drawn on the timeline at most
+// rosgraph_msgs/Log levels as the events' severities
+const SEVERITIES = { 2: "info", 4: "warning", 8: "error" };
 
 export class Replay {
   // robot: its name; handlers: Map of topic -> function(msg); reset(): clear the panels;
-  // els: { toggle, bar, time, play, speed, clock, note }
+  // els: { toggle, bar, time, play, speed, clock, note, marks }
   constructor(robot, handlers, reset, els) {
     Object.assign(this, { robot, handlers, reset, els });
     this.active = false;
@@ -52,7 +57,41 @@ export class Replay {
     toggle.classList.add("active");
     document.body.dataset.mode = "replay";
     this.els.note.textContent = "";
-    await this.seek(head.span[0]);
+    await Promise.all([this.seek(head.span[0]), this.loadEvents()]);
+  }
+
+  // The robot's events over the whole recording, drawn as marks on the timeline.
+  async loadEvents() {
+    const { marks } = this.els;
+    if (!marks) return;
+    marks.replaceChildren();
+    const [first, last] = this.span;
+    const events = [];
+    let start = first;
+    while (events.length < MAX_MARKS) {
+      const answer = await api.get(
+        `/api/robots/${this.robot}/recording.json?start=${start}&end=${last + 1}&topics=events&limit=${MAX_MARKS}`,
+      );
+      events.push(...answer.messages);
+      if (!answer.more) break;
+      start = answer.next;
+    }
+    const width = Math.max(last - first, 1e-9);
+    for (const { t, msg } of events.slice(0, MAX_MARKS)) {
+      const mark = document.createElement("button");
+      mark.type = "button";
+      const severity = SEVERITIES[msg.level] || "info";
+      mark.className = `replay-mark ${severity}`;
+      mark.style.left = `${(Math.min(Math.max(t - first, 0), width) / width) * 100}%`;
+      mark.dataset.t = String(t);
+      mark.dataset.kind = msg.name;
+      const when = new Date(t * 1000).toISOString().replace("T", " ").slice(0, 19);
+      mark.title = `${when} ${msg.name}: ${msg.msg}`;
+      mark.setAttribute("aria-label", mark.title);
+      mark.addEventListener("click", () => this.seek(t));
+      marks.append(mark);
+    }
+    marks.dataset.count = String(marks.childElementCount);
   }
 
   leave() {

@@ -237,6 +237,7 @@ const replay = new Replay(robot, handlers, clearPanels, {
   play: $("replay-play"),
   speed: $("replay-speed"),
   clock: $("replay-clock"),
+  marks: $("replay-marks"),
   note: $("replay-note"),
 });
 window.cloudnav.robotPage.replay = replay;

@@ -13,6 +13,7 @@ stay open until someone acknowledges them.
 
 from __future__ import annotations
 
+import json
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -284,3 +285,34 @@ class EventDeriver:
                     )
                 )
         return drafts
+
+
+# Events in recordings: each robot's events on its ``/{robot}/events`` channel as
+# ``rosgraph_msgs/Log``, the type Foxglove's and rqt's log panels list with their level.
+EVENTS_TOPIC = "events"
+EVENT_TYPE = "rosgraph_msgs/Log"
+_LOG_LEVELS = {Severity.INFO: 2, Severity.WARNING: 4, Severity.ERROR: 8}
+LOG_SEVERITIES = {level: severity for severity, level in _LOG_LEVELS.items()}
+
+
+def as_log(draft: EventDraft) -> dict[str, Any]:
+    """``draft`` as rosbridge JSON of a ``rosgraph_msgs/Log``: the stamp is its time,
+    ``level`` its severity, ``name`` its kind, ``msg`` its sentence, and ``topics`` the rest
+    as ``key=value`` text (``actor``, ``building``, ``alert`` and each data item, JSON)."""
+    sec, nanosec = divmod(int(draft.time * 1e9), 1_000_000_000)
+    extra = {"actor": draft.actor, "building": draft.building or "", "alert": draft.alert}
+    extra.update(draft.data)
+    return {
+        "header": {
+            "stamp": {"sec": sec, "nanosec": nanosec},
+            "frame_id": "",
+        },
+        "level": _LOG_LEVELS[draft.severity],
+        "name": draft.kind.value,
+        "msg": draft.message,
+        "topics": [f"{key}={_text(value)}" for key, value in extra.items()],
+    }
+
+
+def _text(value: Any) -> str:
+    return value if isinstance(value, str) else json.dumps(value, default=str)

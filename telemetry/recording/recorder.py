@@ -27,6 +27,7 @@ from django.conf import settings
 from telemetry.config import setting
 from telemetry.domain import names, ros1
 from telemetry.domain.bus import Topic
+from telemetry.domain.events import EVENT_TYPE, EVENTS_TOPIC, EventDraft, as_log
 from telemetry.models import CAMERA_TOPIC
 
 from . import files
@@ -136,6 +137,19 @@ class Recorder:
         type_name = topic.type or names.ROBOT_TOPIC_TYPES.get(suffix, "")
         entry.queue.append((name, type_name, msg, int(now * 1e9)))
 
+    def event(self, draft: EventDraft) -> None:
+        """An event the server derived: queued on its robot's ``/{robot}/events`` channel
+        (``rosgraph_msgs/Log``) when that robot is recorded here, stamped with its time;
+        a full queue counts it in ``dropped`` as any message."""
+        entry = self.robots.get(draft.robot or "")
+        if entry is None or (entry.plan is not None and not entry.plan.topics):
+            return
+        if len(entry.queue) >= self.config.queue_size:
+            entry.dropped += 1
+            return
+        topic = names.robot_topic(draft.robot or "", EVENTS_TOPIC)
+        entry.queue.append((topic, EVENT_TYPE, as_log(draft), int(draft.time * 1e9)))
+
     def stats(self) -> dict[str, dict[str, int]]:
         return {
             robot: {"queued": len(e.queue), "dropped": e.dropped, "written": e.written}
@@ -212,7 +226,7 @@ class Recorder:
             topic, type_name, msg, log_time = queue.popleft()
             robot = robot or names.first_segment(topic)
             suffix = topic[len(robot) + 2 :]
-            if plan is not None and suffix not in plan.topics:
+            if plan is not None and not recorded(plan, suffix):
                 continue
             self._write(entry, robot, topic, type_name, msg, log_time)
 
@@ -258,6 +272,12 @@ class Recorder:
         writing = {w.path for w in self._writers.values() if w.path is not None}
         for retention in self.retentions():
             prune(self.config.root, retention, writing, self.clock())
+
+
+def recorded(plan: Plan, suffix: str) -> bool:
+    """Whether ``plan`` records the robot's topic ``suffix``: its events whenever it
+    records anything."""
+    return suffix in plan.topics or (suffix == EVENTS_TOPIC and bool(plan.topics))
 
 
 def prune(root: Path, retention: Retention, writing: set[Path], now: float) -> list[Path]:
