@@ -9,7 +9,12 @@ import numpy as np
 import pytest
 
 from maps.domain.keyframes import FeatureExtractor, Intrinsics, Keyframe, Mount
-from maps.domain.relocalisation import KeyframeIndex, QueryFrame, project, relocalise
+from maps.domain.relocalisation import (
+    KeyframeIndex,
+    QueryFrame,
+    project,
+    relocalise,
+)
 from maps.domain.vocabulary import default_vocabulary
 from maps.exceptions import KeyframeError
 from robots.agent.sim.camera import Camera
@@ -107,6 +112,35 @@ def test_held_out_views_are_placed_within_10_cm_and_2_degrees(
         assert answer.inliers >= 40
         assert answer.keyframes
         assert 0 < answer.covariance[0, 0] < 0.05
+
+
+def test_the_claimed_covariance_covers_the_true_error(
+    index: KeyframeIndex, extractor: FeatureExtractor
+) -> None:
+    """Seeded views along the corridor (each its own camera noise): every answer's
+    truth lies within its covariance's 99.9 % ellipse (chi-square, 3 DoF)."""
+    rng = np.random.default_rng(7)
+    answered = 0
+    for seed in range(12):
+        pose = (
+            float(rng.uniform(5.0, 20.0)),
+            float(rng.uniform(22.7, 23.7)),
+            float(rng.choice([0.0, math.pi]) + rng.uniform(-0.6, 0.6)),
+        )
+        camera = Camera(demo_world(seed=11), seed=100 + seed)
+        answer = relocalise(index, [query(extractor, camera, pose)], Intrinsics(), Mount())
+        if not answer.localised:
+            continue
+        answered += 1
+        offset = np.array(
+            [
+                answer.pose[0] - pose[0],
+                answer.pose[1] - pose[1],
+                math.remainder(answer.pose[2] - pose[2], math.tau),
+            ]
+        )
+        assert offset @ np.linalg.solve(answer.covariance, offset) < 16.27, (pose, answer)
+    assert answered >= 8
 
 
 def test_views_of_another_building_are_never_answered(
