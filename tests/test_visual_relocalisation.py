@@ -11,6 +11,7 @@ import pytest
 from maps.domain.keyframes import FeatureExtractor, Intrinsics, Keyframe, Mount
 from maps.domain.relocalisation import (
     KeyframeIndex,
+    Params,
     QueryFrame,
     project,
     relocalise,
@@ -141,6 +142,39 @@ def test_the_claimed_covariance_covers_the_true_error(
         )
         assert offset @ np.linalg.solve(answer.covariance, offset) < 16.27, (pose, answer)
     assert answered >= 8
+
+
+@pytest.mark.parametrize(
+    ("truth", "error"),
+    [((24.5, 24.0, 2.0), (0.0, 0.35, 0.08)), ((10.0, 23.2, math.pi / 2), (0.35, 0.0, 0.05))],
+)
+def test_keyframes_that_disagree_give_no_confident_answer(
+    extractor: FeatureExtractor,
+    truth: tuple[float, float, float],
+    error: tuple[float, float, float],
+) -> None:
+    """Two keyframes on either side of the view, one stored with its pose 0.35 m and a
+    few degrees off: the matches are explained two ways. The fit alone (no rivals
+    considered) answers one of them with a few centimetres of sigma; the answer must
+    instead say it cannot tell."""
+    camera = Camera(demo_world(seed=11), seed=1)
+    built = KeyframeIndex(default_vocabulary().size)
+    left = (truth[0] + 0.1, truth[1] - 0.1, truth[2] + 0.1)
+    right = (truth[0] - 0.1, truth[1] + 0.1, truth[2] - 0.1)
+    image, depth = camera.capture(left)
+    assert depth is not None
+    built.add(0, "A", extractor.keyframe(image, depth, left))
+    image, depth = camera.capture(right)
+    assert depth is not None
+    wrong = (right[0] + error[0], right[1] + error[1], right[2] + error[2])
+    built.add(1, "A", extractor.keyframe(image, depth, wrong))
+    frame = query(extractor, camera, truth)
+    fit_alone = relocalise(built, [frame], Intrinsics(), Mount(), params=Params(rivals=0))
+    assert fit_alone.localised
+    assert math.sqrt(fit_alone.covariance[0, 0] + fit_alone.covariance[1, 1]) < 0.06
+    answer = relocalise(built, [frame], Intrinsics(), Mount())
+    assert not answer.localised
+    assert "too uncertain" in answer.reason
 
 
 def test_views_of_another_building_are_never_answered(
