@@ -8,7 +8,10 @@ filter: 2 cm and 0.5 degrees), each rendered with depth and ingested as the serv
 a keyframe's: the robot asks with one image and, while not localised, turns 60 degrees
 and asks again with every image so far (at most six), as the agent does. A wake-up
 succeeds when the answer is within 0.25 m and 5 degrees of the truth; the sub-map is
-right when the answer's sub-map holds the true position.
+right when the answer's sub-map holds the true position. An answer is confidently wrong
+when it misses by more than that and its claimed covariance still excludes the truth
+(squared Mahalanobis distance past ``CHI2_99``, the chi-square bound for 3 DoF at 99 %);
+``outside_ellipse`` counts every answer whose 99 % ellipse misses the truth.
 
 Wrong building: the same wake-ups in another building (the demo floor plan under
 another code: every wall looks different) asked against this building's keyframes;
@@ -49,6 +52,7 @@ SUCCESS = (0.25, math.radians(5.0))
 TURN = math.radians(60.0)
 MAX_VIEWS = 6
 OTHER_BUILDING = "other_1"
+CHI2_99 = 11.34
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -86,6 +90,8 @@ class Result:
     query_ms: list[float] = field(default_factory=list)
     ingest_ms: list[float] = field(default_factory=list)
     stored_bytes: list[int] = field(default_factory=list)
+    confident_wrong: int = 0
+    outside_ellipse: int = 0
     wrong_trials: int = 0
     wrong_answers: int = 0
     wrong_sigmas: list[float] = field(default_factory=list)
@@ -103,6 +109,8 @@ class Result:
             "median_yaw_error_deg": (
                 math.degrees(statistics.median(e[1] for e in self.errors)) if self.errors else None
             ),
+            "confident_wrong": self.confident_wrong,
+            "outside_ellipse": self.outside_ellipse,
             "wrong_building_trials": self.wrong_trials,
             "wrong_building_answers": self.wrong_answers,
             "wrong_building_sigma_m": self.wrong_sigmas,
@@ -189,7 +197,11 @@ def wake_up(
     )
     result.answered += 1
     result.errors.append(error)
-    result.successes += error[0] <= SUCCESS[0] and error[1] <= SUCCESS[1]
+    success = error[0] <= SUCCESS[0] and error[1] <= SUCCESS[1]
+    result.successes += success
+    outside = mahalanobis2(answer, truth) > CHI2_99
+    result.outside_ellipse += outside
+    result.confident_wrong += outside and not success
     result.right_submap += _holds(building, answer.submap, pose[:2])
 
 
@@ -207,6 +219,18 @@ def wrong_building(
             result.wrong_sigmas.append(
                 float(math.sqrt(answer.covariance[0, 0] + answer.covariance[1, 1]))
             )
+
+
+def mahalanobis2(answer: Answer, truth: tuple[float, float, float]) -> float:
+    """The squared Mahalanobis distance of ``truth`` from the answer, by its covariance."""
+    offset = np.array(
+        [
+            answer.pose[0] - truth[0],
+            answer.pose[1] - truth[1],
+            math.remainder(answer.pose[2] - truth[2], math.tau),
+        ]
+    )
+    return float(offset @ np.linalg.solve(answer.covariance, offset))
 
 
 def _query(

@@ -5,12 +5,19 @@ from __future__ import annotations
 
 import json
 import math
+from typing import Any
 
 import httpx
 import numpy as np
+from numpy.typing import NDArray
 
 from robots.agent.perception import CameraModel
-from robots.agent.visual import VisualMap
+from robots.agent.robot import PoseTracker, Robot, SimHardware
+from robots.agent.sim.world import demo_world
+from robots.agent.supervisor import BundleCache, MapsSupervisor, SubMap
+from robots.agent.visual import LOST_SPREAD, VisualMap
+from robots.domain.params import RobotConfig
+from robots.domain.se2 import Pose
 
 IMAGE = np.zeros((480, 640), np.uint8)
 DEPTH = np.full((480, 640), 2.0, np.float32)
@@ -80,3 +87,101 @@ async def test_not_localised_or_unreachable_gives_no_placement() -> None:
     visual, _ = visual_map(unreachable)
     assert await visual.ask(IMAGE, 0.0) is None
     assert not visual.busy
+
+
+# --- the lost path: a filter whose spread grows past the bound asks the cloud ---------
+
+
+class _Filter:
+    """A particle filter's interface, its spread (``visual.spread`` of its covariance)
+    set by the test."""
+
+    def __init__(self) -> None:
+        self.spread = 0.05
+        self.resets: list[Pose] = []
+
+    def reset(self, pose: Pose, covariance: NDArray[np.float64]) -> None:
+        self.resets.append(pose)
+        self.spread = math.sqrt(float(covariance[0, 0] + covariance[1, 1]))
+
+    def predict(self, odom_delta: Pose) -> None: ...
+    def update(self, scan: Any) -> bool:  # noqa: ARG002 (the interface's)
+        return True
+
+    def pose(self) -> Pose:
+        return self.resets[-1] if self.resets else (0.0, 0.0, 0.0)
+
+    def covariance(self) -> NDArray[np.float64]:
+        return np.diag([self.spread**2 / 2, self.spread**2 / 2, 0.01])  # spread() reads it back
+
+    def set_map(self, grid: Any, resolution: float, origin: Pose) -> None: ...
+
+
+class _Silent:
+    async def publish(self, _topic: str, _msg: dict[str, Any]) -> bool:
+        return True
+
+
+class _Maps(BundleCache):
+    """Bundles made on the spot: an empty room, for any Map ID."""
+
+    async def load(self, map_id: str) -> SubMap:
+        building, _, code = map_id.partition("/")
+        grid = np.zeros((100, 100), np.int8)
+        return SubMap(building, code, "1", '"1"', grid, 0.1, (0.0, 0.0, 0.0), {}, (code,), ())
+
+
+async def lost_robot(handler: object) -> tuple[Robot, _Filter, list[httpx.Request]]:
+    """A robot localised in b/A with a particle filter, its cloud answering ``handler``."""
+    visual, seen = visual_map(handler)
+    hardware = SimHardware(demo_world(), (3.0, 4.0, 0.0), seed=1)
+    made = _Filter()
+    tracker = PoseTracker(lambda _submap: made)
+    maps = _Maps(visual.http)
+    supervisor = MapsSupervisor(maps, tracker)
+    robot = Robot(hardware, supervisor, tracker, _Silent(), RobotConfig(camera_rate=0), 0.0, visual)
+    supervisor.make_current(await maps.load("b/A"))
+    tracker.reset((3.0, 4.0, 0.0), np.diag([0.01, 0.01, 0.001]), tracker.odom)
+    return robot, made, seen
+
+
+async def test_a_filter_spread_past_the_bound_asks_the_cloud_and_takes_its_answer() -> None:
+    answer = {
+        "localised": True, "map_id": "b/B", "pose": {"x": 5.0, "y": 6.0, "yaw": 1.0},
+        "covariance": [0.004, 0, 0, 0, 0.004, 0, 0, 0, 0.001], "inliers": 90,
+        "keyframes": [7], "image": 0, "reason": "",
+    }  # fmt: skip
+    robot, made, seen = await lost_robot(lambda _request: httpx.Response(200, json=answer))
+    robot.seconds = 10.0
+    made.spread = LOST_SPREAD * 0.9  # uncertain, not lost: keyframes stop, no question
+    robot._use_visual_map(IMAGE, None)
+    await robot.settle()
+    assert seen == []
+    made.spread = LOST_SPREAD * 1.1  # lost: it asks, naming the building it was in
+    robot._use_visual_map(IMAGE, None)
+    await robot.settle()
+    assert [r.url.path for r in seen] == ["/api/relocalise"]
+    assert json.loads(seen[0].content)["building"] == "b"
+    assert robot.supervisor.current is not None
+    assert robot.supervisor.current.map_id == "b/B"
+    assert robot.supervisor.placed_by == "visual relocalisation"
+    assert made.resets[-1] == (5.0, 6.0, 1.0)
+    assert robot.tracker.spread() < LOST_SPREAD  # placed: no more questions
+    robot.seconds = 20.0
+    robot._use_visual_map(IMAGE, None)
+    await robot.settle()
+    assert len(seen) == 1
+
+
+async def test_a_lost_robot_asks_at_most_every_two_seconds_and_keeps_its_map_on_no() -> None:
+    no = {"localised": False, "reason": "the pose is too uncertain (0.40 m)"}
+    robot, made, seen = await lost_robot(lambda _request: httpx.Response(200, json=no))
+    made.spread = LOST_SPREAD * 2
+    for seconds in (10.0, 10.5, 11.9, 12.0):
+        robot.seconds = seconds
+        robot._use_visual_map(IMAGE, None)
+        await robot.settle()
+    assert len(seen) == 2  # at 10.0 and 12.0
+    assert robot.supervisor.current is not None
+    assert robot.supervisor.current.map_id == "b/A"  # "not localised" changes nothing
+    assert len(made.resets) == 1

@@ -9,7 +9,13 @@ import numpy as np
 import pytest
 
 from maps.domain.keyframes import FeatureExtractor, Intrinsics, Keyframe, Mount
-from maps.domain.relocalisation import KeyframeIndex, QueryFrame, project, relocalise
+from maps.domain.relocalisation import (
+    KeyframeIndex,
+    Params,
+    QueryFrame,
+    project,
+    relocalise,
+)
 from maps.domain.vocabulary import default_vocabulary
 from maps.exceptions import KeyframeError
 from robots.agent.sim.camera import Camera
@@ -107,6 +113,68 @@ def test_held_out_views_are_placed_within_10_cm_and_2_degrees(
         assert answer.inliers >= 40
         assert answer.keyframes
         assert 0 < answer.covariance[0, 0] < 0.05
+
+
+def test_the_claimed_covariance_covers_the_true_error(
+    index: KeyframeIndex, extractor: FeatureExtractor
+) -> None:
+    """Seeded views along the corridor (each its own camera noise): every answer's
+    truth lies within its covariance's 99.9 % ellipse (chi-square, 3 DoF)."""
+    rng = np.random.default_rng(7)
+    answered = 0
+    for seed in range(12):
+        pose = (
+            float(rng.uniform(5.0, 20.0)),
+            float(rng.uniform(22.7, 23.7)),
+            float(rng.choice([0.0, math.pi]) + rng.uniform(-0.6, 0.6)),
+        )
+        camera = Camera(demo_world(seed=11), seed=100 + seed)
+        answer = relocalise(index, [query(extractor, camera, pose)], Intrinsics(), Mount())
+        if not answer.localised:
+            continue
+        answered += 1
+        offset = np.array(
+            [
+                answer.pose[0] - pose[0],
+                answer.pose[1] - pose[1],
+                math.remainder(answer.pose[2] - pose[2], math.tau),
+            ]
+        )
+        assert offset @ np.linalg.solve(answer.covariance, offset) < 16.27, (pose, answer)
+    assert answered >= 8
+
+
+@pytest.mark.parametrize(
+    ("truth", "error"),
+    [((24.5, 24.0, 2.0), (0.0, 0.35, 0.08)), ((10.0, 23.2, math.pi / 2), (0.35, 0.0, 0.05))],
+)
+def test_keyframes_that_disagree_give_no_confident_answer(
+    extractor: FeatureExtractor,
+    truth: tuple[float, float, float],
+    error: tuple[float, float, float],
+) -> None:
+    """Two keyframes on either side of the view, one stored with its pose 0.35 m and a
+    few degrees off: the matches are explained two ways. The fit alone (no rivals
+    considered) answers one of them with a few centimetres of sigma; the answer must
+    instead say it cannot tell."""
+    camera = Camera(demo_world(seed=11), seed=1)
+    built = KeyframeIndex(default_vocabulary().size)
+    left = (truth[0] + 0.1, truth[1] - 0.1, truth[2] + 0.1)
+    right = (truth[0] - 0.1, truth[1] + 0.1, truth[2] - 0.1)
+    image, depth = camera.capture(left)
+    assert depth is not None
+    built.add(0, "A", extractor.keyframe(image, depth, left))
+    image, depth = camera.capture(right)
+    assert depth is not None
+    wrong = (right[0] + error[0], right[1] + error[1], right[2] + error[2])
+    built.add(1, "A", extractor.keyframe(image, depth, wrong))
+    frame = query(extractor, camera, truth)
+    fit_alone = relocalise(built, [frame], Intrinsics(), Mount(), params=Params(rivals=0))
+    assert fit_alone.localised
+    assert math.sqrt(fit_alone.covariance[0, 0] + fit_alone.covariance[1, 1]) < 0.06
+    answer = relocalise(built, [frame], Intrinsics(), Mount())
+    assert not answer.localised
+    assert "too uncertain" in answer.reason
 
 
 def test_views_of_another_building_are_never_answered(

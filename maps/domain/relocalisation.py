@@ -13,7 +13,10 @@ feature matching, then ``solvePnPRansac`` and a planar refinement.
    which also leaves chance matches far less room to agree than a free 6-DoF
    ``solvePnPRansac`` would. The pose is refined (Gauss-Newton on the inliers'
    reprojection error, Huber-weighted), and its covariance is the inverse information
-   of that fit, scaled by the residuals and inflated for the keyframes' own pose error.
+   of that fit, scaled by the residuals and inflated for the keyframes' own pose error,
+   plus the spread of the RANSAC poses nearly as well supported as the best
+   (``_with_rivals``): where the inliers' geometry leaves a direction loose, or some
+   keyframe's points are off, those poses lie apart and the covariance says so.
    Last, ``solvePnPRansac`` on the inliers alone (free in 6 DoF) must agree that the
    camera is level at its height.
 
@@ -65,6 +68,14 @@ class Params:
     share blur and depth error)."""
     floor: tuple[float, float, float] = (0.03, 0.03, math.radians(0.8))
     """Standard deviations added for the keyframes' own pose error (x, y, yaw)."""
+    rival_share: float = 0.7
+    """A pose that this share of the answer's support agrees with is a rival explanation
+    of the matches: the covariance must cover it (``_with_rivals``)."""
+    rivals: int = 4
+    """RANSAC hypotheses refined as candidate rivals, per query and sub-map."""
+    rival_chi2: float = 11.34
+    """Squared Mahalanobis distance (chi-square, 3 DoF, 99 %) past which a pose lies
+    outside a covariance."""
 
 
 @dataclass(frozen=True)
@@ -233,9 +244,12 @@ def _solve(
     if distinct < params.min_matches:
         return Answer(False, f"too few feature matches ({distinct})", code, inliers=0)
     rng = np.random.default_rng(distinct)  # the same query answers the same
-    level = _planar_ransac(pixels, points, intrinsics, mount, params, rng)
-    if level is None:
+    hypotheses = _planar_ransac(pixels, points, intrinsics, mount, params, rng)
+    if hypotheses is None:
         return Answer(False, f"no pose explains the {distinct} matches", code)
+    poses, support = hypotheses
+    best = int(np.argmax(support))
+    level = (float(poses[best, 0]), float(poses[best, 1]), float(poses[best, 2]))
     pose, kept = _refine(level, pixels, points, intrinsics, mount, params)
     free = _free_pose_check(pixels[kept], points[kept], intrinsics, mount, params)
     if free:
@@ -244,6 +258,9 @@ def _solve(
     if count < params.min_inliers:
         return Answer(False, f"too few inliers after refinement ({count})", code, inliers=count)
     covariance = _covariance(pose, pixels[kept], points[kept], intrinsics, mount, params)
+    covariance = _with_rivals(
+        pose, kept, covariance, (poses, support), (pixels, points), intrinsics, mount, params
+    )
     sigma = math.sqrt(covariance[0, 0] + covariance[1, 1])
     if sigma > params.max_position_sigma:
         return Answer(False, f"the pose is too uncertain ({sigma:.2f} m)", code, inliers=count)
@@ -258,8 +275,9 @@ def _planar_ransac(
     mount: Mount,
     params: Params,
     rng: np.random.Generator,
-) -> tuple[float, float, float] | None:
-    """The robot pose most matches agree with, by RANSAC over pairs of matches.
+) -> tuple[NDArray[np.float64], NDArray[np.intp]] | None:
+    """Robot poses hypothesised by RANSAC over pairs of matches, and each one's support
+    (the matches it reprojects within ``params.reprojection``).
 
     The camera is level at ``mount.height``, so a pixel's row gives the range of the 3D
     point it sees (how far below or above the horizon that height difference appears),
@@ -279,11 +297,64 @@ def _planar_ransac(
     projected, forward = _project_many(poses, points, intrinsics, mount)
     errors = np.linalg.norm(projected - pixels[None, :, :], axis=2)
     support = ((errors <= params.reprojection) & (forward > 0.1)).sum(axis=1)
-    best = int(np.argmax(support))
-    if support[best] < params.min_inliers:
+    if support.max() < params.min_inliers:
         return None
-    x, y, yaw = poses[best]
-    return float(x), float(y), float(yaw)
+    return poses, support
+
+
+def _with_rivals(
+    pose: tuple[float, float, float],
+    kept: NDArray[np.intp],
+    covariance: Covariance,
+    hypotheses: tuple[NDArray[np.float64], NDArray[np.intp]],
+    matches: tuple[NDArray[np.float64], NDArray[np.float64]],
+    intrinsics: Intrinsics,
+    mount: Mount,
+    params: Params,
+) -> Covariance:
+    """``covariance`` widened to cover rival poses: other local optima of the fit that
+    nearly as many matches agree with.
+
+    The fit's covariance only describes pixel noise around the pose it converged to.
+    When the inliers' geometry leaves a direction barely constrained (points all at one
+    range in a narrow view: sliding sideways and turning trade off), or a keyframe's
+    points are off (depth misread at an object's edge), poses well apart explain nearly
+    as many matches, which the residuals cannot show. RANSAC's hypotheses find them: the
+    ``params.rivals`` well-supported ones (``params.rival_share`` of the best's support)
+    farthest outside the covariance are refined like the answer; those that stay outside
+    it (Mahalanobis past ``params.rival_chi2``) keeping ``rival_share`` of its inliers
+    add their second moment about the answer, so the covariance covers them, and a pose
+    that could as well be 0.3 m elsewhere is "not localised"."""
+    poses, support = hypotheses
+    information = np.linalg.inv(covariance)
+    offsets = _offsets(poses, pose)
+    distance = np.einsum("ij,jk,ik->i", offsets, information, offsets)
+    strong = np.flatnonzero(
+        (support >= params.rival_share * support.max()) & (distance > params.rival_chi2)
+    )
+    farthest = strong[np.argsort(-distance[strong])][: params.rivals]
+    found, weights = [], []
+    for start in farthest:
+        guess = (float(poses[start, 0]), float(poses[start, 1]), float(poses[start, 2]))
+        rival, rival_kept = _refine(guess, *matches, intrinsics, mount, params)
+        offset = _offsets(np.array([rival]), pose)[0]
+        if (
+            rival_kept.size >= params.rival_share * kept.size
+            and offset @ information @ offset > params.rival_chi2
+        ):
+            found.append(offset)
+            weights.append(rival_kept.size / kept.size)
+    if not found:
+        return covariance
+    rivals = np.array(found)
+    share = np.array(weights) / (1.0 + sum(weights))  # the answer itself weighs 1
+    return np.asarray(covariance + (rivals * share[:, None]).T @ rivals, np.float64)
+
+
+def _offsets(poses: NDArray[np.float64], pose: tuple[float, float, float]) -> NDArray[np.float64]:
+    offsets = np.asarray(poses - np.array(pose)[None, :], np.float64)
+    offsets[:, 2] = np.remainder(offsets[:, 2] + np.pi, 2 * np.pi) - np.pi
+    return offsets
 
 
 def _robot_frame(
