@@ -23,9 +23,10 @@ import numpy as np
 from maps.domain.demo_building import demo_building
 from maps.domain.planning import warm_up
 from robots.agent.client import RosbridgeClient
-from robots.agent.robot import PoseTracker, Robot, SimHardware, declare, particle_filter
+from robots.agent.robot import PoseTracker, Robot, declare, particle_filter
 from robots.agent.sim.changes import WorldChanges, changed_demo_world
 from robots.agent.sim.crowd import Crowd
+from robots.agent.sim.hardware import SimHardware
 from robots.agent.sim.world import World, demo_world
 from robots.agent.supervisor import BundleCache, MapsSupervisor
 from robots.agent.visual import VisualMap
@@ -99,7 +100,7 @@ class FleetRobot:
     """One robot of the fleet, with its connections."""
 
     name: str
-    robot: Robot
+    robot: Robot[SimHardware]
     client: RosbridgeClient
     http: httpx.AsyncClient
 
