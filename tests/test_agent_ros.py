@@ -1,0 +1,164 @@
+"""The ROS 1 navigation stack the Maps Supervisor feeds, on a real roscore (Debian's ROS 1
+packages): the sub-map on the latched ``/map`` as ``rostopic echo`` sees it, the tag's
+pose on ``/initialpose`` with its covariance, a goal as a ``move_base`` action goal, and
+cancel preempting it. Skipped where ROS 1 is not installed (``scripts/setup.sh`` installs it)."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import socket
+import subprocess
+import time
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from robots.agent.ros import ros_path
+
+pytestmark = [
+    pytest.mark.skipif(
+        not ros_path() or shutil.which("roscore") is None, reason="ROS 1 (ros-core) not installed"
+    ),
+    pytest.mark.filterwarnings("ignore:notifyAll:DeprecationWarning"),
+]
+
+MAP_ID = "boccioni_1/CorridorA"
+ACTIVE, PREEMPTED = 1, 2
+
+
+def wait_for(done: Callable[[], Any], seconds: float, what: str) -> Any:
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline:
+        value = done()
+        if value:
+            return value
+        time.sleep(0.05)
+    raise AssertionError(f"timed out waiting for {what}")
+
+
+def free_port() -> int:
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return int(probe.getsockname()[1])
+
+
+@pytest.fixture(scope="module")
+def ros_env(tmp_path_factory: pytest.TempPathFactory) -> Iterator[dict[str, str]]:
+    """A real roscore on a free port; the environment that reaches it."""
+    port = free_port()
+    env = dict(os.environ)
+    env.update(
+        ROS_MASTER_URI=f"http://127.0.0.1:{port}",
+        ROS_HOSTNAME="127.0.0.1",
+        ROS_HOME=str(tmp_path_factory.mktemp("ros_home")),
+    )
+    env.pop("PYTHONPATH", None)
+    core = subprocess.Popen(
+        ["roscore", "-p", str(port)],
+        env=env,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        start_new_session=True,
+    )
+    try:
+        import rosgraph  # type: ignore[import-not-found,unused-ignore]
+
+        master = rosgraph.Master("/probe", master_uri=env["ROS_MASTER_URI"])
+        wait_for(lambda: _online(master), 60, "roscore")
+        yield env
+    finally:
+        core.terminate()
+        core.wait(timeout=30)
+
+
+def _online(master: Any) -> bool:
+    try:
+        master.getPid()
+    except Exception:
+        return False
+    return True
+
+
+@pytest.fixture(scope="module")
+def node(ros_env: dict[str, str]) -> Iterator[None]:
+    for name in ("ROS_MASTER_URI", "ROS_HOSTNAME", "ROS_HOME"):
+        os.environ[name] = ros_env[name]
+    import rospy  # type: ignore[import-not-found,unused-ignore]
+
+    rospy.init_node("cloudnav_bridge_test", anonymous=True, disable_signals=True)
+    yield
+    rospy.signal_shutdown("test done")
+
+
+def test_maps_poses_goals_and_cancel_reach_ros(
+    node: None, ros_env: dict[str, str], tmp_path: Path
+) -> None:
+    import actionlib  # type: ignore[import-not-found,unused-ignore]
+    import rospy  # type: ignore[import-not-found,unused-ignore]
+    from geometry_msgs.msg import (  # type: ignore[import-not-found,unused-ignore]
+        PoseWithCovarianceStamped,
+    )
+    from move_base_msgs.msg import MoveBaseAction  # type: ignore[import-not-found,unused-ignore]
+
+    from robots.agent.ros.navigation import RosNavigationStack
+
+    # A minimal move_base: holds each goal active until it is preempted.
+    goals: list[Any] = []
+
+    def execute(goal: Any) -> None:
+        goals.append(goal)
+        while not rospy.is_shutdown():
+            if server.is_preempt_requested():
+                server.set_preempted()
+                return
+            time.sleep(0.02)
+
+    server = actionlib.SimpleActionServer("move_base", MoveBaseAction, execute, auto_start=False)
+    server.start()
+    poses: list[Any] = []
+    rospy.Subscriber("/initialpose", PoseWithCovarianceStamped, poses.append)
+
+    stack = RosNavigationStack()
+    assert stack.wait_for_server(30)
+    grid = np.zeros((30, 40), dtype=np.int8)
+    grid[0, :] = 100
+    grid[-1, -1] = -1
+    stack.set_map(MAP_ID, grid, 0.05, (1.0, 2.0, 0.0))
+
+    # Latched: a subscriber that arrives afterwards still gets it.
+    echoed = subprocess.run(
+        ["rostopic", "echo", "-n", "1", "/map/info"],
+        env=ros_env,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert echoed.returncode == 0, echoed.stderr
+    assert "width: 40" in echoed.stdout
+    assert "height: 30" in echoed.stdout
+    assert "resolution: 0.05" in echoed.stdout
+
+    covariance = np.diag([0.04, 0.09, 0.01])
+    stack.set_initial_pose(MAP_ID, (1.5, 2.5, 0.3), covariance)
+    initial = wait_for(lambda: poses, 30, "/initialpose")[0]
+    assert initial.header.frame_id == "map"
+    assert initial.pose.pose.position.x == pytest.approx(1.5)
+    assert initial.pose.covariance[0] == pytest.approx(0.04)
+    assert initial.pose.covariance[7] == pytest.approx(0.09)
+    assert initial.pose.covariance[35] == pytest.approx(0.01)
+
+    with pytest.raises(ValueError, match="not the map"):
+        stack.send_goal("boccioni_1/Other", (0.0, 0.0, 0.0))
+    stack.send_goal(MAP_ID, (3.0, 4.0, 1.0))
+    goal = wait_for(lambda: goals, 30, "the move_base goal")[0]
+    assert goal.target_pose.header.frame_id == "map"
+    assert goal.target_pose.pose.position.x == pytest.approx(3.0)
+    assert goal.target_pose.pose.position.y == pytest.approx(4.0)
+    wait_for(lambda: stack.state() == ACTIVE, 30, "an active goal")
+
+    stack.cancel()
+    wait_for(lambda: stack.state() == PREEMPTED, 30, "the goal preempted")
