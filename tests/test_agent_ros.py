@@ -5,6 +5,7 @@ cancel preempting it. Skipped where ROS 1 is not installed (``scripts/setup.sh``
 
 from __future__ import annotations
 
+import math
 import os
 import shutil
 import socket
@@ -162,3 +163,63 @@ def test_maps_poses_goals_and_cancel_reach_ros(
 
     stack.cancel()
     wait_for(lambda: stack.state() == PREEMPTED, 30, "the goal preempted")
+
+
+def test_a_ros_robot_is_the_softwares_hardware(node: None) -> None:
+    import cv2
+    import rospy  # type: ignore[import-not-found,unused-ignore]
+    from geometry_msgs.msg import Twist  # type: ignore[import-not-found,unused-ignore]
+    from nav_msgs.msg import Odometry  # type: ignore[import-not-found,unused-ignore]
+    from sensor_msgs.msg import (  # type: ignore[import-not-found,unused-ignore]
+        CompressedImage,
+        LaserScan,
+    )
+
+    from robots.agent.hardware import Hardware
+    from robots.agent.ros.hardware import RosHardware
+
+    # The robot's drivers, latched so the hardware finds their last message.
+    odom = Odometry()
+    odom.header.frame_id, odom.child_frame_id = "odom", "base_footprint"
+    odom.pose.pose.position.x, odom.pose.pose.position.y = 1.0, 2.0
+    odom.pose.pose.orientation.z, odom.pose.pose.orientation.w = math.sin(0.25), math.cos(0.25)
+    odom.pose.covariance = [0.01 * (i % 7 == 0) for i in range(36)]
+    odom.twist.twist.linear.x, odom.twist.twist.angular.z = 0.3, -0.1
+    scan = LaserScan()
+    scan.header.frame_id = "base_scan"
+    scan.angle_min, scan.angle_increment = -math.pi / 2, math.pi / 180
+    scan.angle_max = scan.angle_min + 180 * scan.angle_increment
+    scan.range_min, scan.range_max = 0.1, 10.0
+    scan.ranges = [2.0] * 90 + [math.inf] * 91
+    frame = np.zeros((480, 640), dtype=np.uint8)
+    frame[100:200, 300:400] = 255
+    image = CompressedImage()
+    image.format, image.data = "jpeg", cv2.imencode(".jpg", frame)[1].tobytes()
+    for topic, kind, msg in (
+        ("/odom", Odometry, odom),
+        ("/scan", LaserScan, scan),
+        ("/camera/image/compressed", CompressedImage, image),
+    ):
+        rospy.Publisher(topic, kind, queue_size=1, latch=True).publish(msg)
+    commands: list[Any] = []
+    rospy.Subscriber("/cmd_vel", Twist, commands.append)
+
+    hardware: Hardware = RosHardware(timeout=30)
+    assert hardware.odom_pose == pytest.approx((1.0, 2.0, 0.5))
+    assert hardware.reported_velocity == pytest.approx((0.3, -0.1))
+    ranges = hardware.scan()
+    assert ranges.shape == hardware.scan_angles.shape == (181,)
+    assert hardware.scan_angles[90] == pytest.approx(0.0, abs=1e-6)
+    message = hardware.scan_message(ranges, 12.5)
+    assert message["ranges"][0] == pytest.approx(2.0)
+    assert message["ranges"][-1] is None
+    assert hardware.odometry_message(12.5)["pose"]["covariance"][0] == pytest.approx(0.01)
+    seen = wait_for(lambda: hardware.image()[150, 350] > 200, 30, "the camera frame")
+    assert seen
+
+    def commanded() -> bool:
+        hardware.command(0.2, 0.4)  # until the subscriber has connected
+        return bool(commands)
+
+    wait_for(commanded, 30, "cmd_vel")
+    assert (commands[-1].linear.x, commands[-1].angular.z) == pytest.approx((0.2, 0.4))
