@@ -10,6 +10,7 @@ import os
 import shutil
 import socket
 import subprocess
+import sys
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -27,6 +28,7 @@ pytestmark = [
     pytest.mark.filterwarnings("ignore:notifyAll:DeprecationWarning"),
 ]
 
+ROOT = Path(__file__).resolve().parent.parent
 MAP_ID = "boccioni_1/CorridorA"
 ACTIVE, PREEMPTED = 1, 2
 
@@ -47,7 +49,7 @@ def free_port() -> int:
         return int(probe.getsockname()[1])
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def ros_env(tmp_path_factory: pytest.TempPathFactory) -> Iterator[dict[str, str]]:
     """A real roscore on a free port; the environment that reaches it."""
     port = free_port()
@@ -84,7 +86,7 @@ def _online(master: Any) -> bool:
     return True
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def node(ros_env: dict[str, str]) -> Iterator[None]:
     for name in ("ROS_MASTER_URI", "ROS_HOSTNAME", "ROS_HOME"):
         os.environ[name] = ros_env[name]
@@ -223,3 +225,99 @@ def test_a_ros_robot_is_the_softwares_hardware(node: None) -> None:
 
     wait_for(commanded, 30, "cmd_vel")
     assert (commands[-1].linear.x, commands[-1].angular.z) == pytest.approx((0.2, 0.4))
+
+
+ROBOT = "robot_0"
+CORRIDOR_A = "boccioni_1/CorridorA"
+START = (8.0, 23.2, 0.0)
+
+
+def start_bridge(ros_env: dict[str, str], server: str, token: str) -> subprocess.Popen[str]:
+    """``python -m robots.agent.ros`` for ``robot_0``, as a robot would run it."""
+    return subprocess.Popen(
+        [
+            *(sys.executable, "-m", "robots.agent.ros", "--server", server, "--token", token),
+            *("--particles", "0", "--node", "cloudnav_bridge_robot_0"),
+        ],
+        env={**ros_env, "PYTHONPATH": str(ROOT)},
+        cwd=ROOT,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        text=True,
+    )
+
+
+@pytest.mark.slow
+async def test_the_bridge_node_carries_an_operators_goal_to_ros_and_survives_the_cloud(
+    node: None, ros_env: dict[str, str], daphne_server: Any, demo_token: str, operator_headers: Any
+) -> None:
+    import rospy  # type: ignore[import-not-found,unused-ignore]
+    import websockets
+    from geometry_msgs.msg import Twist  # type: ignore[import-not-found,unused-ignore]
+    from nav_msgs.msg import Odometry  # type: ignore[import-not-found,unused-ignore]
+    from sensor_msgs.msg import LaserScan  # type: ignore[import-not-found,unused-ignore]
+
+    from tests.test_agent_live import Operator, pose, with_covariance
+
+    # The robot's drivers: a base standing still and a laser seeing open space.
+    odom = Odometry()
+    odom.header.frame_id, odom.child_frame_id = "odom", "base_footprint"
+    odom.pose.pose.orientation.w = 1.0
+    scan = LaserScan()
+    scan.header.frame_id = "base_scan"
+    scan.angle_min, scan.angle_increment = -math.pi / 2, math.pi / 180
+    scan.angle_max, scan.range_min, scan.range_max = math.pi / 2, 0.1, 10.0
+    scan.ranges = [5.0] * 181
+    odom_out = rospy.Publisher("/odom", Odometry, queue_size=1, latch=True)
+    scan_out = rospy.Publisher("/scan", LaserScan, queue_size=1, latch=True)
+    odom_out.publish(odom)
+    scan_out.publish(scan)
+    commands: list[tuple[float, float, float]] = []
+    rospy.Subscriber(
+        "/cmd_vel",
+        Twist,
+        lambda t: commands.append((time.monotonic(), t.linear.x, t.angular.z)),
+    )
+
+    bridge = start_bridge(ros_env, daphne_server.url, demo_token)
+    try:
+        async with websockets.connect(
+            daphne_server.rosbridge_url(), additional_headers=operator_headers
+        ) as ws:
+            operator = Operator(ws)
+            for topic in ("pose", "nav_status", "map_id", "odom"):
+                await operator.send(op="subscribe", topic=f"/{ROBOT}/{topic}")
+            await operator.until(lambda: f"/{ROBOT}/odom" in operator.latest, "the bridge", 90)
+
+            placed = with_covariance(pose(CORRIDOR_A, *START))
+            await operator.send(op="publish", topic=f"/{ROBOT}/initialpose", msg=placed)
+            await operator.until(lambda: f"/{ROBOT}/pose" in operator.latest, "a pose", 60)
+            entered = operator.latest[f"/{ROBOT}/map_id"]["data"]
+            assert entered.split("@")[0] == CORRIDOR_A  # "@v1": the map's version
+
+            goal = pose(CORRIDOR_A, 16, 23.2, 0)
+            await operator.send(op="publish", topic=f"/{ROBOT}/goal", msg=goal)
+            await operator.until(lambda: operator.last_status() == ACTIVE, "the goal taken", 60)
+            await operator.until(lambda: any(c[1] > 0.05 for c in commands), "cmd_vel on ROS")
+            answer = await operator.call(f"/{ROBOT}/cancel_goal", {}, "cancel")
+            assert answer["result"] is True
+            await operator.until(lambda: operator.last_status() == PREEMPTED, "PREEMPTED")
+
+            await operator.send(op="publish", topic=f"/{ROBOT}/goal", msg=goal)
+            await operator.until(lambda: operator.last_status() == ACTIVE, "the goal again", 60)
+
+        daphne_server.stop()  # the cloud goes away: the robot drives on its held map
+        cut = time.monotonic()
+        wait_for(
+            lambda: any(t > cut + 2 and linear > 0.05 for t, linear, _ in commands),
+            30,
+            "cmd_vel after the cloud went away",
+        )
+        assert bridge.poll() is None
+    finally:
+        bridge.terminate()
+        try:
+            bridge.wait(timeout=30)
+        except subprocess.TimeoutExpired:
+            bridge.kill()
+            bridge.wait(timeout=30)
