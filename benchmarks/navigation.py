@@ -41,8 +41,8 @@ import numpy as np
 from maps.domain.demo_building import demo_building
 from maps.domain.planning import warm_up
 from robots.agent.navigation import Driver, DriveState, LocalObstacles
-from robots.agent.robot import SimHardware
 from robots.agent.sim.crowd import Crowd, Person, seeded_people
+from robots.agent.sim.hardware import SimHardware
 from robots.agent.sim.world import World, demo_world
 from robots.agent.supervisor import SubMap
 from robots.domain.params import RobotConfig

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Set up everything CloudNav needs on a fresh Debian machine; quick when already done.
-#   Debian packages (chromium, redis-server, postgresql) with apt-get where absent,
+#   Debian packages (chromium, redis-server, postgresql, ROS 1) with apt-get where absent,
 #   the Python virtualenv from requirements.txt, Node packages from package-lock.json,
 #   and the database schema.
 set -euo pipefail
@@ -21,6 +21,13 @@ apt_packages() {
   ls /usr/lib/postgresql/*/bin/postgres >/dev/null 2>&1 || missing+=(postgresql)
   command -v node >/dev/null || missing+=(nodejs npm)
   "$PYTHON" -c "import venv, ensurepip" 2>/dev/null || missing+=(python3-venv)
+  # ROS 1 (Debian's own packages) for the agent's ROS backend and its tests.
+  command -v roscore >/dev/null || missing+=(ros-core)
+  local ros
+  for ros in rospy actionlib tf2-ros rostopic move-base-msgs nav-msgs sensor-msgs \
+    geometry-msgs map-msgs; do
+    dpkg -s "python3-$ros" >/dev/null 2>&1 || missing+=("python3-$ros")
+  done
   if [ ${#missing[@]} -gt 0 ]; then
     echo "setup: installing Debian packages: ${missing[*]}"
     as_root apt-get update -q

@@ -12,7 +12,8 @@ from asgiref.sync import sync_to_async
 from maps import versions
 from maps.domain.demo_building import demo_building
 from maps.models import SubMap
-from robots.agent.robot import PoseTracker, Robot, SimHardware
+from robots.agent.robot import PoseTracker, Robot
+from robots.agent.sim.hardware import SimHardware
 from robots.agent.sim.world import demo_world
 from robots.agent.supervisor import BundleCache, MapsSupervisor
 from robots.domain.params import RobotConfig

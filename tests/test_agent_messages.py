@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from robots.agent.__main__ import arguments, tokens_of
-from robots.agent.fleet import endpoints, parse_pose
+from robots.agent.client import endpoints
+from robots.agent.fleet import parse_pose
 from telemetry.domain.messages import (
     GoalStatus,
     StatusEntry,

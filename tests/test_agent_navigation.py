@@ -15,7 +15,8 @@ import httpx
 import numpy as np
 import pytest
 
-from robots.agent.robot import PoseTracker, Robot, SimHardware, particle_filter
+from robots.agent.robot import PoseTracker, Robot, particle_filter
+from robots.agent.sim.hardware import SimHardware
 from robots.agent.sim.world import Box, Cylinder, World, demo_world
 from robots.agent.supervisor import BundleCache, MapsSupervisor
 from robots.domain.params import RobotConfig

@@ -14,7 +14,8 @@ import pytest
 
 from maps.domain.demo_building import PAPER_ROUTE, demo_building
 from maps.models import EnvironmentalTag
-from robots.agent.robot import PoseTracker, Robot, SimHardware
+from robots.agent.robot import PoseTracker, Robot
+from robots.agent.sim.hardware import SimHardware
 from robots.agent.sim.world import demo_world
 from robots.agent.supervisor import (
     BundleCache,

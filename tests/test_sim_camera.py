@@ -10,8 +10,9 @@ from dataclasses import replace
 import cv2
 import numpy as np
 
+from robots.agent.hardware import compressed_image_message, encode_jpeg
 from robots.agent.perception import CameraModel, TagDetector
-from robots.agent.sim.camera import Camera, compressed_image_message, encode_jpeg
+from robots.agent.sim.camera import Camera
 from robots.agent.sim.world import Box, SimTag, World, demo_world
 
 ENTRANCE = 0  # marker id of the tag beside the building's entrance, facing west

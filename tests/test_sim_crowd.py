@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from robots.agent.fleet import demo_crowd
-from robots.agent.robot import SimHardware
 from robots.agent.sim.crowd import GIVE_WAY, TURN_BACK, WALKING_SPEEDS, Crowd, Person
+from robots.agent.sim.hardware import SimHardware
 from robots.agent.sim.laser import LaserSpec
 from robots.agent.sim.world import demo_world
 

@@ -16,7 +16,8 @@ from django.core.management import call_command
 
 from maps.models import Building, Keyframe
 from maps.visual.worker import ingest_queue
-from robots.agent.sim.camera import Camera, encode_jpeg
+from robots.agent.hardware import encode_jpeg
+from robots.agent.sim.camera import Camera
 from robots.agent.sim.world import demo_world
 from telemetry.domain.messages import CompressedImage, compressed_image, depth_image
 from tests.conftest import client_for, make_building, make_robot, make_user

@@ -19,7 +19,8 @@ import httpx
 import pytest
 import websockets
 
-from robots.agent.sim.camera import Camera, encode_jpeg
+from robots.agent.hardware import encode_jpeg
+from robots.agent.sim.camera import Camera
 from robots.agent.sim.world import demo_world
 from telemetry.domain.messages import compressed_image, depth_image
 from tests.fixtures_live import LiveServer, agent_process

@@ -25,6 +25,7 @@ import random
 from collections.abc import Awaitable, Callable
 from dataclasses import dataclass, field
 from typing import Any
+from urllib.parse import urlsplit, urlunsplit
 
 import websockets
 from websockets.asyncio.client import ClientConnection
@@ -338,3 +339,13 @@ class RosbridgeClient:
             reply.update(values=str(error), result=False)
         with contextlib.suppress(Exception):
             await self._send(reply)
+
+
+def endpoints(server: str) -> tuple[str, str]:
+    """``(http base, rosbridge URL)`` of a server given either way, e.g.
+    ``http://h:8000`` -> ``("http://h:8000", "ws://h:8000/rosbridge")``."""
+    parts = urlsplit(server if "//" in server else f"http://{server}")
+    secure = parts.scheme in ("https", "wss")
+    http = urlunsplit(("https" if secure else "http", parts.netloc, "", "", ""))
+    path = parts.path.rstrip("/") if parts.scheme.startswith("ws") and parts.path else "/rosbridge"
+    return http, urlunsplit(("wss" if secure else "ws", parts.netloc, path, "", ""))

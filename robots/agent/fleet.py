@@ -15,17 +15,17 @@ import logging
 import math
 from collections.abc import Iterable
 from dataclasses import dataclass, field
-from urllib.parse import urlsplit, urlunsplit
 
 import httpx
 import numpy as np
 
 from maps.domain.demo_building import demo_building
 from maps.domain.planning import warm_up
-from robots.agent.client import RosbridgeClient
-from robots.agent.robot import PoseTracker, Robot, SimHardware, declare, particle_filter
+from robots.agent.client import RosbridgeClient, endpoints
+from robots.agent.robot import PoseTracker, Robot, declare, particle_filter
 from robots.agent.sim.changes import WorldChanges, changed_demo_world
 from robots.agent.sim.crowd import Crowd
+from robots.agent.sim.hardware import SimHardware
 from robots.agent.sim.world import World, demo_world
 from robots.agent.supervisor import BundleCache, MapsSupervisor
 from robots.agent.visual import VisualMap
@@ -84,22 +84,12 @@ def add_robot_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--people-seed", type=int, default=0, help="seed of their routes")
 
 
-def endpoints(server: str) -> tuple[str, str]:
-    """``(http base, rosbridge URL)`` of a server given either way, e.g.
-    ``http://h:8000`` -> ``("http://h:8000", "ws://h:8000/rosbridge")``."""
-    parts = urlsplit(server if "//" in server else f"http://{server}")
-    secure = parts.scheme in ("https", "wss")
-    http = urlunsplit(("https" if secure else "http", parts.netloc, "", "", ""))
-    path = parts.path.rstrip("/") if parts.scheme.startswith("ws") and parts.path else "/rosbridge"
-    return http, urlunsplit(("wss" if secure else "ws", parts.netloc, path, "", ""))
-
-
 @dataclass
 class FleetRobot:
     """One robot of the fleet, with its connections."""
 
     name: str
-    robot: Robot
+    robot: Robot[SimHardware]
     client: RosbridgeClient
     http: httpx.AsyncClient
 

@@ -1,9 +1,9 @@
-"""One simulated robot: body, laser and camera (``SimHardware``), and the software a real
-robot would run on them: tag detector, pose tracking, Maps Supervisor, navigation, and a
-rosbridge connection.
+"""One robot's software: tag detector, pose tracking, Maps Supervisor, navigation, and a
+rosbridge connection, on its ``hardware`` (``robots.agent.hardware.Hardware``: the
+simulator's ``robots.agent.sim.hardware.SimHardware``, or a real robot's bridge).
 
 The software sees only what the hardware reports (odometry, scans, images) and what the
-cloud serves; ground truth (``SimHardware.true_pose``) exists for the simulator's
+cloud serves; the simulator's ground truth (``SimHardware.true_pose``) exists for its
 sensors and for tests, and nothing in ``Robot`` reads it.
 
 Time: the robot lives on a simulated clock advanced in fixed control periods
@@ -38,26 +38,21 @@ import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, replace
-from typing import Any, Protocol
+from typing import Any, Generic, Protocol, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
 
 from robots.agent.client import RosbridgeClient
+from robots.agent.hardware import Hardware, compressed_image_message, encode_jpeg
 from robots.agent.localisation import ParticleFilter, odometry_delta
 from robots.agent.navigation import LocalObstacles, Navigator
-from robots.agent.perception import CameraModel, TagDetection, TagDetector
+from robots.agent.perception import TagDetection, TagDetector
 from robots.agent.relocalise import PoseEstimate
-from robots.agent.sim.battery import SimBattery
-from robots.agent.sim.body import DiffDriveBody
-from robots.agent.sim.camera import Camera, compressed_image_message, encode_jpeg
-from robots.agent.sim.crowd import Crowd
-from robots.agent.sim.laser import Laser, LaserSpec
-from robots.agent.sim.world import World
 from robots.agent.supervisor import BundleError, MapsSupervisor, SubMap
 from robots.agent.visual import LOST_SPREAD, TRUSTED_SPREAD, VisualMap, spread
 from robots.agent.whereabouts import Whereabouts
-from robots.domain.params import BodyLimits, FilterParams, RobotConfig
+from robots.domain.params import FilterParams, RobotConfig
 from robots.domain.se2 import Pose, compose, inverse
 from telemetry.domain.messages import (
     Json,
@@ -79,74 +74,6 @@ logger = logging.getLogger(__name__)
 
 TELEOP_HOLD = 0.5
 """Seconds after a ``cmd_vel`` during which navigation leaves the body alone."""
-
-
-# --- the simulated hardware ------------------------------------------------------------
-
-
-class SimHardware:
-    """The body, laser and camera of one robot in ``world``, starting at ``pose``; the
-    body moves within ``limits`` (the default robot's without).
-
-    With a ``crowd``, the body joins it: this robot's laser, camera and bumpers see its
-    people and the other robots in it, and they see this one. Advancing the hardware
-    walks the crowd on to the body's time (the first robot there moves it)."""
-
-    def __init__(
-        self,
-        world: World,
-        pose: Pose,
-        seed: int = 0,
-        limits: BodyLimits | None = None,
-        crowd: Crowd | None = None,
-    ) -> None:
-        self.crowd = crowd
-        self.body = DiffDriveBody(world, pose, limits=limits, seed=seed)
-        movers = None
-        if crowd is not None:
-            crowd.join(self.body)
-            movers = self.body.others = crowd.movers_for(self.body)
-        self.laser = Laser(world, LaserSpec(), seed=seed + 1, movers=movers)
-        self.camera = Camera(world, CameraModel(), seed=seed + 2, movers=movers)
-        self.battery = SimBattery()
-        self.scan_angles = self.laser.spec.angles()
-
-    @property
-    def true_pose(self) -> Pose:
-        """Ground truth: for the simulator and tests only."""
-        return self.body.pose
-
-    @property
-    def odom_pose(self) -> Pose:
-        return self.body.odom_pose
-
-    @property
-    def reported_velocity(self) -> tuple[float, float]:
-        """The velocity the wheel encoders report (with their scale errors)."""
-        linear, angular = self.body.velocity
-        return linear * self.body.noise.linear_scale, angular * self.body.noise.angular_scale
-
-    def advance(self, seconds: float) -> None:
-        self.body.advance(seconds)
-        self.battery.drain(seconds, *self.body.velocity)
-        if self.crowd is not None:
-            self.crowd.advance_to(self.body.time)
-
-    def command(self, linear: float, angular: float) -> None:
-        """Ask for a velocity; the body clamps it to its limits."""
-        self.body.command(linear, angular)
-
-    def scan(self) -> NDArray[np.float32]:
-        return self.laser.scan(self.body.pose)
-
-    def image(self) -> NDArray[np.uint8]:
-        return self.camera.render(self.body.pose)
-
-    def image_and_depth(self) -> tuple[NDArray[np.uint8], NDArray[np.float32]]:
-        """A frame and its registered depth (metres along the optical axis)."""
-        image, depth = self.camera.capture(self.body.pose)
-        assert depth is not None
-        return image, depth
 
 
 # --- where the robot is ----------------------------------------------------------------
@@ -261,12 +188,15 @@ class Publisher(Protocol):
     async def publish(self, topic: str, msg: Any) -> bool: ...
 
 
-class Robot:
+H = TypeVar("H", bound=Hardware)
+
+
+class Robot(Generic[H]):
     """One robot's software on its ``hardware``, talking through ``publisher``."""
 
     def __init__(
         self,
-        hardware: SimHardware,
+        hardware: H,
         supervisor: MapsSupervisor,
         tracker: PoseTracker,
         publisher: Publisher,
@@ -281,7 +211,7 @@ class Robot:
         self.publisher = publisher
         self.config = config or RobotConfig()
         self.navigator = Navigator(supervisor, self.config)
-        self.detector = TagDetector(hardware.camera.model)
+        self.detector = TagDetector(hardware.camera_model)
         self.epoch = time.time() if epoch is None else epoch
         self._epoch_given = epoch is not None
         self.seconds = 0.0
@@ -365,7 +295,7 @@ class Robot:
         self.ticks += 1
         self.tracker.odometry(self.hardware.odom_pose)
         ranges = self.hardware.scan()
-        scan = self.hardware.laser.message(ranges, self.stamp)
+        scan = self.hardware.scan_message(ranges, self.stamp)
         self.tracker.scan(scan)
         rates = (self.config.detect_rate, self.config.camera_rate, self.config.depth_rate)
         frame = self._look() if self._due(*rates) else None
@@ -462,7 +392,7 @@ class Robot:
             pose = pose_stamped(current.map_id, self.tracker.pose(), self.stamp)
             await self.publisher.publish("pose", pose)
         if self._due(self.config.odom_rate):
-            odom = self.hardware.body.odometry_message(seconds=self.stamp)
+            odom = self.hardware.odometry_message(self.stamp)
             await self.publisher.publish("odom", odom)
         if self._due(self.config.scan_rate):
             await self.publisher.publish("scan", scan)
@@ -499,7 +429,7 @@ class Robot:
         await self.publisher.publish("camera/image/compressed", message)
 
     async def _publish_depth(self, depth: NDArray[np.float32]) -> None:
-        model = self.hardware.camera.model
+        model = self.hardware.camera_model
         frame_id = "camera_optical_frame"
         await self.publisher.publish("camera/depth/image", depth_image(frame_id, depth, self.stamp))
         info = camera_info(
@@ -548,7 +478,7 @@ PUBLISHED = (
 )  # fmt: skip
 
 
-def declare(robot: Robot, client: RosbridgeClient) -> None:
+def declare(robot: Robot[Any], client: RosbridgeClient) -> None:
     """Advertise ``robot``'s topics, subscribe its commands and serve ``cancel_goal`` on
     ``client``."""
     for topic in PUBLISHED:

@@ -27,9 +27,9 @@ import httpx
 import numpy as np
 from numpy.typing import NDArray
 
+from robots.agent.hardware import encode_jpeg
 from robots.agent.perception import CameraModel
 from robots.agent.relocalise import PoseEstimate
-from robots.agent.sim.camera import encode_jpeg
 from robots.domain.se2 import Pose
 from telemetry.domain.messages import camera_info, compressed_image, depth_image
 

@@ -31,7 +31,6 @@ from robots.agent.sim.crowd import Discs, Movers, cast_discs
 from robots.agent.sim.wallpaper import EAST, FAR_LEVELS, NORTH, PANEL_WIDTH, SOUTH, TEXEL, WEST
 from robots.agent.sim.world import OBSTACLE, RayHits, SimTag, World
 from robots.domain.se2 import Pose, ahead
-from telemetry.domain.messages import CompressedImage, compressed_image
 
 Image = NDArray[np.uint8]
 Floats = NDArray[np.float64]
@@ -276,21 +275,6 @@ class Camera:
         return np.asarray(
             cv2.subtract(brighter, minus[dy : dy + height, dx : dx + width]), dtype=np.uint8
         )
-
-
-def encode_jpeg(image: Image, quality: int = 80) -> bytes:
-    """JPEG bytes of a grey or BGR image; raises ValueError if OpenCV cannot encode it."""
-    ok, data = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, int(quality)])
-    if not ok:
-        raise ValueError("JPEG encoding failed")
-    return data.tobytes()
-
-
-def compressed_image_message(
-    jpeg: bytes, seconds: float, frame_id: str = "camera_optical_frame"
-) -> CompressedImage:
-    """The camera's ``sensor_msgs/CompressedImage`` of ``jpeg``, stamped ``seconds``."""
-    return compressed_image(frame_id, jpeg, seconds)
 
 
 # --- helpers ---------------------------------------------------------------------------
