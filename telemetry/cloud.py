@@ -49,7 +49,7 @@ async def teleop_lock(call: ServiceCall) -> Json:
     robot, action = call.arg("robot"), call.arg("action", "acquire")
     if not names.is_robot_name(robot):
         raise ServiceFailed("'robot' must be a robot's name (a letter, then letters, digits or _)")
-    locks, conn = call.hub.teleop, call.conn
+    locks, conn = call.server.teleop, call.conn
     if action == "status":
         await call.access.require("see", names.robot_topic(robot, names.CMD_VEL))
         return {"success": True, "holder": await locks.holder(robot), "message": ""}
