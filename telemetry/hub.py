@@ -23,6 +23,7 @@ from robots.missions import Goal
 from robots.teleop import MemoryLockStore, RedisLockStore, TeleopLocks
 from telemetry.config import RosbridgeConfig
 from telemetry.connection import Connection
+from telemetry.cross_process import CrossProcess, NullRelay
 from telemetry.directory import Directory
 from telemetry.domain import names, protocol
 from telemetry.domain.bus import SubscribeParams, TopicBus
@@ -39,7 +40,7 @@ from telemetry.exceptions import ActionFailed, NotAllowed, RosbridgeError, Servi
 from telemetry.missions import MissionRunner
 from telemetry.params import Parameters, RedisParams
 from telemetry.recording.recorder import Recorder
-from telemetry.relay import CrossProcess, NullRelay, Relay
+from telemetry.relay import Relay
 from telemetry.revocation import AccessChange, RobotRecord, revoked, robot_records
 from telemetry.server_services import ServerParts, ServerService, ServiceCall
 from telemetry.service_registry import server_services

@@ -10,9 +10,9 @@ What every process must see lives in Redis under ``names.redis_key``: which proc
 advertises which topic, service and action, which robots it serves, latched messages and
 parameters. A process counts as alive while its heartbeat key exists.
 
-Single-process mode has a ``NullRelay``: the same methods, doing nothing and finding
-nothing, so the hub and its parts never ask which mode they run in. Only ``Hub.start``
-chooses (``CrossProcess`` is what both offer).
+Single-process mode has a ``NullRelay`` (``telemetry.cross_process``): the same methods,
+doing nothing and finding nothing, so the hub and its parts never ask which mode they run
+in. Only ``Hub.start`` chooses.
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ import logging
 import uuid
 from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, Protocol
+from typing import TYPE_CHECKING, Any
 
 from telemetry.domain import names
 from telemetry.domain.bus import Topic
@@ -40,67 +40,6 @@ HEARTBEAT = 5.0
 ALIVE_FOR = 15
 REGROUP_EVERY = 600.0  # channels_redis forgets group members after a day; rejoin well before
 MAX_PENDING = 10_000
-
-
-class CrossProcess(Protocol):
-    """What the hub asks of the other server processes (``Relay``), or of none
-    (``NullRelay``)."""
-
-    channel: str
-
-    def owner_key(self, conn_key: str) -> str:
-        """A connection's key made unique across server processes."""
-
-    def put(self, kind: str, name: str, value: str) -> None: ...
-
-    def remove(self, kind: str, name: str) -> None: ...
-
-    async def entries(self, kind: str, others_only: bool = True) -> list[tuple[str, str, str]]:
-        """Return ``(name, value, channel)`` of ``kind`` from other live processes."""
-
-    async def find(self, kind: str, name: str) -> tuple[str, str] | None:
-        """Return ``(channel, value)`` of another live process that has ``name`` of ``kind``."""
-
-    async def latched(self, topic: str) -> tuple[str, dict[str, Json]] | None: ...
-
-    async def settled(self) -> None: ...
-
-    def send(self, channel: str, message: dict[str, Any]) -> None: ...
-
-    def remote(self, channel: str, conn_key: str) -> RemotePeer: ...
-
-
-class NullRelay:
-    """Single-process mode: no other process to tell, none to ask, nothing ever found."""
-
-    channel = ""
-
-    def owner_key(self, conn_key: str) -> str:
-        return conn_key
-
-    def put(self, kind: str, name: str, value: str) -> None:
-        pass
-
-    def remove(self, kind: str, name: str) -> None:
-        pass
-
-    async def entries(self, kind: str, others_only: bool = True) -> list[tuple[str, str, str]]:  # noqa: ARG002 (the interface)
-        return []
-
-    async def find(self, kind: str, name: str) -> tuple[str, str] | None:  # noqa: ARG002
-        return None
-
-    async def latched(self, topic: str) -> tuple[str, dict[str, Json]] | None:  # noqa: ARG002
-        return None
-
-    async def settled(self) -> None:
-        pass
-
-    def send(self, channel: str, message: dict[str, Any]) -> None:
-        pass
-
-    def remote(self, channel: str, conn_key: str) -> RemotePeer:
-        raise RuntimeError(f"no other process ({channel}) in single-process mode: {conn_key}")
 
 
 @dataclass(frozen=True)
