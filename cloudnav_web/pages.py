@@ -24,7 +24,7 @@ def _role_name(role: Role) -> str:
     return role.name.lower()
 
 
-def _context(request: HttpRequest, role: Role, **kwargs: Any) -> dict[str, Any]:
+def page_context(request: HttpRequest, role: Role, **kwargs: Any) -> dict[str, Any]:
     """Template context every page shares; ``config`` is handed to the page's script."""
     buildings = list(buildings_for(request.user).order_by("code"))
     config = {
@@ -63,7 +63,7 @@ def error_page(request: HttpRequest, status: int) -> HttpResponse:
     title, text = ERRORS[status]
     extra = {"status": status, "title": title, "text": text}
     if request.user.is_authenticated:
-        context = _context(request, global_role(request.user), page="", **extra)
+        context = page_context(request, global_role(request.user), page="", **extra)
     else:
         context = {"role": "none", **extra}
     return render(request, "error.html", context, status=status)
@@ -80,7 +80,7 @@ def forbidden(request: HttpRequest, exception: Exception | None = None) -> HttpR
 @login_required
 def fleet(request: HttpRequest) -> HttpResponse:
     role = global_role(request.user)
-    return render(request, "pages/fleet.html", _context(request, role, page="fleet"))
+    return render(request, "pages/fleet.html", page_context(request, role, page="fleet"))
 
 
 @login_required
@@ -93,7 +93,7 @@ def robot(request: HttpRequest, name: str) -> HttpResponse:
         raise Http404("No such robot.")
     visible = [b for b in buildings if role_in(request.user, b) > Role.NONE]
     config = {"robot": found.name, "buildings": [b.code for b in visible]}
-    context = _context(request, role, page="fleet", robot=found, config=config)
+    context = page_context(request, role, page="fleet", robot=found, config=config)
     return render(request, "pages/robot.html", context)
 
 
@@ -104,7 +104,7 @@ def robots(request: HttpRequest) -> HttpResponse:
     if role < Role.ADMIN:
         raise PermissionDenied("Only admins administer robots.")
     codes = list(buildings_for(request.user).order_by("code").values_list("code", flat=True))
-    context = _context(request, role, page="robots", config={"buildings": codes})
+    context = page_context(request, role, page="robots", config={"buildings": codes})
     return render(request, "pages/robots.html", context)
 
 
@@ -115,7 +115,7 @@ def buildings(request: HttpRequest) -> HttpResponse:
         (b, _role_name(role_in(request.user, b)), b.submaps.count(), b.tags.count())
         for b in buildings_for(request.user).order_by("code")
     ]
-    context = _context(request, role, page="buildings", rows=rows)
+    context = page_context(request, role, page="buildings", rows=rows)
     return render(request, "pages/buildings.html", context)
 
 
@@ -125,7 +125,7 @@ def building(request: HttpRequest, code: str) -> HttpResponse:
     submaps = found.submaps.defer("image").order_by("code")
     tags = found.tags.select_related("submap", "links_to").order_by("marker_id")
     config = {"building": found.code}
-    context = _context(
+    context = page_context(
         request, role, page="buildings", building=found, submaps=submaps, tags=tags, config=config
     )
     return render(request, "pages/building.html", context)
@@ -136,7 +136,7 @@ def building_map(request: HttpRequest, code: str) -> HttpResponse:
     """Every sub-map of a building as one floor plan, with every robot live on it."""
     found, role = _building(request, code)
     config = {"building": found.code}
-    context = _context(request, role, page="building-map", building=found, config=config)
+    context = page_context(request, role, page="building-map", building=found, config=config)
     return render(request, "pages/building_map.html", context)
 
 
@@ -148,7 +148,9 @@ def submap(request: HttpRequest, code: str, map: str) -> HttpResponse:
         raise Http404("No such sub-map.")
     others = list(found.submaps.defer("image").order_by("code").values_list("code", flat=True))
     config = {"building": found.code, "map": sub.code, "submaps": others}
-    context = _context(request, role, page="buildings", building=found, submap=sub, config=config)
+    context = page_context(
+        request, role, page="buildings", building=found, submap=sub, config=config
+    )
     return render(request, "pages/submap.html", context)
 
 
@@ -158,5 +160,5 @@ def upload(request: HttpRequest, code: str) -> HttpResponse:
     if role < Role.ADMIN:
         raise PermissionDenied("Only admins upload sub-maps.")
     config = {"building": found.code}
-    context = _context(request, role, page="buildings", building=found, config=config)
+    context = page_context(request, role, page="buildings", building=found, config=config)
     return render(request, "pages/upload.html", context)

@@ -22,6 +22,7 @@ from .domain.mapfile import (
     open_map_image,
     validate_metadata,
 )
+from .domain.planning import Costmap, inflate
 from .domain.preview import upload_preview
 from .domain.tagart import TagArt
 from .domain.tagpayload import TagPayload, encode_payload
@@ -289,6 +290,39 @@ def _store_edges(building: Building, submaps: Mapping[str, SubMap], edges: Itera
 def tag_links(building: Building) -> list[TagLink]:
     rows = building.tags.values_list("marker_id", "submap__code", "links_to__code")
     return [TagLink(marker, here, there) for marker, here, there in rows]
+
+
+def visible_buildings(visible: Iterable[int]) -> list[Building]:
+    """Return the buildings whose pks are among ``visible``."""
+    return list(Building.objects.filter(pk__in=visible))
+
+
+def visible_building(visible: Iterable[int], code: str) -> Building | None:
+    """Return the building ``code`` if its pk is among ``visible``, else None."""
+    return Building.objects.filter(code=code, pk__in=visible).first()
+
+
+def visible_submap(visible: Iterable[int], building: str, code: str) -> SubMap | None:
+    """Return sub-map ``building/code`` (its building loaded) if its building's pk is among
+    ``visible``, else None."""
+    return (
+        SubMap.objects.filter(building__code=building, building__pk__in=visible, code=code)
+        .select_related("building")
+        .first()
+    )
+
+
+def costmap_of(submap: SubMap, radius: float) -> Costmap:
+    """Return ``submap``'s grid inflated for a robot of ``radius`` metres, cached per
+    version (an edited map is inflated afresh)."""
+    return _cached_costmap(submap.pk, submap.version, radius)
+
+
+@lru_cache(maxsize=16)
+def _cached_costmap(pk: int, version: str, radius: float) -> Costmap:  # noqa: ARG001 (the cache key)
+    submap = SubMap.objects.get(pk=pk)
+    origin = (submap.origin_x, submap.origin_y)
+    return inflate(grid_of(submap), radius, submap.resolution, origin=origin)
 
 
 def route_in(building: Building, start: str, goal: str) -> list[RouteStep]:

@@ -1,36 +1,15 @@
-"""DRF authentication for robots: ``Authorization: Token <token>``."""
+"""DRF authentication for robots: ``Authorization: Token <token>`` makes the request's
+user a ``RobotPrincipal`` (``robots.principal``)."""
 
 from __future__ import annotations
-
-from typing import Any
 
 from rest_framework import authentication, exceptions
 from rest_framework.request import Request
 from typing_extensions import override
 
 from .models import Robot
+from .principal import RobotPrincipal
 from .services import robot_for_token
-
-
-class RobotPrincipal:
-    """Stands in ``request.user`` for a robot, so DRF's ``IsAuthenticated`` lets it through."""
-
-    is_authenticated = True
-    is_anonymous = False
-    is_active = True
-    is_superuser = False
-    is_staff = False
-
-    def __init__(self, robot: Robot) -> None:
-        self.robot = robot
-        self.pk = None
-        self.username = f"robot:{robot.name}"
-
-    def __str__(self) -> str:
-        return self.username
-
-    def has_perm(self, *args: Any, **kwargs: Any) -> bool:
-        return False
 
 
 class RobotTokenAuthentication(authentication.BaseAuthentication):

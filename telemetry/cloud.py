@@ -6,7 +6,6 @@ from __future__ import annotations
 import asyncio
 import math
 from concurrent.futures import ThreadPoolExecutor
-from functools import lru_cache
 from typing import Any
 
 from channels.db import database_sync_to_async
@@ -14,17 +13,9 @@ from django.conf import settings
 from django.db import close_old_connections
 
 from maps import services as map_services
-from maps.domain.planning import (
-    DEFAULT_ROBOT_RADIUS,
-    Costmap,
-    PlanningError,
-    inflate,
-    path_length,
-    plan_on,
-)
+from maps.domain.planning import DEFAULT_ROBOT_RADIUS, PlanningError, path_length, plan_on
 from maps.domain.tagpayload import parse_payload
 from maps.exceptions import KeyframeError, MapStoreError
-from maps.models import Building, SubMap
 from maps.visual.service import relocalise_in
 from telemetry.domain import names
 from telemetry.domain.messages import Path, path_of
@@ -58,7 +49,7 @@ async def teleop_lock(call: ServiceCall) -> Json:
     robot, action = call.arg("robot"), call.arg("action", "acquire")
     if not names.is_robot_name(robot):
         raise ServiceFailed("'robot' must be a robot's name (a letter, then letters, digits or _)")
-    locks, conn = call.hub.teleop, call.conn
+    locks, conn = call.server.teleop, call.conn
     if action == "status":
         await call.access.require("see", names.robot_topic(robot, names.CMD_VEL))
         return {"success": True, "holder": await locks.holder(robot), "message": ""}
@@ -87,7 +78,7 @@ async def route(call: ServiceCall) -> Json:
 
 
 def _route(visible: frozenset[int], code: str, start: str, goal: str) -> dict[str, Any]:
-    building = Building.objects.filter(code=code, pk__in=visible).first()
+    building = map_services.visible_building(visible, code)
     if building is None:
         raise NotAllowed(f"building {code} does not exist or is not visible")
     steps = map_services.route_in(building, start, goal)
@@ -117,16 +108,8 @@ async def resolve_tag(call: ServiceCall) -> Json:
     return found
 
 
-def _visible_submap(visible: frozenset[int], building: str, code: str) -> SubMap | None:
-    return (
-        SubMap.objects.filter(building__code=building, building__pk__in=visible, code=code)
-        .select_related("building")
-        .first()
-    )
-
-
 def _submap(visible: frozenset[int], building: str, code: str) -> dict[str, Any] | None:
-    submap = _visible_submap(visible, building, code)
+    submap = map_services.visible_submap(visible, building, code)
     if submap is None:
         return None
     return {"map_id": submap.map_id, "building": building, "map": code, "version": submap.version}
@@ -169,23 +152,14 @@ def _plan(
     goal: tuple[float, float],
     radius: float,
 ) -> dict[str, Any]:
-    submap = _visible_submap(visible, building, code)
+    submap = map_services.visible_submap(visible, building, code)
     if submap is None:
         raise ServiceFailed(f"{building}/{code} is not a visible sub-map")
     try:
-        points = plan_on(_costmap(submap.pk, submap.version, radius), start, goal)
+        points = plan_on(map_services.costmap_of(submap, radius), start, goal)
     except PlanningError as exc:
         raise ServiceFailed(str(exc)) from None
     return {"path": _path(submap.map_id, points), "length": path_length(points)}
-
-
-@lru_cache(maxsize=16)
-def _costmap(pk: int, version: str, radius: float) -> Costmap:  # noqa: ARG001 (the cache key)
-    """One version of a sub-map, inflated for a robot of ``radius`` (the version keys
-    the cache, so an edited map is inflated afresh)."""
-    submap = SubMap.objects.get(pk=pk)
-    origin = (submap.origin_x, submap.origin_y)
-    return inflate(map_services.grid_of(submap), radius, submap.resolution, origin=origin)
 
 
 def _path(frame_id: str, points: list[tuple[float, float]]) -> Path:
@@ -217,7 +191,7 @@ async def relocalise(call: ServiceCall) -> Json:
 
 def _relocalise(visible: frozenset[int], code: str | None, args: dict[str, Any]) -> Json:
     try:
-        buildings = list(Building.objects.filter(pk__in=visible))
+        buildings = map_services.visible_buildings(visible)
         if code:
             buildings = [b for b in buildings if b.code == code]
             if not buildings:

@@ -179,7 +179,7 @@ class RosbridgeConsumer(AsyncWebsocketConsumer):  # type: ignore[misc]  # Channe
     async def on_call_service(self, op: protocol.CallService) -> None:
         name = await self.access.resolve(op.service)
         op.fragment_size = self._fragment_size(op.fragment_size)
-        call = ServiceCall(self.hub, self._conn, self.access, name, op.args)
+        call = ServiceCall(self.hub.server_parts, self._conn, self.access, name, op.args)
         await self.hub.call_service(call, op)
 
     async def on_service_response(self, op: protocol.ServiceResponse) -> None:

@@ -23,6 +23,8 @@ from robots.missions import Goal
 from robots.teleop import MemoryLockStore, RedisLockStore, TeleopLocks
 from telemetry.config import RosbridgeConfig
 from telemetry.connection import Connection
+from telemetry.cross_process import CrossProcess, NullRelay
+from telemetry.directory import Directory
 from telemetry.domain import names, protocol
 from telemetry.domain.bus import SubscribeParams, TopicBus
 from telemetry.domain.calls import CallTable, PendingCall
@@ -36,11 +38,12 @@ from telemetry.domain.times import complete_header_stamp
 from telemetry.events import OBSERVED, EventLog
 from telemetry.exceptions import ActionFailed, NotAllowed, RosbridgeError, ServiceFailed
 from telemetry.missions import MissionRunner
-from telemetry.params import MemoryParams, ParamStore, RedisParams
+from telemetry.params import Parameters, RedisParams
 from telemetry.recording.recorder import Recorder
 from telemetry.relay import Relay
 from telemetry.revocation import AccessChange, RobotRecord, revoked, robot_records
-from telemetry.server_services import ServerService, ServiceCall, server_services
+from telemetry.server_services import ServerParts, ServerService, ServiceCall
+from telemetry.service_registry import server_services
 from telemetry.services import Access, Registry
 
 logger = logging.getLogger(__name__)
@@ -96,11 +99,11 @@ class Hub:
         self.services = CallTable("service_request", limits)
         self.actions = CallTable("action_goal", limits)
         self.server_services = services
-        self.params: ParamStore = MemoryParams()
-        self.params_held = Holdings("parameters", limits.params, limits.param_bytes)
+        held = Holdings("parameters", limits.params, limits.param_bytes)
+        self.params = Parameters(held, lambda key: self.relay.owner_key(key))
         self.fragment_budget = ByteBudget(config.fragments_total_bytes)
         self.clients: dict[str, Client] = {}
-        self.relay: Relay | None = None
+        self.relay: CrossProcess = NullRelay()
         self.events = EventLog()
         self.missions = MissionRunner(self._send_goal, self.robots)
         self.teleop = TeleopLocks(
@@ -122,6 +125,15 @@ class Hub:
         self.registry = Registry()
         self.watchers: set[Watcher] = set()
         self.recorder: Recorder | None = None
+        directory = Directory(
+            self.bus,
+            self.services,
+            self.actions,
+            own_services=lambda: [(n, s.type) for n, s in self.server_services.items()],
+            robots=self.robots,
+            relay=lambda: self.relay,
+        )
+        self.server_parts = ServerParts(self.teleop, self.params, directory)
 
     def record_with(self, recorder: Recorder) -> None:
         """Record the robots connected here: the recorder taps the bus (its one seam)."""
@@ -145,11 +157,11 @@ class Hub:
         from redis.asyncio import from_url
 
         redis = from_url(self.config.redis_url)
-        self.relay = Relay(self, get_channel_layer(), redis)
-        await self.relay.start()
-        self.bus.listener = self.relay
+        relay = Relay(self, get_channel_layer(), redis)
+        await relay.start()
+        self.relay = self.bus.listener = relay
         self.teleop.store = RedisLockStore(redis)
-        self.params = RedisParams(redis)
+        self.params.store = RedisParams(redis)
 
     # ------------------------------------------------------------ connections
 
@@ -164,8 +176,7 @@ class Hub:
                 self.recorder.connected(robot)  # first, so it records the robot's arrival
             self.events.connected(robot)
             self.missions.ensure_running()
-            if self.relay is not None:
-                self.relay.put("robots", robot, "1")
+            self.relay.put("robots", robot, "1")
 
     def robots(self) -> set[str]:
         """Names of the robots connected to this process."""
@@ -181,23 +192,13 @@ class Hub:
         for call in self.actions.drop(conn):
             self._fail_goal(call, f"Action {call.name} was unadvertised")
         await self.teleop.drop(conn.key)
-        held = self.params_held.drop(conn.key)
-        owner = self.param_owner(conn)
-        if held and owner is not None:
-            await self.params.release(owner, held)
+        await self.params.closed(conn)
         self._remote_goals.pop(conn.key, None)
         robot = conn.principal.robot
         if client is not None and client.robot_pk is not None and robot is not None:
             self._robot_left(robot, client.robot_pk)
         self._publish_directory("services", self.services)
         self._publish_directory("actions", self.actions)
-
-    def param_owner(self, conn: Connection) -> str | None:
-        """Return who owns the parameters ``conn`` sets: the connection itself, named
-        uniquely across server processes, or None for an admin's, which persist."""
-        if conn.principal.admin:
-            return None
-        return f"{self.relay.channel}/{conn.key}" if self.relay is not None else conn.key
 
     def _robot_left(self, robot: str, robot_pk: int) -> None:
         self.fleet.disconnected(robot_pk)
@@ -208,8 +209,7 @@ class Hub:
             self.recorder.disconnected(robot)
         for kind in {names.MAP_ID, *OBSERVED}:
             self._fleet_topics.pop(names.robot_topic(robot, kind), None)
-        if self.relay is not None:
-            self.relay.remove("robots", robot)
+        self.relay.remove("robots", robot)
 
     # ------------------------------------------------------------ access changes
 
@@ -340,12 +340,10 @@ class Hub:
         """Subscribe; in scaled mode also join the topic's group and replay a latched
         message published on another process."""
         type_name = op.type
-        if type_name is None and self.bus.get(name) is None and self.relay is not None:
+        if type_name is None and self.bus.get(name) is None:
             found = await self.relay.find("topics", name)
             type_name = found[1] if found else None
         replayed = self.bus.subscribe(conn, name, type_name, params, op.id, spelling=op.topic)
-        if self.relay is None:
-            return
         await self.relay.settled()
         latched = None if replayed else await self.relay.latched(name)
         if latched is not None:
@@ -476,7 +474,7 @@ class Hub:
     ) -> None:
         found = self.actions.of_caller(conn, op.id)
         channel = self._remote_goals.get(conn.key, {}).get(op.id)
-        if found is None and channel is not None and self.relay is not None:
+        if found is None and channel is not None:
             self.relay.send(channel, self._request("rb.cancel", conn, name, op))
             return
         if found is None or found[0].name != name:
@@ -512,8 +510,6 @@ class Hub:
 
     def _publish_directory(self, kind: str, table: CallTable) -> None:
         """Tell the other processes which services (or actions) this one serves."""
-        if self.relay is None:
-            return
         served = dict(table.names())
         for name, type_name in served.items():
             self.relay.put(kind, name, type_name)
@@ -534,8 +530,8 @@ class Hub:
 
         Raises ServiceFailed (or ActionFailed) when no process serves ``name``.
         """
-        found = await self.relay.find(kind, name) if self.relay is not None else None
-        if found is None or self.relay is None:
+        found = await self.relay.find(kind, name)
+        if found is None:
             what = "Service" if kind == "services" else "Action"
             error = ServiceFailed if kind == "services" else ActionFailed
             raise error(f"{what} {name} does not exist")
@@ -544,7 +540,6 @@ class Hub:
         return found[0]
 
     def _request(self, kind: str, conn: Connection, name: str, op: Any) -> dict[str, Any]:
-        assert self.relay is not None  # only called in scaled mode
         return {
             "type": kind,
             "name": name,
@@ -560,8 +555,6 @@ class Hub:
 
     async def remote_request(self, message: dict[str, Any]) -> None:
         """Carry out a call, goal or cancel that a connection on another process sent."""
-        if self.relay is None:
-            return
         caller = self.relay.remote(message["caller_channel"], message["caller"])
         if message["type"] == "rb.cancel":
             self._remote_cancel(caller, message)

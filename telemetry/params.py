@@ -11,9 +11,14 @@ parameters that are still its own.
 
 from __future__ import annotations
 
-from typing import Any, Protocol
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any, Protocol
 
+from telemetry.domain.limits import Holdings
 from telemetry.domain.names import redis_key
+
+if TYPE_CHECKING:
+    from telemetry.connection import Connection
 
 
 class ParamStore(Protocol):
@@ -110,3 +115,44 @@ class RedisParams:
 
 def _text(value: Any) -> str | None:
     return value.decode() if isinstance(value, bytes) else value
+
+
+class Parameters:
+    """The process's parameters as rosapi uses them: the store (memory, or Redis when
+    scaled), each connection's budget, and the owner a connection's parameters live with
+    (None for an admin's, which persist)."""
+
+    def __init__(self, held: Holdings, owner_key: Callable[[str], str]) -> None:
+        self.store: ParamStore = MemoryParams()
+        self.held = held
+        self._owner_key = owner_key
+
+    def owner(self, conn: Connection) -> str | None:
+        """Return who owns the parameters ``conn`` sets: the connection itself, named
+        uniquely across server processes, or None for an admin's, which persist."""
+        return None if conn.principal.admin else self._owner_key(conn.key)
+
+    async def get(self, name: str) -> str | None:
+        return await self.store.get(name)
+
+    async def names(self) -> list[str]:
+        return await self.store.names()
+
+    async def set(self, conn: Connection, name: str, value: str) -> None:
+        """Set ``name``; raises LimitReached past the connection's parameter budget."""
+        owner = self.owner(conn)
+        if owner is not None:
+            self.held.take(conn.key, name, len(name) + len(value))
+        await self.store.set(name, value, owner)
+
+    async def delete(self, conn: Connection, name: str) -> bool:
+        found = await self.store.delete(name)
+        self.held.release(conn.key, name)
+        return found
+
+    async def closed(self, conn: Connection) -> None:
+        """Remove the parameters ``conn`` still owns: it closed."""
+        held = self.held.drop(conn.key)
+        owner = self.owner(conn)
+        if held and owner is not None:
+            await self.store.release(owner, held)

@@ -9,6 +9,10 @@ channel; answers come back as ready frames for one connection (``rb.deliver``).
 What every process must see lives in Redis under ``names.redis_key``: which process
 advertises which topic, service and action, which robots it serves, latched messages and
 parameters. A process counts as alive while its heartbeat key exists.
+
+Single-process mode has a ``NullRelay`` (``telemetry.cross_process``): the same methods,
+doing nothing and finding nothing, so the hub and its parts never ask which mode they run
+in. Only ``Hub.start`` chooses.
 """
 
 from __future__ import annotations
@@ -147,6 +151,9 @@ class Relay:
             self._queue(self._remove, "topics", topic.name)
             self._queue(self.redis.hdel, names.redis_key("latched"), topic.name)
 
+    def owner_key(self, conn_key: str) -> str:
+        return f"{self.channel}/{conn_key}"
+
     async def settled(self) -> None:
         """Wait until this process has joined every topic group it asked for so far."""
         if self._settled is not None:
@@ -181,7 +188,7 @@ class Relay:
             else:
                 await self.redis.srem(names.redis_key("processes"), channel)
                 # its connections' parameters would otherwise outlive them
-                await self.hub.params.release_all(f"{channel}/")
+                await self.hub.params.store.release_all(f"{channel}/")
         return alive
 
     async def entries(self, kind: str, others_only: bool = True) -> list[tuple[str, str, str]]:

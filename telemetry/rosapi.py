@@ -36,19 +36,8 @@ async def _visible(access: Access, items: Iterable[tuple[str, str]]) -> list[tup
     return sorted(shown)
 
 
-async def _everywhere(
-    call: ServiceCall, kind: str, here: list[tuple[str, str]]
-) -> list[tuple[str, str]]:
-    """Return ``here`` plus, in scaled mode, the entries of ``kind`` on other processes."""
-    relay = call.hub.relay
-    if relay is None:
-        return here
-    return here + [(name, value) for name, value, _ in await relay.entries(kind)]
-
-
 async def _topics(call: ServiceCall) -> list[tuple[str, str]]:
-    here = list(call.hub.bus.published_topics())
-    return await _visible(call.access, await _everywhere(call, "topics", here))
+    return await _visible(call.access, await call.server.directory.topics())
 
 
 async def topics(call: ServiceCall) -> Json:
@@ -67,9 +56,7 @@ async def topics_for_type(call: ServiceCall) -> Json:
 
 
 async def _services(call: ServiceCall) -> list[tuple[str, str]]:
-    own = [(name, service.type) for name, service in call.hub.server_services.items()]
-    advertised = await _everywhere(call, "services", call.hub.services.names())
-    return await _visible(call.access, own + advertised)
+    return await _visible(call.access, await call.server.directory.services())
 
 
 async def list_services(call: ServiceCall) -> Json:
@@ -82,15 +69,12 @@ async def service_type(call: ServiceCall) -> Json:
 
 
 async def action_servers(call: ServiceCall) -> Json:
-    listed = await _visible(
-        call.access, await _everywhere(call, "actions", call.hub.actions.names())
-    )
+    listed = await _visible(call.access, await call.server.directory.actions())
     return {"action_servers": [n for n, _ in listed]}
 
 
 async def nodes(call: ServiceCall) -> Json:
-    here = [(robot, "") for robot in call.hub.robots()]
-    robots = {(names.robot_namespace(r), "") for r, _ in await _everywhere(call, "robots", here)}
+    robots = {(node, "") for node in await call.server.directory.nodes()}
     return {"nodes": [SERVER_NODE] + [n for n, _ in await _visible(call.access, robots)]}
 
 
@@ -110,7 +94,7 @@ async def _param(call: ServiceCall, need: str) -> str:
 async def get_param(call: ServiceCall) -> Json:
     """Answer ``value`` as a JSON string, with ROS 2's ``successful`` and ``reason``."""
     name = await _param(call, "see")
-    value = await call.hub.params.get(name)
+    value = await call.server.params.get(name)
     if value is not None:
         return {"value": value, "successful": True, "reason": ""}
     default = call.arg("default_value", call.arg("default", ""))
@@ -130,28 +114,24 @@ async def set_param(call: ServiceCall) -> Json:
         json.loads(value)
     except ValueError:
         raise ServiceFailed("'value' is not JSON") from None
-    owner = call.hub.param_owner(call.conn)
-    if owner is not None:
-        call.hub.params_held.take(call.conn.key, name, len(name) + len(value))
-    await call.hub.params.set(name, value, owner)
+    await call.server.params.set(call.conn, name, value)
     return {"successful": True, "reason": ""}
 
 
 async def delete_param(call: ServiceCall) -> Json:
     name = await _param(call, "set_param")
-    found = await call.hub.params.delete(name)
-    call.hub.params_held.release(call.conn.key, name)
+    found = await call.server.params.delete(call.conn, name)
     reason = "" if found else f"Parameter {names.outside_realm(name)} is not set"
     return {"successful": found, "reason": reason}
 
 
 async def has_param(call: ServiceCall) -> Json:
     name = await _param(call, "see")
-    return {"exists": await call.hub.params.get(name) is not None}
+    return {"exists": await call.server.params.get(name) is not None}
 
 
 async def get_param_names(call: ServiceCall) -> Json:
-    listed = await _visible(call.access, ((n, "") for n in await call.hub.params.names()))
+    listed = await _visible(call.access, ((n, "") for n in await call.server.params.names()))
     return {"names": [n for n, _ in listed]}
 
 

@@ -1,4 +1,10 @@
-"""The server's own services (``/rosapi/...`` and ``/cloudnav/...``): what a handler gets."""
+"""The server's own services (``/rosapi/...`` and ``/cloudnav/...``): what a handler gets.
+
+This is the protocol only; which services exist is ``telemetry.service_registry``'s
+business, so the modules of services (``rosapi``, ``cloud``) import this one and nothing
+imports them back but the registry. A handler gets the narrow parts of the process's
+state it may use (``ServerParts``), never the hub.
+"""
 
 from __future__ import annotations
 
@@ -9,9 +15,21 @@ from typing import TYPE_CHECKING
 from telemetry.domain.protocol import Json
 
 if TYPE_CHECKING:
+    from robots.teleop import TeleopLocks
     from telemetry.connection import Connection
-    from telemetry.hub import Hub
+    from telemetry.directory import Directory
+    from telemetry.params import Parameters
     from telemetry.services import Access
+
+
+@dataclass(frozen=True)
+class ServerParts:
+    """What server services may use of the process: teleop locks, parameters, and the
+    directory of what is published, served and connected (here and on other processes)."""
+
+    teleop: TeleopLocks
+    params: Parameters
+    directory: Directory
 
 
 @dataclass
@@ -19,7 +37,7 @@ class ServiceCall:
     """One call to a server service. Handlers return the response ``values`` or raise
     ServiceFailed (or NotAllowed), which the caller receives as ``result: false``."""
 
-    hub: Hub
+    server: ServerParts
     conn: Connection
     access: Access
     name: str
@@ -38,10 +56,3 @@ ServiceHandler = Callable[[ServiceCall], Awaitable[Json]]
 class ServerService:
     type: str
     handler: ServiceHandler
-
-
-def server_services() -> dict[str, ServerService]:
-    """Return every server service by absolute name."""
-    from telemetry import cloud, rosapi
-
-    return {**rosapi.services(), **cloud.services()}

@@ -23,8 +23,8 @@ from django.conf import settings
 from django.http.request import split_domain_port, validate_host
 
 from maps.access import Role, buildings_for, global_role, role_in
-from robots.authentication import RobotPrincipal
 from robots.models import Robot
+from robots.principal import RobotPrincipal
 from robots.services import robot_for_token
 from telemetry.domain import names, rules
 from telemetry.domain.rules import Owner, Principal

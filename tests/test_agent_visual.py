@@ -12,7 +12,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from robots.agent.perception import CameraModel
-from robots.agent.robot import PoseTracker, Robot, SimHardware
+from robots.agent.robot import PoseTracker, Robot
+from robots.agent.sim.hardware import SimHardware
 from robots.agent.sim.world import demo_world
 from robots.agent.supervisor import BundleCache, MapsSupervisor, SubMap
 from robots.agent.visual import LOST_SPREAD, VisualMap

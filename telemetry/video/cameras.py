@@ -124,7 +124,7 @@ async def carries_images(hub: Hub, topic: str) -> bool:
     local = hub.bus.get(topic)
     if known is None and local is not None:
         known = local.type
-    if known is None and hub.relay is not None:
+    if known is None:
         found = await hub.relay.find("topics", topic)
         known = found[1] if found else None
     return known is not None and canonical_type(known) == COMPRESSED_IMAGE
@@ -137,9 +137,8 @@ async def published_cameras(hub: Hub) -> set[str]:
         for name, type_name in hub.bus.published_topics()
         if canonical_type(type_name) == COMPRESSED_IMAGE
     }
-    if hub.relay is not None:
-        entries = await hub.relay.entries("topics")
-        found |= {n for n, t, _ in entries if t and canonical_type(t) == COMPRESSED_IMAGE}
+    entries = await hub.relay.entries("topics")
+    found |= {n for n, t, _ in entries if t and canonical_type(t) == COMPRESSED_IMAGE}
     return found
 
 

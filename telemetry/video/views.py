@@ -41,7 +41,7 @@ from django.views.decorators.csrf import csrf_exempt
 from django.views.decorators.http import require_GET
 
 from cloudnav_web.heavy import Overloaded, release_with
-from cloudnav_web.pages import _context as page_context
+from cloudnav_web.pages import page_context
 from maps.access import global_role
 from telemetry.domain import multipart, names
 from telemetry.domain.rules import Principal
