@@ -127,7 +127,7 @@ async def test_an_action_goal_crosses_processes_with_feedback(connect):
 
 async def test_rosapi_lists_topics_published_on_the_other_process(connect):
     robot, viewer = await connect("r1", 0), await connect("viewer", 1)
-    await robot.send(op="advertise", topic="battery", type="std_msgs/Float32")
+    await robot.send(op="advertise", topic="battery", type="sensor_msgs/BatteryState")
     await robot.sync()
     listed = (await viewer.call("/rosapi/topics"))["values"]
     assert "/r1/battery" in listed["topics"]
