@@ -29,6 +29,9 @@ logger = logging.getLogger(__name__)
 
 
 class Readiness(Protocol):
+    def ready(self) -> bool:
+        """Whether the viewer's socket took everything written before, now."""
+
     async def wait(self) -> None:
         """Return once the viewer's socket took everything written before."""
 
@@ -38,6 +41,9 @@ class Readiness(Protocol):
 
 class AlwaysReady:
     """Readiness where the server's own ``send`` paces the stream (or nothing can)."""
+
+    def ready(self) -> bool:
+        return True
 
     async def wait(self) -> None:
         return None
@@ -59,6 +65,9 @@ class SocketReadiness:
         self._buffer_size = self.transport.bufferSize
         self.transport.bufferSize = 0
         request.registerProducer(self, True)
+
+    def ready(self) -> bool:
+        return self._ready.is_set()
 
     async def wait(self) -> None:
         await self._ready.wait()

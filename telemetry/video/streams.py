@@ -15,11 +15,11 @@ from __future__ import annotations
 import asyncio
 import time
 from collections.abc import AsyncIterator, Mapping
-from typing import Any
+from typing import Any, TypeVar
 
 from cloudnav_web.heavy import Ticket
 from telemetry.domain import multipart
-from telemetry.domain.newest import Closed
+from telemetry.domain.newest import Closed, Newest
 from telemetry.domain.rules import Principal
 from telemetry.domain.video import MJPEG, NoFrame, StreamParams
 from telemetry.video.cameras import Camera
@@ -50,6 +50,29 @@ async def _until(work: Any, ended: asyncio.Event) -> Any:
     if not task.done() or task.cancelled():
         raise Ended
     return task.result()
+
+
+T = TypeVar("T")
+
+
+async def _newer(value: Newest[T], version: int, ended: asyncio.Event) -> tuple[int, T]:
+    """``value.newer(version)`` unless ``ended`` is set first. When a newer version is
+    there already it returns without a turn of the event loop, so a viewer that keeps up
+    is never made to skip a frame by the wait itself."""
+    if ended.is_set():
+        raise Ended
+    if value.version > version or value.closed:
+        return await value.newer(version)
+    result: tuple[int, T] = await _until(value.newer(version), ended)
+    return result
+
+
+async def _writable(readiness: Readiness, ended: asyncio.Event) -> None:
+    """Return once the viewer's socket is ready (at once if it is), or raise Ended."""
+    if ended.is_set():
+        raise Ended
+    if not readiness.ready():
+        await _until(readiness.wait(), ended)
 
 
 async def image_body(
@@ -84,8 +107,8 @@ async def _newest_parts(
     version = 0
     while True:
         try:
-            await _until(output.newer(version), ended)
-            await _until(readiness.wait(), ended)
+            await _newer(output, version, ended)
+            await _writable(readiness, ended)
         except (Closed, Ended):
             return
         # Frames that arrived while the socket was busy are skipped: take the newest.
@@ -134,8 +157,8 @@ async def _clusters(
     cursor: int | None = None
     while True:
         try:
-            version, _ = await _until(pipeline.appended.newer(version), ended)
-            await _until(readiness.wait(), ended)
+            version, _ = await _newer(pipeline.appended, version, ended)
+            await _writable(readiness, ended)
         except (Closed, Ended):
             return
         stream = pipeline.stream
