@@ -6,7 +6,7 @@
 // zoom; the page gives a goal tool: press on the plan and drag for the heading.
 
 import * as L from "../vendor/leaflet.js";
-import { gridPixels } from "./mapview.js";
+import { drawArrow, gridPixels } from "./mapview.js";
 
 const COLORS = {
   robot: "#2f6fed",
@@ -439,27 +439,7 @@ function polyline(ctx, project, points, color, width, dash = []) {
 
 function arrow(ctx, project, pose, color, scale) {
   const [sx, sy] = project(pose.x, pose.y);
-  const length = Math.max(18, 0.5 * scale);
-  ctx.save();
-  ctx.translate(sx, sy);
-  ctx.rotate(-pose.yaw);
-  ctx.strokeStyle = color;
-  ctx.fillStyle = color;
-  ctx.lineWidth = 3;
-  ctx.beginPath();
-  ctx.arc(0, 0, 4, 0, Math.PI * 2);
-  ctx.fill();
-  ctx.beginPath();
-  ctx.moveTo(0, 0);
-  ctx.lineTo(length, 0);
-  ctx.stroke();
-  ctx.beginPath();
-  ctx.moveTo(length + 4, 0);
-  ctx.lineTo(length - 7, 6);
-  ctx.lineTo(length - 7, -6);
-  ctx.closePath();
-  ctx.fill();
-  ctx.restore();
+  drawArrow(ctx, sx, sy, pose.yaw, color, { length: Math.max(18, 0.5 * scale), dot: 4, head: 6 });
 }
 
 function label(ctx, text, sx, sy, color) {

@@ -54,6 +54,31 @@ function cellColor(value) {
   return [grey, grey, grey];
 }
 
+/** A pose as a dot with an arrow along its yaw, at screen point (sx, sy): `length` of the
+ * shaft in pixels, `dot` the dot's radius, `head` the arrowhead's half width. */
+export function drawArrow(ctx, sx, sy, yaw, color, { length, dot = 5, head = 7 }) {
+  ctx.save();
+  ctx.translate(sx, sy);
+  ctx.rotate(-yaw);
+  ctx.strokeStyle = color;
+  ctx.fillStyle = color;
+  ctx.lineWidth = 3;
+  ctx.beginPath();
+  ctx.arc(0, 0, dot, 0, Math.PI * 2);
+  ctx.fill();
+  ctx.beginPath();
+  ctx.moveTo(0, 0);
+  ctx.lineTo(length, 0);
+  ctx.stroke();
+  ctx.beginPath();
+  ctx.moveTo(length + 4, 0);
+  ctx.lineTo(length - head - 1, head);
+  ctx.lineTo(length - head - 1, -head);
+  ctx.closePath();
+  ctx.fill();
+  ctx.restore();
+}
+
 export class MapView {
   constructor(canvas, { onPose = null, onClick = null, onHover = null } = {}) {
     this.canvas = canvas;
@@ -417,27 +442,7 @@ export class MapView {
   #drawArrow(pose, color, label = "") {
     const ctx = this.ctx;
     const { sx, sy } = this.toScreen(pose.x, pose.y);
-    const length = Math.max(26, 0.6 * this.view.scale);
-    ctx.save();
-    ctx.translate(sx, sy);
-    ctx.rotate(-pose.yaw);
-    ctx.strokeStyle = color;
-    ctx.fillStyle = color;
-    ctx.lineWidth = 3;
-    ctx.beginPath();
-    ctx.arc(0, 0, 5, 0, Math.PI * 2);
-    ctx.fill();
-    ctx.beginPath();
-    ctx.moveTo(0, 0);
-    ctx.lineTo(length, 0);
-    ctx.stroke();
-    ctx.beginPath();
-    ctx.moveTo(length + 4, 0);
-    ctx.lineTo(length - 8, 7);
-    ctx.lineTo(length - 8, -7);
-    ctx.closePath();
-    ctx.fill();
-    ctx.restore();
+    drawArrow(ctx, sx, sy, pose.yaw, color, { length: Math.max(26, 0.6 * this.view.scale) });
     if (label) this.#label(label, sx + 8, sy - 10, color);
   }
 
