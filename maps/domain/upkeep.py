@@ -19,6 +19,13 @@ agreed on none:
 
 The stretch of a beam just before its return (``surface_margin``) is not counted as
 crossed, so a surface seen from a slightly wrong pose does not erase itself.
+
+Each return is moved ``surface_depth`` (half a cell) further along its beam before its
+cell is taken: a surface on a cell border, seen with centimetres of range noise and pose
+error, puts about half its returns in the free cell in front of it, and that rim of free
+cells was proposed as occupied on every pass (on ``bench mapping --seed 0`` it was 153
+of the 173 false cells, a fifth of all cells proposed). Half a cell deeper, the returns
+land in the surface's own cell.
 """
 
 from __future__ import annotations
@@ -47,6 +54,7 @@ class UpkeepParams:
     misses_per_pass: int = 3
     min_passes: int = 2
     surface_margin: float = 0.075  # metres before a return not counted as crossed
+    surface_depth: float = 0.025  # metres each return is moved along its beam
     max_range: float = 6.0  # metres: farther returns are not used
     beams: int = 180  # beams used per scan at most (evenly taken)
 
@@ -107,7 +115,8 @@ class Evidence:
         p = self.params
         scan = scan.thinned(p.beams)
         good = np.isfinite(scan.ranges) & (scan.ranges <= p.max_range)
-        ranges, angles = scan.ranges[good], scan.angles[good] + pose[2]
+        ranges = scan.ranges[good] + p.surface_depth
+        angles = scan.angles[good] + pose[2]
         if not len(ranges):
             return False
         ends = np.column_stack(
