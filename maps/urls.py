@@ -27,6 +27,7 @@ urlpatterns = [
     path(f"{version}/grid", views.VersionGrid.as_view(), name="version-grid"),
     path(f"{version}/rollback", views.VersionRollback.as_view(), name="version-rollback"),
     path(f"{submap}/changes/", mapping.ProposalList.as_view(), name="change-list"),
+    path(f"{submap}/changes/<int:pk>/", mapping.ProposalDetail.as_view(), name="change-detail"),
     re_path(
         r"^buildings/(?P<building>[-\w]+)/maps/(?P<map>[-\w]+)/changes/(?P<pk>\d+)/"
         r"(?P<decision>accept|reject)$",

@@ -32,7 +32,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
@@ -61,25 +61,27 @@ class UpkeepParams:
 
 @dataclass(frozen=True)
 class Proposal:
-    """Cells (row, col) of the stored grid that changed, with the passes backing each."""
+    """Cells (row, col) of the stored grid that changed, with the passes backing each;
+    ``unknown`` cells come only from an admin's edit."""
 
     added: Cells
     removed: Cells
     added_passes: npt.NDArray[np.uint16]
     removed_passes: npt.NDArray[np.uint16]
     passes: int
+    unknown: Cells = field(default_factory=lambda: np.zeros((0, 2), np.intp))
 
     @property
     def empty(self) -> bool:
-        return not len(self.added) and not len(self.removed)
+        return not len(self.added) and not len(self.removed) and not len(self.unknown)
 
     def applied_to(self, grid: Grid) -> Grid:
-        """``grid`` with the change: added cells occupied (100), removed ones free (0)."""
+        """``grid`` with the change: added cells occupied (100), removed ones free (0),
+        unknown ones -1."""
         out = np.array(grid, copy=True)
-        if len(self.added):
-            out[self.added[:, 0], self.added[:, 1]] = 100
-        if len(self.removed):
-            out[self.removed[:, 0], self.removed[:, 1]] = 0
+        for cells, value in ((self.added, 100), (self.removed, 0), (self.unknown, -1)):
+            if len(cells):
+                out[cells[:, 0], cells[:, 1]] = value
         return out
 
 

@@ -11,7 +11,9 @@ uses only scans whose pose the stored map confirms. A robot leaving the sub-map,
 is written as the sub-map's open ``ChangeProposal`` for that version; a new version of
 the sub-map starts its evidence again.
 
-``accept`` makes a proposal (or the part of it an admin kept) the sub-map's next version
+``edit`` replaces an open proposal's cells with the ones an admin painted (occupied,
+free, unknown); the fleet's evidence no longer rewrites an edited proposal. ``accept``
+makes a proposal (or the part of it an admin kept) the sub-map's next version
 (reason ``change``); one made on a version that is no longer current is refused with
 ``VersionConflict`` and nothing changes.
 """
@@ -205,7 +207,13 @@ def _moved(
 
 
 def store_proposal(submap_pk: int, revision: int, proposal: Proposal, scans: int) -> None:
-    """Create or update the open proposal for version ``revision`` of the sub-map."""
+    """Create or update the open proposal for version ``revision`` of the sub-map, unless
+    an admin edited it (their edit stands)."""
+    open_ = ChangeProposal.objects.filter(
+        submap_id=submap_pk, based_on=revision, state=ChangeProposal.OPEN
+    )
+    if open_.filter(edited=True).exists():
+        return
     ChangeProposal.objects.update_or_create(
         submap_id=submap_pk,
         based_on=revision,
@@ -219,6 +227,32 @@ def store_proposal(submap_pk: int, revision: int, proposal: Proposal, scans: int
             "scans": scans,
         },
     )
+
+
+@transaction.atomic
+def edit(
+    proposal: ChangeProposal,
+    added: list[list[int]],
+    removed: list[list[int]],
+    unknown: list[list[int]],
+) -> ChangeProposal:
+    """Replace an open proposal's cells by an admin's (cells of its version, checked by
+    the caller); a cell keeps the passes the fleet saw it on if it stays as proposed, 0
+    otherwise. Raises MappingError for a proposal no longer open."""
+    locked = ChangeProposal.objects.select_for_update().get(pk=proposal.pk)
+    if locked.state != ChangeProposal.OPEN:
+        raise MappingError(f"This proposal is {locked.state}.")
+    locked.added_passes = _passes_of(added, locked.added, locked.added_passes)
+    locked.removed_passes = _passes_of(removed, locked.removed, locked.removed_passes)
+    locked.added, locked.removed, locked.unknown = added, removed, unknown
+    locked.edited = True
+    locked.save()
+    return locked
+
+
+def _passes_of(cells: list[list[int]], proposed: list[list[int]], passes: list[int]) -> list[int]:
+    seen = {(int(r), int(c)): int(n) for (r, c), n in zip(proposed, passes, strict=True)}
+    return [seen.get((r, c), 0) for r, c in cells]
 
 
 @transaction.atomic
@@ -239,18 +273,20 @@ def accept(
     keep_removed = _kept(locked.removed, removed)
     grid = services.grid_of(versions.version_of(submap, locked.based_on))
     change = Proposal(
-        np.array(keep_added, dtype=np.intp).reshape(-1, 2),
-        np.array(keep_removed, dtype=np.intp).reshape(-1, 2),
+        _cell_array(keep_added),
+        _cell_array(keep_removed),
         np.zeros(0, np.uint16),
         np.zeros(0, np.uint16),
         locked.passes,
+        _cell_array(locked.unknown),
     )
     meta = services.metadata_of(submap)
     pgm, exported = export_map(change.applied_to(grid), meta, f"{submap.code}.pgm")
     loaded = load_map_upload(map_yaml_text(exported).encode(), {exported.image: pgm}, 10**8)
     note = (
-        f"{len(keep_added)} cells became occupied, {len(keep_removed)} free "
-        f"({locked.passes} passes)"
+        f"{len(keep_added)} cells became occupied, {len(keep_removed)} free"
+        + (f", {len(locked.unknown)} unknown (edited)" if locked.edited else "")
+        + f" ({locked.passes} passes)"
     )
     made = versions.publish(submap, loaded, Reason.CHANGE, locked.based_on, by, note)
     person = by if getattr(by, "is_authenticated", False) and by.pk else None
@@ -267,6 +303,10 @@ def reject(proposal: ChangeProposal, by: Any = None) -> None:
     )
     if not updated:
         raise MappingError("This proposal is no longer open.")
+
+
+def _cell_array(cells: list[list[int]]) -> Any:
+    return np.array(cells, dtype=np.intp).reshape(-1, 2)
 
 
 def _kept(proposed: list[list[int]], kept: list[list[int]] | None) -> list[list[int]]:

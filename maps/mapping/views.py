@@ -19,6 +19,7 @@ from rest_framework.views import APIView
 
 from robots.models import Robot
 
+from .. import versions
 from ..access import Role, buildings_for
 from ..domain.mapfile import map_yaml_text, occupancy_grid_json
 from ..models import ChangeProposal, MappingSession
@@ -220,6 +221,8 @@ class ProposalSerializer(serializers.ModelSerializer[ChangeProposal]):
             "removed",
             "added_passes",
             "removed_passes",
+            "unknown",
+            "edited",
             "passes",
             "scans",
             "created",
@@ -241,6 +244,75 @@ class ProposalList(APIView):
         if state := request.query_params.get("state"):
             found = found.filter(state=state)
         return Response(ProposalSerializer(found[:20], many=True).data)
+
+
+MAX_EDITED_CELLS = 200_000
+
+
+def _cell_list(help_text: str) -> serializers.ListField:
+    pair = serializers.ListField(child=serializers.IntegerField(), min_length=2, max_length=2)
+    return serializers.ListField(
+        child=pair, max_length=MAX_EDITED_CELLS, default=list, help_text=help_text
+    )
+
+
+class CellEditSerializer(serializers.Serializer[Any]):
+    """An admin's edit of a proposal: every cell it changes, as ``[row, col]`` of the
+    version it was made on (``context["shape"]`` = that version's (height, width))."""
+
+    added = _cell_list("cells that become occupied")
+    removed = _cell_list("cells that become free")
+    unknown = _cell_list("cells that become unknown")
+
+    def validate(self, attrs: dict[str, Any]) -> dict[str, Any]:
+        height, width = self.context["shape"]
+        errors: dict[str, list[str]] = {}
+        owner: dict[tuple[int, int], str] = {}
+        for key in ("added", "removed", "unknown"):
+            for row, col in attrs[key]:
+                if not (0 <= row < height and 0 <= col < width):
+                    errors.setdefault(key, []).append(
+                        f"[{row}, {col}] is outside the map ({height} rows, {width} columns)."
+                    )
+                elif (row, col) in owner:
+                    errors.setdefault(key, []).append(
+                        f"[{row}, {col}] is also in {owner[row, col]}: a cell takes one value."
+                    )
+                owner.setdefault((row, col), key)
+        if errors:
+            raise serializers.ValidationError({k: v[:5] for k, v in errors.items()})
+        return attrs
+
+
+class ProposalDetail(APIView):
+    """One proposal; admins ``PUT`` its cells as they edited them (``{"added", "removed",
+    "unknown"}``: every cell the change sets, as ``[row, col]``), replacing the fleet's."""
+
+    parser_classes = [JSONParser]
+
+    def _proposal(self, request: Request, building: str, map: str, pk: int, need: Role) -> Any:
+        proposal = upkeep.proposals_of(building_for(request, building, need), map)
+        found = proposal.select_related("submap").filter(pk=pk).first()
+        if found is None:
+            raise NotFound("No such proposal.")
+        return found
+
+    @extend_schema(responses=ProposalSerializer)
+    def get(self, request: Request, building: str, map: str, pk: int) -> Response:
+        proposal = self._proposal(request, building, map, pk, Role.VIEWER)
+        return Response(ProposalSerializer(proposal).data)
+
+    @extend_schema(request=CellEditSerializer, responses=ProposalSerializer)
+    def put(self, request: Request, building: str, map: str, pk: int) -> Response:
+        proposal = self._proposal(request, building, map, pk, Role.ADMIN)
+        version = versions.version_of(proposal.submap, proposal.based_on)
+        asked = CellEditSerializer(
+            data=request.data, context={"shape": (version.height, version.width)}
+        )
+        asked.is_valid(raise_exception=True)
+        cells = asked.validated_data
+        edited = upkeep.edit(proposal, cells["added"], cells["removed"], cells["unknown"])
+        return Response(ProposalSerializer(edited).data)
 
 
 class ProposalDecision(APIView):
