@@ -1,16 +1,22 @@
-"""A mapping session in a real browser: an admin starts one on the robot page, watches
-the map appear and grow with the robot's corrected path, finishes and publishes it as a
-new sub-map."""
+"""Mapping in a real browser: an admin starts a session on the robot page, watches the
+map appear and grow with the robot's corrected path, finishes and publishes it as a new
+sub-map; and edits a proposed change cell by cell (mouse and touch, undo) before
+accepting it, the published version holding the cells painted."""
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
 import pytest
-from playwright.sync_api import BrowserContext, expect
+from playwright.sync_api import Browser, BrowserContext, Page, expect
 
+from maps import services
 from maps.domain.demo_building import demo_building
-from tests.browser_support import BUILDING, ROBOT, Demo, open_as, screenshot
+from maps.models import ChangeProposal, SubMap
+from tests.browser_support import BUILDING, ROBOT, Demo, open_as, screenshot, world_to_page
 from tests.fixtures_live import agent_process
 
 pytest_plugins = ["tests.browser_support"]
@@ -54,3 +60,162 @@ def test_an_admin_maps_with_a_robot_watches_the_map_grow_and_publishes_it(
     versions = page.request.get(demo.url(f"/api/buildings/{BUILDING}/maps/Porch/versions/"))
     assert versions.ok
     assert versions.json()["versions"][0]["reason"] == "mapping"
+
+
+@dataclass
+class Corridor:
+    """Corridor A with an open proposal (a 2 x 2 cabinet) on version 1, and a block of
+    free cells to paint in: ``block`` is its bottom-left cell (row, col)."""
+
+    proposal: int
+    cabinet: list[list[int]]
+    block: tuple[int, int]
+    origin: tuple[float, float]
+    resolution: float
+    width: int
+
+
+def free_block(grid: np.ndarray, size: int, away_from: tuple[int, int]) -> tuple[int, int]:
+    """The bottom-left cell of a free ``size`` x ``size`` block at least 6 cells from
+    ``away_from``."""
+    rows, cols = grid.shape
+    for row in range(rows - size):
+        for col in range(cols - size):
+            far = max(abs(row - away_from[0]), abs(col - away_from[1])) > size + 6
+            if far and not grid[row : row + size, col : col + size].any():
+                return row, col
+    raise AssertionError("Corridor A has no free block")
+
+
+@pytest.fixture
+def corridor_with_a_proposal(demo: Demo) -> Corridor:
+    """Stored before Chromium starts (the ORM is not used inside Playwright's loop)."""
+    corridor = SubMap.objects.get(building__code=BUILDING, code="CorridorA")
+    grid = services.grid_of(corridor)
+    middle = (corridor.height // 2, corridor.width // 2)
+    cabinet = [[middle[0] + r, middle[1] + c] for r in range(2) for c in range(2)]
+    made = ChangeProposal.objects.create(
+        submap=corridor, based_on=1, added=cabinet, added_passes=[2] * 4, passes=2, scans=80
+    )
+    return Corridor(
+        made.pk,
+        cabinet,
+        free_block(grid, 8, middle),
+        (corridor.origin_x, corridor.origin_y),
+        corridor.resolution,
+        corridor.width,
+    )
+
+
+@pytest.fixture
+def touch_context(browser: Browser) -> Iterator[BrowserContext]:
+    opened = browser.new_context(viewport={"width": 1280, "height": 900}, has_touch=True)
+    opened.set_default_timeout(15_000)
+    yield opened
+    opened.close()
+
+
+def cell_on_page(page: Page, corridor: Corridor, row: int, col: int) -> tuple[float, float]:
+    x = corridor.origin[0] + (col + 0.5) * corridor.resolution
+    y = corridor.origin[1] + (row + 0.5) * corridor.resolution
+    return world_to_page(page, "#map-canvas", x, y)
+
+
+def mouse_stroke(page: Page, cells: list[tuple[float, float]]) -> None:
+    page.mouse.move(*cells[0])
+    page.mouse.down()
+    for at in cells[1:]:
+        page.mouse.move(*at, steps=3)
+    page.mouse.up()
+
+
+def touch_stroke(page: Page, cells: list[tuple[float, float]]) -> None:
+    """One finger down on the first point, moving through the others, lifted."""
+    cdp = page.context.new_cdp_session(page)
+    first, *rest = cells
+    cdp.send(
+        "Input.dispatchTouchEvent",
+        {"type": "touchStart", "touchPoints": [{"x": first[0], "y": first[1], "id": 1}]},
+    )
+    for x, y in rest:
+        cdp.send(
+            "Input.dispatchTouchEvent",
+            {"type": "touchMove", "touchPoints": [{"x": x, "y": y, "id": 1}]},
+        )
+        page.wait_for_timeout(30)  # a finger moves over frames
+    cdp.send("Input.dispatchTouchEvent", {"type": "touchEnd", "touchPoints": []})
+
+
+def test_an_admin_edits_a_proposal_cell_by_cell_and_the_published_version_has_the_cells(
+    corridor_with_a_proposal: Corridor, touch_context: BrowserContext, demo: Demo
+) -> None:
+    corridor = corridor_with_a_proposal
+    page = open_as(touch_context, demo, "admin", f"/buildings/{BUILDING}/maps/CorridorA/")
+    row = page.locator(f"#changes-list tr[data-proposal='{corridor.proposal}']")
+    expect(row).to_contain_text("4 cells became occupied, 0 free")
+    row.locator("button", has_text="Edit").click()
+    expect(page.locator("#change-editor")).to_be_visible()
+    expect(page.locator("#change-edit-count")).to_contain_text("4 occupied, 0 free, 0 unknown")
+    r0, c0 = corridor.block
+    x = corridor.origin[0] + (c0 + 4) * corridor.resolution
+    y = corridor.origin[1] + (r0 + 4) * corridor.resolution
+    page.evaluate(  # zoom in on the block, as a wheel or a pinch would: cells 12 px wide
+        "([x, y, px]) => { const v = window.cloudnav.submapPage.view;"
+        " v.centerOn({x, y}); v.zoom(px / v.view.scale); }",
+        [x, y, 12 / corridor.resolution],
+    )
+
+    def cells(r: int, cols: range) -> list[tuple[float, float]]:
+        return [cell_on_page(page, corridor, r0 + r, c0 + c) for c in cols]
+
+    def choose(brush: str) -> None:
+        page.click(f"#change-editor [data-brush={brush}]")
+        page.locator("#map-canvas").scroll_into_view_if_needed()  # the panel scrolled
+
+    mouse_stroke(page, cells(0, range(0, 6)))  # occupied, with the mouse
+    touch_stroke(page, cells(3, range(0, 6)))  # occupied, with a finger
+    expect(page.locator("#change-edit-count")).to_contain_text("16 occupied")
+    mouse_stroke(page, cells(5, range(0, 6)))  # a stroke taken back
+    expect(page.locator("#change-edit-count")).to_contain_text("22 occupied")
+    page.click("#change-undo")
+    page.locator("#map-canvas").scroll_into_view_if_needed()
+    expect(page.locator("#change-edit-count")).to_contain_text("16 occupied")
+    choose("unknown")
+    mouse_stroke(page, cells(6, range(0, 1)))
+    choose("free")
+    touch_stroke(page, cells(0, range(5, 6)))  # the mouse stroke's last cell, freed
+    expect(page.locator("#change-edit-count")).to_contain_text("15 occupied, 1 free, 1 unknown")
+    choose("keep")
+    cabinet = corridor.cabinet[0]
+    page.evaluate(
+        "([x, y]) => window.cloudnav.submapPage.view.centerOn({x, y})",
+        [
+            corridor.origin[0] + (cabinet[1] + 0.5) * corridor.resolution,
+            corridor.origin[1] + (cabinet[0] + 0.5) * corridor.resolution,
+        ],
+    )
+    mouse_stroke(page, [cell_on_page(page, corridor, cabinet[0], cabinet[1])])
+    expect(page.locator("#change-edit-count")).to_contain_text("14 occupied, 1 free, 1 unknown")
+    screenshot(page, "submap-proposal-edit")
+    page.click("#change-save")
+    expect(page.locator("#change-editor")).to_be_hidden()
+    expect(row).to_contain_text("14 cells became occupied, 1 free, 1 unknown (edited)")
+
+    row.locator("button", has_text="Accept").click()
+    page.locator("#accept-dialog button[value=confirm]").click()
+    expect(page.locator("#versions-current")).to_have_text("version 2")
+    published = page.request.get(
+        demo.url(f"/api/buildings/{BUILDING}/maps/CorridorA/versions/2/grid")
+    )
+    assert published.ok
+    data = published.json()["data"]
+
+    def at(r: int, c: int) -> int:
+        return int(data[r * corridor.width + c])
+
+    assert [at(r0, c0 + c) for c in range(6)] == [100] * 5 + [0]
+    assert [at(r0 + 3, c0 + c) for c in range(6)] == [100] * 6
+    assert [at(r0 + 5, c0 + c) for c in range(6)] == [0] * 6  # the stroke undone
+    assert at(r0 + 6, c0) == -1
+    assert at(*cabinet) == 0  # kept as in version 1
+    assert all(at(r, c) == 100 for r, c in corridor.cabinet[1:])

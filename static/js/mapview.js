@@ -20,6 +20,7 @@ const COLORS = {
   selected: "#ff9f1a",
   added: [224, 65, 47, 230],
   removed: [31, 157, 85, 230],
+  cleared: [47, 111, 237, 200],
 };
 const DRAG_THRESHOLD_PX = 4;
 const ZOOM_STEP = 1.15;
@@ -92,6 +93,7 @@ export class MapView {
     this.image = null;
     this.overlay = null;
     this.tool = null;
+    this.painter = null;
     this.drag = null;
     this.pointers = new Map(); // pointerId -> position, for pinches
     this.pinch = null;
@@ -116,14 +118,15 @@ export class MapView {
     this.fit();
   }
 
-  /** Mark cells of the grid shown: { added: [[row, col], ...], removed: [...] } (rows
-   * counted from the bottom, as in the grid), drawn over it; null clears them. */
+  /** Mark cells of the grid shown: { added: [[row, col], ...], removed: [...], cleared:
+   * [...] (made unknown) } (rows counted from the bottom, as in the grid), drawn over
+   * it; null clears them. */
   setCells(cells) {
     this.overlay = null;
     if (cells && this.grid) {
       const { width, height } = this.grid.info;
       const pixels = new Uint8ClampedArray(width * height * 4);
-      for (const kind of ["added", "removed"]) {
+      for (const kind of ["added", "removed", "cleared"]) {
         for (const [row, col] of cells[kind] || []) {
           if (row < 0 || row >= height || col < 0 || col >= width) continue;
           pixels.set(COLORS[kind], ((height - 1 - row) * width + col) * 4);
@@ -150,6 +153,28 @@ export class MapView {
     this.canvas.parentElement?.classList.toggle("tool-active", Boolean(tool));
     this.drag = null;
     this.redraw();
+  }
+
+  /** While `painter` is set, one pointer (mouse or finger) paints instead of panning:
+   * `painter.paint({x, y})` at the press and at each move, `painter.end()` when it lifts;
+   * two fingers still pinch. null stops painting. */
+  setPainter(painter) {
+    this.painter?.end();
+    this.painter = painter;
+    this.canvas.parentElement?.classList.toggle("tool-active", Boolean(painter));
+    this.drag = null;
+  }
+
+  /** The grid cell [row, col] (row 0 at the bottom) under a world point, or null. */
+  cellAt({ x, y }) {
+    if (!this.grid) return null;
+    const { width, height, resolution } = this.grid.info;
+    const [ox, oy, yaw] = this.#origin();
+    const dx = x - ox;
+    const dy = y - oy;
+    const col = Math.floor((Math.cos(yaw) * dx + Math.sin(yaw) * dy) / resolution);
+    const row = Math.floor((-Math.sin(yaw) * dx + Math.cos(yaw) * dy) / resolution);
+    return row >= 0 && row < height && col >= 0 && col < width ? [row, col] : null;
   }
 
   centerOn({ x, y }) {
@@ -227,6 +252,7 @@ export class MapView {
     canvas.addEventListener("pointerup", (event) => this.#up(event));
     canvas.addEventListener("pointercancel", (event) => {
       this.pointers.delete(event.pointerId);
+      if (this.drag) this.painter?.end();
       this.drag = null;
       this.pinch = null;
       this.redraw();
@@ -265,11 +291,13 @@ export class MapView {
     const at = this.#local(event);
     this.pointers.set(event.pointerId, at);
     if (this.pointers.size >= 2) {
-      this.drag = null; // a second finger: a pinch, never a pose
+      if (this.drag) this.painter?.end();
+      this.drag = null; // a second finger: a pinch, never a pose or a stroke
       this.pinch = this.#pinchState();
       return;
     }
     this.drag = { start: at, last: at, moved: false, world: this.toWorld(at.sx, at.sy) };
+    this.painter?.paint(this.drag.world);
   }
 
   #move(event) {
@@ -283,7 +311,9 @@ export class MapView {
     if (!this.drag) return;
     const { start, last } = this.drag;
     if (Math.hypot(at.sx - start.sx, at.sy - start.sy) > DRAG_THRESHOLD_PX) this.drag.moved = true;
-    if (!this.tool) {
+    if (this.painter) {
+      this.painter.paint(this.toWorld(at.sx, at.sy));
+    } else if (!this.tool) {
       this.view.cx -= (at.sx - last.sx) / this.view.scale;
       this.view.cy += (at.sy - last.sy) / this.view.scale;
       this.follow = false;
@@ -302,6 +332,10 @@ export class MapView {
     const drag = this.drag;
     this.drag = null;
     if (!drag) return;
+    if (this.painter) {
+      this.painter.end();
+      return;
+    }
     const at = this.#local(event);
     if (this.tool) this.onPose?.(this.tool, this.#dragPose(drag.world, at));
     else if (!drag.moved) this.onClick?.(drag.world, at);
