@@ -113,3 +113,9 @@ def test_only_admins_edit(proposal: ChangeProposal, operator: User, viewer: User
 def test_it_rejects_outsider(proposal: ChangeProposal, outsider: User) -> None:
     assert client_for(outsider).get(f"{CHANGES}{proposal.pk}/").status_code == 404
     assert edit(outsider, proposal, added=[]).status_code == 404
+
+
+def test_robots_and_strangers_may_not_edit(proposal: ChangeProposal, token: str) -> None:
+    url = f"{CHANGES}{proposal.pk}/"
+    assert client_for(token).put(url, {"added": []}, format="json").status_code == 403
+    assert client_for(None).put(url, {"added": []}, format="json").status_code == 401
