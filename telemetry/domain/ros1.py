@@ -4,7 +4,7 @@ Recordings carry ROS 1 schemas (``ros1msg``: the type's full definition with its
 dependencies after ``===`` lines, the text ``mcap-ros1-support`` and rosbag write) and ROS 1
 serialised messages (``ros1``), so Foxglove, Lichtblick, ``rosbag`` and ``rosbags`` open
 them. Definitions come from ``rosbags``' ROS 1 Noetic type store; the JSON a client
-published is turned into that store's message objects field by field, forgivingly: a
+published is serialised by code compiled once per type (``ros1_layouts``), forgivingly: a
 missing field takes its zero value, ``null`` in a float field is NaN (rosbridge writes NaN
 and infinity as ``null``), ``uint8[]`` is base64 text or a list of numbers, times are
 ``sec/nanosec`` or ``secs/nsecs``. A value of the wrong kind raises ``Ros1EncodeError``.
@@ -13,37 +13,20 @@ and infinity as ``null``), ``uint8[]`` is base64 text or a list of numbers, time
 from __future__ import annotations
 
 import base64
-import binascii
 import math
-from collections.abc import Callable, Mapping
+import struct
+from collections.abc import Mapping
 from functools import cache
 from typing import Any
 
 import numpy as np
-from rosbags.interfaces import Nodetype
 from rosbags.typesys import Stores, get_typestore
+
+from .ros1_layouts import Encoder, compile_encoder
 
 SCHEMA_ENCODING = "ros1msg"
 MESSAGE_ENCODING = "ros1"
 PROFILE = "ros1"
-
-_NUMPY = {
-    "bool": np.bool_,
-    "int8": np.int8,
-    "uint8": np.uint8,
-    "byte": np.uint8,
-    "char": np.uint8,
-    "int16": np.int16,
-    "uint16": np.uint16,
-    "int32": np.int32,
-    "uint32": np.uint32,
-    "int64": np.int64,
-    "uint64": np.uint64,
-    "float32": np.float32,
-    "float64": np.float64,
-}
-_FLOATS = frozenset({"float32", "float64"})
-
 
 class Ros1EncodeError(ValueError):
     """A message that cannot be written as its ROS 1 type."""
@@ -78,6 +61,15 @@ def schema_text(type_name: str) -> str:
 
 
 @cache
+def described(type_name: str) -> tuple[str, bytes] | None:
+    """``type_name``'s ROS 1 name and ``ros1msg`` schema (UTF-8), as a recording's schema
+    record carries them; None for a type the store does not know."""
+    if not known(type_name):
+        return None
+    return ros1_name(type_name), schema_text(type_name).encode()
+
+
+@cache
 def md5sum(type_name: str) -> str:
     """The ROS 1 MD5 sum of ``type_name`` (what a bag's connection header carries)."""
     _text, md5 = _store().generate_msgdef(store_name(type_name), ros_version=1)
@@ -86,12 +78,16 @@ def md5sum(type_name: str) -> str:
 
 def encode(type_name: str, msg: Mapping[str, Any]) -> bytes:
     """Serialise rosbridge JSON ``msg`` as ROS 1 ``type_name``. Raises Ros1EncodeError."""
-    name = store_name(type_name)
     try:
-        obj = _build(name)(msg)
-        return bytes(_store().serialize_ros1(obj, name))
-    except (TypeError, ValueError, KeyError, OverflowError, binascii.Error) as exc:
+        return _encoder(type_name)(msg)
+    except (TypeError, ValueError, KeyError, OverflowError, struct.error) as exc:
         raise Ros1EncodeError(f"not a {type_name}: {exc}") from exc
+
+
+@cache
+def _encoder(type_name: str) -> Encoder:
+    """The compiled serialiser of ``type_name``, made on first use. Raises KeyError."""
+    return compile_encoder(_store().fielddefs, store_name(type_name))
 
 
 def decode(type_name: str, data: bytes) -> Any:
@@ -116,79 +112,3 @@ def to_json(obj: Any) -> Any:
     if fields is None:
         return obj
     return {name: to_json(getattr(obj, name)) for name in fields if name != "__msgtype__"}
-
-
-Builder = Callable[[Any], Any]
-
-
-@cache
-def _build(name: str) -> Builder:
-    """A function from JSON to the rosbags object of ``name``, made once per type."""
-    if name == "builtin_interfaces/msg/Time" or name == "builtin_interfaces/msg/Duration":
-        return _time_builder(name)
-    store = _store()
-    cls = store.types[name]
-    fields = [(field, _field_builder(desc)) for field, desc in store.fielddefs[name][1]]
-
-    def build(value: Any) -> Any:
-        if value is None:
-            value = {}
-        if not isinstance(value, Mapping):
-            raise TypeError(f"{name} wants an object")
-        return cls(**{field: make(value.get(field)) for field, make in fields})
-
-    return build
-
-
-def _time_builder(name: str) -> Builder:
-    cls = _store().types[name]
-
-    def build(value: Any) -> Any:
-        if not isinstance(value, Mapping):
-            value = {}
-        sec = value.get("sec", value.get("secs", 0)) or 0
-        nanosec = value.get("nanosec", value.get("nsecs", 0)) or 0
-        return cls(sec=int(sec), nanosec=int(nanosec))
-
-    return build
-
-
-def _field_builder(desc: tuple[Any, Any]) -> Builder:
-    kind, detail = desc
-    if kind == Nodetype.NAME:
-        return _lazy(detail)
-    if kind == Nodetype.BASE:
-        return _base_builder(detail[0])
-    element, _count = detail
-    if element[0] == Nodetype.BASE and element[1][0] in _NUMPY:
-        return _array_builder(element[1][0])
-    make = _field_builder(element)
-    return lambda value: [make(item) for item in (value or [])]
-
-
-def _lazy(name: str) -> Builder:
-    return lambda value: _build(name)(value)
-
-
-def _base_builder(base: str) -> Builder:
-    if base == "string":
-        return lambda value: "" if value is None else str(value)
-    if base in _FLOATS:
-        return lambda value: float("nan") if value is None else float(value)
-    if base == "bool":
-        return lambda value: bool(value)
-    return lambda value: int(value or 0)
-
-
-def _array_builder(base: str) -> Builder:
-    dtype = _NUMPY[base]
-
-    def build(value: Any) -> Any:
-        if isinstance(value, str):
-            return np.frombuffer(base64.b64decode(value, validate=True), dtype=np.uint8)
-        if not value:
-            return np.zeros(0, dtype=dtype)
-        # numpy reads None as NaN in a float array (rosbridge's null)
-        return np.asarray(value, dtype=dtype)
-
-    return build

@@ -239,7 +239,8 @@ class Recorder:
         msg: Mapping[str, Any],
         log_time: int,
     ) -> None:
-        if not type_name or not ros1.known(type_name):
+        described = ros1.described(type_name) if type_name else None
+        if described is None:
             entry.failed += 1
             return
         try:
@@ -247,8 +248,7 @@ class Recorder:
         except ros1.Ros1EncodeError:
             entry.failed += 1
             return
-        schema = ros1.schema_text(type_name).encode()
-        record = files.Record(topic, ros1.ros1_name(type_name), schema, log_time, data)
+        record = files.Record(topic, described[0], described[1], log_time, data)
         writer = self._writers.get(robot)
         if writer is None:
             writer = self._writers[robot] = files.RotatingFiles(
