@@ -8,6 +8,7 @@ import io
 import json
 import time
 
+import httpx
 import pytest
 import websockets
 from django.http import StreamingHttpResponse
@@ -16,6 +17,7 @@ from mcap_ros1.decoder import DecoderFactory
 
 from telemetry.recording import files
 from tests.conftest import client_for, make_robot
+from tests.fixtures_live import session_cookie
 
 DEADLINE = 20.0
 NS = 1_000_000_000
@@ -171,3 +173,31 @@ async def test_the_events_derived_for_a_robot_are_in_its_exported_recording(
     # stamped with the event's time, which is the message's log time
     assert aborted.header.stamp.secs * NS + aborted.header.stamp.nsecs == log_time
     assert began - 1 <= log_time / NS <= time.time()
+
+
+async def test_an_export_holds_everything_recorded_up_to_the_request_while_the_robot_records(
+    daphne_servers, token, tmp_path, viewer
+):
+    root = tmp_path / "recordings"
+    server = daphne_servers.start(env={"CLOUDNAV_RECORDING_DIR": str(root)})
+    cookie = (await asyncio.to_thread(session_cookie, viewer)).decode()
+    began = time.time()
+    async with websockets.connect(server.rosbridge_url(token)) as ws:
+        for i in range(20):  # far less than a chunk: all of it is in the open chunk
+            await ws.send(json.dumps({"op": "publish", "topic": "pose", "msg": pose(i)}))
+        await ws.send(json.dumps({"op": "call_service", "id": "t", "service": "rosapi/get_time"}))
+        while json.loads(await asyncio.wait_for(ws.recv(), 10)).get("id") != "t":
+            pass
+        url = f"{server.url}/api/robots/r1/recording.mcap?start={began - 5}&end={time.time() + 5}"
+        async with httpx.AsyncClient(timeout=DEADLINE) as http:
+            response = await http.get(url, headers={"Cookie": cookie})
+        # the robot is still connected: its file is still being written
+        assert not any(files.finished(f.path) for f in files.files_of(root, "r1"))
+    assert response.status_code == 200
+    reader = make_reader(io.BytesIO(response.content), decoder_factories=[DecoderFactory()])
+    poses = [
+        ros.pose.position.x
+        for _s, channel, _m, ros in reader.iter_decoded_messages()
+        if channel.topic == "/r1/pose"
+    ]
+    assert poses == [i * 0.5 for i in range(20)]

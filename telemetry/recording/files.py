@@ -127,6 +127,11 @@ class McapSink:
         channel_id = self.channel(record.topic, record.type_name, record.schema)
         self.writer.add_message(channel_id, record.log_time, record.data, record.log_time)
 
+    def flush(self) -> None:
+        """End the chunk being filled and write it out, so a reader of the file sees every
+        message added so far (what an export asks for before it reads)."""
+        self.writer.flush()  # type: ignore[no-untyped-call]
+
     def finish(self) -> None:
         self.writer.finish()  # type: ignore[no-untyped-call]
 
@@ -161,6 +166,11 @@ class RotatingFiles:
         self._out = open(self.path, "wb")  # noqa: SIM115 (closed by close())
         self._sink = McapSink(self._out)
         self._opened_ns = start_ns
+
+    def flush(self) -> None:
+        """Write out the current file's open chunk (a no-op when none is open)."""
+        if self._sink is not None:
+            self._sink.flush()
 
     def close(self) -> None:
         """Finish the current file (its summary and footer); a no-op when none is open."""

@@ -104,6 +104,8 @@ class Recorder:
         self._plans_at = 0.0
         self._retention_at = 0.0
         self._leaving: deque[RobotQueue] = deque()
+        # flush requests: the robots whose files to flush, and what to set when done
+        self._flushes: deque[tuple[frozenset[str], threading.Event]] = deque()
 
     # ------------------------------------------------------------ on the relay loop
 
@@ -156,6 +158,17 @@ class Recorder:
             for robot, e in list(self.robots.items())
         }
 
+    def flush(self, robots: Iterable[str], timeout: float = 5.0) -> bool:
+        """Have the writer write every message of ``robots`` queued before this call and
+        end their files' open chunks, so reading the files now gives everything recorded
+        up to now (an export). Waits at most ``timeout`` seconds; False when the writer
+        did not answer in time (or is not running)."""
+        if self._thread is None or not self._thread.is_alive():
+            return False
+        done = threading.Event()
+        self._flushes.append((frozenset(robots), done))
+        return done.wait(timeout)
+
     # ------------------------------------------------------------ the writer thread
 
     def start(self) -> None:
@@ -192,6 +205,7 @@ class Recorder:
     def step(self) -> None:
         """One pass of the writer: plans when due, every queue drained, retention when due."""
         now = time.monotonic()
+        flushes = [self._flushes.popleft() for _ in range(len(self._flushes))]
         if now - self._plans_at >= self.config.plan_seconds or self._unplanned():
             self._refresh_plans()
             self._plans_at = now
@@ -200,9 +214,18 @@ class Recorder:
         self._close_idle()
         for robot, entry in list(self.robots.items()):
             self._drain(entry, robot=robot)
+        for robots, done in flushes:
+            self._flush(robots)
+            done.set()
         if now - self._retention_at >= self.config.retention_seconds:
             self._retention_at = now
             self._guarded(self._apply_retention)
+
+    def _flush(self, robots: frozenset[str]) -> None:
+        for robot in robots:
+            writer = self._writers.get(robot)
+            if writer is not None:
+                self._guarded(writer.flush)
 
     def _unplanned(self) -> bool:
         return any(e.plan is None for e in list(self.robots.values()))

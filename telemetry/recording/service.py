@@ -31,6 +31,13 @@ def start_recorder() -> Recorder | None:
     return _recorder
 
 
+def flush_recordings(robots: list[str]) -> None:
+    """Have this process's recorder write out what it holds of ``robots`` (before an
+    export reads their files); a no-op when it records nothing."""
+    if _recorder is not None:
+        _recorder.flush(robots)
+
+
 def recording_config() -> RecorderConfig:
     """Where recordings are read from (the settings, as the recorder read them)."""
     return RecorderConfig.load()

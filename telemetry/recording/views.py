@@ -25,7 +25,7 @@ from maps.access import buildings_for
 from robots.models import Robot
 
 from . import export
-from .service import recording_config
+from .service import flush_recordings, recording_config
 
 NS = 1_000_000_000
 DEFAULT_SPAN = 3600
@@ -69,6 +69,7 @@ def recording_response(
 ) -> StreamingHttpResponse:
     """The robots' recording in ``[start, end]`` as ``kind`` (``mcap`` or ``bag``)."""
     config = recording_config()
+    flush_recordings(robots)
     source = export.records(config.root, robots, start, end)
     if kind == "bag":
         content = export.bag_stream(source, config.root / ".exports")
@@ -134,6 +135,7 @@ class RobotReplay(APIView):
         except ValueError:
             raise serializers.ValidationError({"limit": "Give a whole number."}) from None
         root = recording_config().root
+        flush_recordings([name])
         window = export.json_window(export.records(root, [name], start, end), topics, limit)
         return Response({"span": export.span(root, name), **window})
 
