@@ -38,6 +38,7 @@ from .serializers import (
     VersionComparisonSerializer,
     VersionSerializer,
 )
+from .signals import bundle_fetched
 from .visual import service as visual
 from .visual import store as visual_store
 
@@ -233,6 +234,9 @@ class SubMapBundle(APIView):
         etag = services.bundle_etag(submap)
         if etag in _etags(request.headers.get("If-None-Match", "")):
             return Response(status=status.HTTP_304_NOT_MODIFIED, headers={"ETag": etag})
+        robot = robot_of(request.user)
+        if robot is not None:
+            bundle_fetched.send(SubMap, submap=submap, robot=robot.name)
         return Response(services.bundle_of(submap), headers={"ETag": etag})
 
 

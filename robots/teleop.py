@@ -135,7 +135,8 @@ class TeleopLocks:
     ) -> None:
         self.store = store
         self.stop = stop
-        # Told (robot, what, holder's label) of a dead-man stop or a lapsed lock.
+        # Told (robot, what, holder's label) of a lock taken, released or lapsed, or a
+        # dead-man stop.
         self.on_event = on_event
         self.ttl = ttl
         self.silence = silence
@@ -162,6 +163,7 @@ class TeleopLocks:
         if hold is None or hold.connection != connection:
             self._forget(robot)
             self._holds[robot] = _Hold(connection, holder, now + self.ttl, now, now)
+            self._tell(robot, Kind.TELEOP_TAKEN, holder)
         else:
             hold.expires, hold.refreshed = now + self.ttl, now
         return True, label
@@ -178,6 +180,7 @@ class TeleopLocks:
             return False
         self._let_go(robot)
         await self.store.release(robot, hold.holder)
+        self._tell(robot, Kind.TELEOP_RELEASED, hold.holder)
         return True
 
     def accepts(self, robot: str, connection: str) -> bool:

@@ -7,6 +7,7 @@ class TelemetryConfig(AppConfig):
     name = "telemetry"
 
     def ready(self) -> None:
-        from telemetry.revocation import connect_signals
+        from telemetry import map_events, revocation
 
-        connect_signals()
+        revocation.connect_signals()
+        map_events.connect_signals()

@@ -13,21 +13,29 @@ import asyncio
 import contextlib
 import logging
 import time
+import uuid
 from collections.abc import Callable, Mapping
 from datetime import UTC, datetime
 from typing import Any
 
 from channels.db import database_sync_to_async
+from django.db import transaction
+from django.db.models import Max
 
 from maps.models import Building
 from robots.models import Robot
 from telemetry.domain import names
-from telemetry.domain.events import EventDeriver, EventDraft, Kind
+from telemetry.domain.events import EventDeriver, EventDraft, Kind, Severity
 from telemetry.domain.messages import pose_of
 
 from .models import Event
 
 logger = logging.getLogger(__name__)
+
+# This process, as the ``origin`` of the events its event log writes.
+ORIGIN = uuid.uuid4().hex[:12]
+# Events read from the log at most at once by a recorder.
+FOREIGN_BATCH = 1000
 
 # Topic kinds (relative to a robot's namespace) whose messages events are derived from.
 OBSERVED = (names.POSE, names.NAV_STATUS, names.LOCALISATION, names.BATTERY)
@@ -69,6 +77,10 @@ class EventLog:
         elif kind == names.BATTERY:
             self._add(self.deriver.battery(robot, msg, now))
 
+    def goal_sent(self, robot: str, actor: str, msg: Mapping[str, Any]) -> None:
+        """``actor`` (a label) published ``msg`` on ``robot``'s goal topic."""
+        self._add(self.deriver.goal_sent(robot, actor, msg, self.clock()))
+
     def teleop(self, robot: str, kind: Kind, holder: str) -> None:
         self._add(self.deriver.teleop(robot, kind, holder, self.clock()))
 
@@ -97,7 +109,7 @@ class EventLog:
         if not batch:
             return
         try:
-            await database_sync_to_async(write_events)(batch)
+            await database_sync_to_async(write_events)(batch, ORIGIN)
         except Exception:
             logger.exception("writing %d events failed; they are kept for the next try", len(batch))
             self._pending[:0] = batch
@@ -111,10 +123,11 @@ class EventLog:
         await self.flush()
 
 
-def write_events(batch: list[EventDraft]) -> list[Event]:
+def write_events(batch: list[EventDraft], origin: str = "") -> list[Event]:
     """Store ``batch``: two lookups (robots with their buildings, buildings by code) and one
     insert. An event's building is the one its robot was last seen in, else the robot's
-    first building."""
+    first building. ``origin`` is the process whose event log derived them ("" for a
+    request's own events)."""
     robots = {
         r.name: r
         for r in Robot.objects.filter(
@@ -140,6 +153,54 @@ def write_events(batch: list[EventDraft]) -> list[Event]:
                 message=draft.message[:500],
                 data=dict(draft.data),
                 alert=draft.alert,
+                origin=origin,
             )
         )
     return Event.objects.bulk_create(rows)
+
+
+def write_on_commit(draft: EventDraft) -> None:
+    """Store ``draft`` (an event a request derived) once its transaction commits."""
+    transaction.on_commit(lambda: write_events([draft]))
+
+
+def foreign_events(after: int | None, robots: frozenset[str]) -> tuple[int, list[EventDraft]]:
+    """The events ``robots`` are concerned in that the log holds after event id ``after``
+    and this process's event log did not derive (other server processes', requests'), as
+    ``(last id read, drafts)``, each draft naming its robot (a building's event, such as a
+    new map version, once per robot of that building). ``after`` None starts at the end."""
+    if after is None:
+        return Event.objects.aggregate(last=Max("id"))["last"] or 0, []
+    rows = list(
+        Event.objects.filter(id__gt=after)
+        .exclude(origin=ORIGIN)
+        .select_related("robot", "building")
+        .order_by("id")[:FOREIGN_BATCH]
+    )
+    drafts = []
+    for row in rows:
+        for robot in _concerned(row, robots):
+            drafts.append(_draft_of(row, robot))
+    return (rows[-1].id if rows else after), drafts
+
+
+def _concerned(row: Event, robots: frozenset[str]) -> list[str]:
+    if row.robot is not None:
+        return [row.robot.name] if row.robot.name in robots else []
+    if row.building_id is None or not robots:
+        return []
+    members = Robot.objects.filter(buildings=row.building_id, name__in=robots)
+    return sorted(members.values_list("name", flat=True))
+
+
+def _draft_of(row: Event, robot: str) -> EventDraft:
+    return EventDraft(
+        time=row.time.timestamp(),
+        kind=Kind(row.kind),
+        severity=Severity(row.severity),
+        robot=robot,
+        message=row.message,
+        actor=row.actor,
+        building=row.building.code if row.building is not None else None,
+        data=row.data,
+    )

@@ -313,6 +313,8 @@ class Hub:
         self.bus.publish(conn, name, msg, latch, size)
         if conn.principal.robot is not None:
             self.events.heard(conn.principal.robot)
+        else:
+            self._commanded(conn, name, msg)
         tracked = self._fleet_topics.get(name)
         if tracked is not None:
             self._track(tracked[0], tracked[1], msg)
@@ -322,6 +324,13 @@ class Hub:
                 self.missions.status(names.first_segment(name), msg)
         for tap in self.taps.get(name, ()):
             tap(msg)
+
+    def _commanded(self, conn: Connection, name: str, msg: dict[str, Json]) -> None:
+        """A person's message to a robot: a goal is an event (on this process, which may
+        not be the robot's; the robot's recorder reads it from the event log)."""
+        robot, _, suffix = name[1:].partition("/")
+        if suffix == names.GOAL:
+            self.events.goal_sent(robot, conn.principal.label, msg)
 
     def _track(self, robot_pk: int, kind: str, msg: dict[str, Json]) -> None:
         if kind == names.POSE:
@@ -376,6 +385,7 @@ class Hub:
         """Send a mission's goal to its robot from the server itself."""
         msg = dict(pose_stamped(goal.map_id, (goal.x, goal.y, goal.yaw), time.time()))
         self.bus.publish(None, names.robot_topic(goal.robot, names.GOAL), msg)
+        self.events.goal_sent(goal.robot, "server", msg)
 
     def stop_robot(self, robot: str) -> None:
         """Send ``robot`` a zero Twist from the server itself."""

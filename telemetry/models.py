@@ -73,6 +73,9 @@ class Event(models.Model):
     message = models.CharField(max_length=500)
     data = models.JSONField(default=dict, blank=True)
     alert = models.BooleanField(default=False)
+    # The server process whose event log derived it ("" when a request wrote it), so each
+    # recorder reads from the log only the events it did not take from its own process.
+    origin = models.CharField(max_length=32, blank=True, default="")
     acknowledged_at = models.DateTimeField(null=True, blank=True)
     acknowledged_by = models.ForeignKey(
         settings.AUTH_USER_MODEL, null=True, blank=True, on_delete=models.SET_NULL, related_name="+"

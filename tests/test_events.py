@@ -49,7 +49,8 @@ def test_a_robot_getting_lost_is_an_alert_on_the_change_only() -> None:
     deriver = EventDeriver()
     assert kinds(deriver.localisation("r1", localisation("lost"), 1.0)) == [Kind.LOST]
     assert deriver.localisation("r1", localisation("lost"), 2.0) == []
-    assert deriver.localisation("r1", localisation("localised"), 3.0) == []
+    # found again: news, not an alert (see the relocalisation tests below)
+    assert kinds(deriver.localisation("r1", localisation("localised"), 3.0)) == [Kind.RELOCALISED]
     assert kinds(deriver.localisation("r1", localisation("lost"), 4.0)) == [Kind.LOST]
 
 
@@ -115,3 +116,64 @@ def test_a_robot_that_left_is_forgotten() -> None:
     deriver.disconnected("r1", 1.0)
     assert deriver.tick(100.0) == []
     assert not deriver.watching()
+
+
+def placed(state: str, map_id: str = "", source: str = "") -> dict:
+    values = [{"key": "state", "value": state}, {"key": "map_id", "value": map_id}]
+    return {"message": state, "values": [*values, {"key": "source", "value": source}]}
+
+
+def test_a_goal_reached_or_cancelled_is_news_once() -> None:
+    deriver = EventDeriver()
+    deriver.nav_status("r1", status(1), 1.0)
+    [reached] = deriver.nav_status("r1", status(3), 2.0)
+    assert (reached.kind, reached.severity, reached.alert) == (
+        Kind.GOAL_REACHED,
+        Severity.INFO,
+        False,
+    )
+    assert reached.data["goal"] == "g1"
+    assert deriver.nav_status("r1", status(3), 3.0) == []
+    assert kinds(deriver.nav_status("r1", status(2, goal="g2"), 4.0)) == [Kind.GOAL_CANCELLED]
+    assert kinds(deriver.nav_status("r1", status(8, goal="g3"), 5.0)) == [Kind.GOAL_CANCELLED]
+
+
+def test_a_goal_sent_names_who_sent_it_and_where() -> None:
+    deriver = EventDeriver()
+    deriver.pose("r1", "b/Hall", 0.0, 0.0, 1.0)
+    goal = {"header": {"frame_id": "b/Lab"}, "pose": {"position": {"x": 2.5, "y": -1.0}}}
+    [sent] = deriver.goal_sent("r1", "user:ann", goal, 2.0)
+    assert (sent.kind, sent.actor, sent.building) == (Kind.GOAL_SENT, "user:ann", "b")
+    assert dict(sent.data) == {"map_id": "b/Lab", "x": 2.5, "y": -1.0}
+
+
+def test_a_tag_read_then_the_map_it_names_is_one_tag_event_and_no_relocalisation() -> None:
+    deriver = EventDeriver()
+    assert deriver.localisation("r1", placed("localised", "b/Hall", "initial pose"), 1.0) == []
+    [read] = deriver.localisation("r1", placed("entering", "b/Lab", "tag 7"), 2.0)
+    assert (read.kind, read.data["source"], read.data["map_id"]) == (
+        Kind.TAG_READ,
+        "tag 7",
+        "b/Lab",
+    )
+    assert deriver.localisation("r1", placed("entering", "b/Lab", "tag 7"), 2.1) == []
+    assert deriver.localisation("r1", placed("localised", "b/Lab", "tag 7"), 3.0) == []
+
+
+def test_a_lost_robot_found_again_or_placed_by_hand_is_relocalised() -> None:
+    deriver = EventDeriver()
+    deriver.localisation("r1", placed("localised", "b/Hall", "tag 1"), 1.0)
+    assert kinds(deriver.localisation("r1", placed("lost"), 2.0)) == [Kind.LOST]
+    [found] = deriver.localisation("r1", placed("localised", "b/Hall", "tag 1"), 3.0)
+    assert (found.kind, found.data["source"]) == (Kind.RELOCALISED, "tag 1")
+    [by_hand] = deriver.localisation("r1", placed("localised", "b/Lab", "initial pose"), 4.0)
+    assert by_hand.kind == Kind.RELOCALISED
+    assert deriver.localisation("r1", placed("localised", "b/Lab", "initial pose"), 5.0) == []
+
+
+def test_taking_and_releasing_the_teleop_lock_name_the_holder() -> None:
+    deriver = EventDeriver()
+    [taken] = deriver.teleop("r1", Kind.TELEOP_TAKEN, "user:op", 1.0)
+    [released] = deriver.teleop("r1", Kind.TELEOP_RELEASED, "user:op", 2.0)
+    assert (taken.actor, taken.message) == ("user:op", "user:op took the teleop lock of r1")
+    assert (released.kind, released.actor) == (Kind.TELEOP_RELEASED, "user:op")

@@ -4,11 +4,15 @@ its topics also reach the other process (a viewer there subscribes to them)."""
 from __future__ import annotations
 
 import asyncio
+import io
 import json
 import time
 
+import httpx
 import pytest
 import websockets
+from mcap.reader import make_reader
+from mcap_ros1.decoder import DecoderFactory
 
 from telemetry.recording import files
 
@@ -59,3 +63,50 @@ async def test_a_robot_is_recorded_once_by_the_process_it_is_connected_to(scaled
     poses = list(files.open_messages(recorded[0].path, 0, 2**62))
     # with its arrival and its leaving, recorded once too
     assert [r.topic for r in poses] == ["/r1/events", *["/r1/pose"] * 10, "/r1/events"]
+
+
+async def exported_events(server, cookie: str, began: float) -> list:
+    url = f"{server.url}/api/robots/r1/recording.mcap?start={began - 5}&end={time.time() + 5}"
+    async with httpx.AsyncClient(timeout=DEADLINE) as http:
+        response = await http.get(url, headers={"Cookie": cookie})
+    assert response.status_code == 200
+    reader = make_reader(io.BytesIO(response.content), decoder_factories=[DecoderFactory()])
+    return [
+        ros
+        for _s, channel, _m, ros in reader.iter_decoded_messages()
+        if channel.topic == "/r1/events"
+    ]
+
+
+async def test_a_goal_sent_from_another_process_is_in_the_robots_recording(
+    scaled_servers, tmp_path
+):
+    root = tmp_path / "recordings"
+    cluster = scaled_servers(2, env={"CLOUDNAV_RECORDING_DIR": str(root)})
+    here, there = cluster.servers
+    cookie = cluster.cookies["operator"]
+    began = time.time()
+    async with websockets.connect(here.rosbridge_url(cluster.tokens["r1"])) as robot:
+        await sync(robot)
+        headers = {"Cookie": cookie, "Origin": there.url}
+        async with websockets.connect(there.rosbridge_url(), additional_headers=headers) as op:
+            goal = {**POSE, "header": {"frame_id": "boccioni_1/Hall"}}
+            advertise = {
+                "op": "advertise",
+                "topic": "/r1/goal",
+                "type": "geometry_msgs/PoseStamped",
+            }
+            await op.send(json.dumps(advertise))
+            await op.send(json.dumps({"op": "publish", "topic": "/r1/goal", "msg": goal}))
+            await sync(op)
+        # the robot's process records it, read from the event log the other one wrote
+        deadline = time.monotonic() + DEADLINE
+        while True:
+            events = await exported_events(here, cookie, began)
+            sent = [e for e in events if e.name == "goal_sent"]
+            if sent or time.monotonic() > deadline:
+                break
+            await asyncio.sleep(0.2)
+    assert len(sent) == 1
+    assert "actor=user:operator" in sent[0].topics
+    assert "map_id=boccioni_1/Hall" in sent[0].topics

@@ -31,6 +31,15 @@ class Kind(StrEnum):
     DEADMAN_STOP = "deadman_stop"
     TELEOP_LAPSED = "teleop_lapsed"
     BATTERY_LOW = "battery_low"
+    GOAL_SENT = "goal_sent"
+    GOAL_REACHED = "goal_reached"
+    GOAL_CANCELLED = "goal_cancelled"
+    TELEOP_TAKEN = "teleop_taken"
+    TELEOP_RELEASED = "teleop_released"
+    TAG_READ = "tag_read"
+    RELOCALISED = "relocalised"
+    BUNDLE_FETCHED = "bundle_fetched"
+    MAP_VERSION_CHANGED = "map_version_changed"
 
 
 class Severity(StrEnum):
@@ -61,6 +70,11 @@ BATTERY_RECOVERED = 0.3
 # actionlib_msgs/GoalStatus codes.
 _ACTIVE = 1
 _FAILED = {4: "aborted", 5: "rejected", 9: "lost"}
+_ENDED = {
+    3: (Kind.GOAL_REACHED, "reached"),
+    2: (Kind.GOAL_CANCELLED, "cancelled"),
+    8: (Kind.GOAL_CANCELLED, "cancelled"),
+}
 
 
 @dataclass(frozen=True)
@@ -94,6 +108,7 @@ class _Watch:
     anchor: tuple[float, float, float] | None = None  # x, y, time of the last real move
     stuck: bool = False
     localisation: str = ""
+    placed: tuple[str, str] = ("", "")  # the map and source of the last localised state
     battery_low: bool = False
     at: tuple[float, float] | None = None
 
@@ -172,10 +187,14 @@ class EventDeriver:
         if watch.goal_active and not was_active and watch.at is not None:
             watch.anchor, watch.stuck = (*watch.at, now), False
         key = (goal_id, code)
-        if code not in _FAILED or key == watch.status_key:
+        if key == watch.status_key or (code not in _FAILED and code not in _ENDED):
             watch.status_key = key
             return []
         watch.status_key = key
+        if code in _ENDED:
+            kind, verb = _ENDED[code]
+            text = f"{robot}: goal {verb}"
+            return [self._draft(watch, now, kind, Severity.INFO, robot, text, goal=goal_id)]
         reason = str(latest.get("text") or "no reason given")
         return [
             self._draft(
@@ -192,13 +211,32 @@ class EventDeriver:
         ]
 
     def localisation(self, robot: str, msg: Mapping[str, Any], now: float) -> list[EventDraft]:
-        """A DiagnosticStatus whose ``state`` value says lost, entering or localised."""
+        """A DiagnosticStatus whose ``state`` value says lost, entering (a tag was read) or
+        localised (``map_id`` by ``source``): lost once, a tag read once per entering, and
+        relocalised when localised after being lost or by something other than a tag."""
         watch = self._watch(robot, now)
         values = {
             v.get("key"): v.get("value") for v in msg.get("values") or [] if isinstance(v, Mapping)
         }
         state = str(values.get("state") or "")
         before, watch.localisation = watch.localisation, state
+        map_id, source = str(values.get("map_id") or ""), str(values.get("source") or "")
+        if state == "entering" and before != "entering":
+            text = f"{robot} read {source or 'a tag'}: entering {map_id}"
+            return [
+                self._draft(
+                    watch,
+                    now,
+                    Kind.TAG_READ,
+                    Severity.INFO,
+                    robot,
+                    text,
+                    map_id=map_id,
+                    source=source,
+                )
+            ]
+        if state == "localised":
+            return self._localised(watch, robot, before, (map_id, source), now)
         if state != "lost" or before == "lost":
             return []
         return [
@@ -210,6 +248,54 @@ class EventDeriver:
                 robot,
                 f"{robot} is lost: {msg.get('message') or 'looking for a tag'}",
                 detail=str(msg.get("message") or ""),
+            )
+        ]
+
+    def _localised(
+        self, watch: _Watch, robot: str, before: str, placed: tuple[str, str], now: float
+    ) -> list[EventDraft]:
+        previous, watch.placed = watch.placed, placed
+        map_id, source = placed
+        by_tag = source.startswith("tag ")
+        if before == "":  # the robot's first word: where it starts, not a change
+            return []
+        if before != "lost" and (placed == previous or by_tag):
+            return []
+        text = f"{robot} relocalised in {map_id} by {source or 'an unnamed source'}"
+        return [
+            self._draft(
+                watch,
+                now,
+                Kind.RELOCALISED,
+                Severity.INFO,
+                robot,
+                text,
+                map_id=map_id,
+                source=source,
+            )
+        ]
+
+    def goal_sent(
+        self, robot: str, actor: str, msg: Mapping[str, Any], now: float
+    ) -> list[EventDraft]:
+        """A ``geometry_msgs/PoseStamped`` sent to the robot's goal topic by ``actor``."""
+        watch = self._watches.get(robot) or _Watch()
+        header = msg.get("header")
+        map_id = str(header.get("frame_id") or "") if isinstance(header, Mapping) else ""
+        pose = msg.get("pose")
+        position = pose.get("position") if isinstance(pose, Mapping) else None
+        x, y = (position.get("x"), position.get("y")) if isinstance(position, Mapping) else (0, 0)
+        text = f"{actor} sent {robot} a goal in {map_id or 'its map'}"
+        return [
+            EventDraft(
+                now,
+                Kind.GOAL_SENT,
+                Severity.INFO,
+                robot,
+                text,
+                actor,
+                watch.building,
+                {"map_id": map_id, "x": x, "y": y},
             )
         ]
 
@@ -237,11 +323,14 @@ class EventDeriver:
         ]
 
     def teleop(self, robot: str, kind: Kind, holder: str, now: float) -> list[EventDraft]:
-        """A dead-man stop or a lapsed teleop lock, caused by ``holder`` (its label)."""
+        """A teleop lock taken, released or lapsed, or a dead-man stop, by ``holder`` (its
+        label)."""
         watch = self._watch(robot, now)
         text = {
             Kind.DEADMAN_STOP: f"{robot} stopped: no command from {holder} for half a second",
             Kind.TELEOP_LAPSED: f"{holder}'s teleop lock of {robot} lapsed",
+            Kind.TELEOP_TAKEN: f"{holder} took the teleop lock of {robot}",
+            Kind.TELEOP_RELEASED: f"{holder} released the teleop lock of {robot}",
         }[kind]
         severity = Severity.WARNING if kind is Kind.DEADMAN_STOP else Severity.INFO
         return [
@@ -285,6 +374,27 @@ class EventDeriver:
                     )
                 )
         return drafts
+
+
+def bundle_fetched(robot: str, building: str, map_id: str, version: str, now: float) -> EventDraft:
+    """A robot fetched the bundle (map, tags, topology) of ``map_id`` at ``version``."""
+    text = f"{robot} fetched the map bundle of {map_id}"
+    data = {"map_id": map_id, "version": version}
+    return EventDraft(
+        now, Kind.BUNDLE_FETCHED, Severity.INFO, robot, text, f"robot:{robot}", building, data
+    )
+
+
+def map_version_changed(
+    building: str, map_id: str, number: int, reason: str, actor: str, now: float
+) -> EventDraft:
+    """A sub-map has a new version (an upload, a mapping session, an accepted change, a
+    rollback): an event of its building, recorded for each of its robots."""
+    text = f"{map_id} is now version {number} ({reason})"
+    data = {"map_id": map_id, "version": number, "reason": reason}
+    return EventDraft(
+        now, Kind.MAP_VERSION_CHANGED, Severity.INFO, None, text, actor, building, data
+    )
 
 
 # Events in recordings: each robot's events on its ``/{robot}/events`` channel as

@@ -28,6 +28,7 @@ SCHEMA_ENCODING = "ros1msg"
 MESSAGE_ENCODING = "ros1"
 PROFILE = "ros1"
 
+
 class Ros1EncodeError(ValueError):
     """A message that cannot be written as its ROS 1 type."""
 

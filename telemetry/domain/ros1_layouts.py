@@ -58,7 +58,7 @@ def compile_encoder(fielddefs: Mapping[str, Any], name: str) -> Encoder:
     source = "\n".join(compiler.sources)
     source += f"\ndef encode(x):\n    out = []\n    {top}(x, out)\n    return b''.join(out)\n"
     namespace = compiler.namespace
-    exec(compile(source, f"<ros1 encoder of {name}>", "exec"), namespace)  # noqa: S102
+    exec(compile(source, f"<ros1 encoder of {name}>", "exec"), namespace)
     encoder: Encoder = namespace["encode"]
     return encoder
 

@@ -8,7 +8,9 @@ its plan record this topic (and is a camera frame due). The message goes into th
 robot's bounded queue; when the queue is full the message is counted in ``dropped`` and
 left, so the relay never waits. One writer thread drains the queues, serialises to ROS 1,
 writes the robot's rotating files, refreshes the plans from the database and applies
-each building's retention.
+each building's retention. Events come two ways: those this process's event log derives
+through ``Recorder.event`` at once, the others (another process's, a request's) from the
+event log every ``events_seconds``.
 """
 
 from __future__ import annotations
@@ -45,6 +47,7 @@ class RecorderConfig:
     plan_seconds: float = 30.0
     retention_seconds: float = 60.0
     poll_seconds: float = 0.05
+    events_seconds: float = 1.0
 
     @classmethod
     def load(cls) -> RecorderConfig:
@@ -81,6 +84,9 @@ class RobotQueue:
 
 PlanSource = Callable[[str], Plan]
 RetentionSource = Callable[[], Iterable[Retention]]
+# (last event id read or None at first, the robots recorded here) -> (last id, events):
+# the events of the log this process's event log did not derive (``foreign_events``)
+EventSource = Callable[[int | None, frozenset[str]], tuple[int, list[EventDraft]]]
 
 
 class Recorder:
@@ -92,11 +98,15 @@ class Recorder:
         plans: PlanSource,
         retentions: RetentionSource,
         clock: Callable[[], float] = time.time,
+        foreign_events: EventSource | None = None,
     ) -> None:
         self.config = config
         self.plans = plans
         self.retentions = retentions
         self.clock = clock
+        self.foreign_events = foreign_events
+        self._events_after: int | None = None
+        self._events_at = 0.0
         self.robots: dict[str, RobotQueue] = {}
         self._writers: dict[str, files.RotatingFiles] = {}
         self._stop = threading.Event()
@@ -209,6 +219,9 @@ class Recorder:
         if now - self._plans_at >= self.config.plan_seconds or self._unplanned():
             self._refresh_plans()
             self._plans_at = now
+        if self.foreign_events is not None and now - self._events_at >= self.config.events_seconds:
+            self._events_at = now
+            self._guarded(self._read_foreign_events)
         while self._leaving:
             self._drain(self._leaving.popleft())
         self._close_idle()
@@ -220,6 +233,14 @@ class Recorder:
         if now - self._retention_at >= self.config.retention_seconds:
             self._retention_at = now
             self._guarded(self._apply_retention)
+
+    def _read_foreign_events(self) -> None:
+        """Queue the events other processes and requests derived for the robots here
+        (a goal sent from another process, a bundle fetched, a new map version)."""
+        assert self.foreign_events is not None
+        self._events_after, drafts = self.foreign_events(self._events_after, frozenset(self.robots))
+        for draft in drafts:
+            self.event(draft)
 
     def _flush(self, robots: frozenset[str]) -> None:
         for robot in robots:

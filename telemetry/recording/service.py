@@ -8,6 +8,9 @@ from typing import TypeVar
 
 from django.db import connection
 
+from telemetry.domain.events import EventDraft
+from telemetry.events import foreign_events
+
 from .plans import Plan, Retention, plan_for, retentions
 from .recorder import Recorder, RecorderConfig, recording_on
 
@@ -25,7 +28,9 @@ def start_recorder() -> Recorder | None:
     if _recorder is None:
         if not recording_on():
             return None
-        _recorder = Recorder(RecorderConfig.load(), _plan, _retentions)
+        _recorder = Recorder(
+            RecorderConfig.load(), _plan, _retentions, foreign_events=_foreign_events
+        )
         _recorder.start()
         atexit.register(_recorder.stop)
     return _recorder
@@ -58,3 +63,7 @@ def _plan(robot: str) -> Plan:
 
 def _retentions() -> list[Retention]:
     return _closing(retentions)
+
+
+def _foreign_events(after: int | None, robots: frozenset[str]) -> tuple[int, list[EventDraft]]:
+    return _closing(lambda: foreign_events(after, robots))
