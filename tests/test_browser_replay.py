@@ -3,10 +3,13 @@ timeline and the map follow the recording."""
 
 from __future__ import annotations
 
+import base64
 import re
 import time
 from pathlib import Path
 
+import cv2
+import numpy as np
 import pytest
 from playwright.sync_api import BrowserContext, expect
 
@@ -60,8 +63,57 @@ def recordings(tmp_path: Path) -> Path:
         )
         if tenth in EVENTS:
             writer.write(event_record(EVENTS[tenth], START + second))
+        if tenth in FRAMES:
+            writer.write(frame_record(START + second, FRAMES[tenth]))
     writer.close()
     return root
+
+
+# camera frames recorded (the building records the camera at 1/6 Hz): tenth -> grey level
+FRAMES = {20: 40, 80: 120, 140: 200}
+
+
+def frame_record(at: float, grey: int) -> files.Record:
+    ok, jpeg = cv2.imencode(".jpg", np.full((48, 64, 3), grey, np.uint8))
+    assert ok
+    image_type = "sensor_msgs/CompressedImage"
+    msg = {
+        "header": {"stamp": {"sec": int(at), "nanosec": 0}, "frame_id": "camera"},
+        "format": "jpeg",
+        "data": base64.b64encode(jpeg.tobytes()).decode(),
+    }
+    return files.Record(
+        f"/{ROBOT}/camera/image/compressed",
+        image_type,
+        ros1.schema_text(image_type).encode(),
+        int(at * NS),
+        ros1.encode(image_type, msg),
+    )
+
+
+def shown_frame(page) -> tuple[int, int] | None:
+    """The stamp (seconds) and the decoded grey level of the camera frame on show."""
+    return page.evaluate(
+        """() => {
+          const img = document.getElementById("camera-replay");
+          if (!img.complete || !img.naturalWidth || !img.dataset.stamp) return null;
+          const canvas = document.createElement("canvas");
+          canvas.width = img.naturalWidth; canvas.height = img.naturalHeight;
+          const g = canvas.getContext("2d");
+          g.drawImage(img, 0, 0);
+          return [Number(img.dataset.stamp), g.getImageData(5, 5, 1, 1).data[0]];
+        }"""
+    )
+
+
+def wait_for_frame(page, stamp: int) -> int:
+    deadline = time.monotonic() + 10
+    while time.monotonic() < deadline:
+        found = shown_frame(page)
+        if found is not None and found[0] == stamp:
+            return found[1]
+        page.wait_for_timeout(50)
+    raise AssertionError(f"the frame of {stamp} was not shown; on show: {shown_frame(page)}")
 
 
 # events the server derived while recording, by the tenth of a second they happened at
@@ -118,6 +170,10 @@ def test_the_robot_page_replays_a_recording_with_its_timeline(
     aborted.click()
     expect(page.locator("#map-wrap")).to_have_attribute("data-robot", f"{x_at(15):.3f},23.200")
     assert float(page.locator("#replay-time").input_value()) == pytest.approx(START + 15)
+    # the camera card shows the last frame recorded before that point, instead of live video
+    expect(page.locator("#camera-replay")).to_be_visible()
+    expect(page.locator("#camera-frame")).to_be_hidden()
+    assert abs(wait_for_frame(page, START + 14) - 200) <= 8
     # seek to the middle: the map shows where the robot was then
     page.eval_on_selector(
         "#replay-time",
@@ -126,6 +182,7 @@ def test_the_robot_page_replays_a_recording_with_its_timeline(
     )
     expect(page.locator("#map-wrap")).to_have_attribute("data-robot", f"{x_at(10):.3f},23.200")
     expect(page.locator("#map-wrap")).to_have_attribute("data-loaded", CORRIDOR_A)
+    assert abs(wait_for_frame(page, START + 8) - 120) <= 8
     # play at 10x: the robot drives on to where the recording ends
     page.select_option("#replay-speed", "10")
     page.click("#replay-play")
@@ -137,5 +194,7 @@ def test_the_robot_page_replays_a_recording_with_its_timeline(
     assert where[0] == pytest.approx(x_at(20))
     expect(page.locator("#replay-play")).to_have_text("Play")
     # and back to live
+    assert wait_for_frame(page, START + 14)  # the last frame, played through
     page.click("#replay-toggle")
     expect(page.locator("#replay-bar")).to_be_hidden()
+    expect(page.locator("#camera-frame")).to_be_visible()

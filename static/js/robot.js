@@ -225,9 +225,22 @@ setInterval(() => {
 
 // ------------------------------------------------------------ replay of the recording
 
+// Recorded camera frames (when the building records the camera) play in the camera card
+// while replaying, each shown until the next; the live video is hidden meanwhile (CSS).
+const replayFrame = $("camera-replay");
+handlers.set(`${ns}/camera/image/compressed`, (msg) => {
+  const kind = String(msg.format || "").includes("png") ? "png" : "jpeg";
+  replayFrame.src = `data:image/${kind};base64,${msg.data}`;
+  replayFrame.dataset.stamp = String(msg.header.stamp.sec);
+  $("camera-replay-note").hidden = true;
+});
+
 function clearPanels() {
   Object.assign(state, { robotMap: null, pose: null, trail: [], scan: null, plan: { frame: null, points: [] }, nav: null });
   drawRobotLayers();
+  replayFrame.removeAttribute("src");
+  delete replayFrame.dataset.stamp;
+  $("camera-replay-note").hidden = false;
 }
 
 const replay = new Replay(robot, handlers, clearPanels, {
