@@ -10,7 +10,7 @@ from mcap.reader import make_reader
 from mcap_ros1.decoder import DecoderFactory
 from rosbags.rosbag1 import Reader as BagReader
 
-from telemetry.domain import ros1
+from telemetry.domain import ros1, rosbag
 from telemetry.recording import export, files
 from tests.conftest import client_for, make_building, make_robot
 
@@ -158,3 +158,53 @@ def test_the_replay_window_is_rosbridge_json_with_its_span(recordings, viewer):
 
 def test_the_replay_window_rejects_outsider(recordings, outsider):
     assert client_for(outsider).get("/api/robots/r1/recording.json").status_code == 404
+
+
+def test_a_bag_of_many_chunks_and_robots_streams_in_pieces_that_rosbags_reads(tmp_path):
+    record_poses(tmp_path, "r1", range(0, 3000, 2))
+    record_poses(tmp_path, "r2", range(1, 3000, 2))
+    taken = export.snapshot(tmp_path, ["r1", "r2"], 0, 10**12 * NS)
+    sent = list(export.snapshot_records(taken, 0, 10**12 * NS))
+    pieces = list(
+        rosbag.bag_stream(lambda: export.snapshot_records(taken, 0, 10**12 * NS), 16 * 1024)
+    )
+    assert len(pieces) > 10  # the header, then a chunk at a time, then the index
+    assert max(len(p) for p in pieces) < 32 * 1024
+    path = tmp_path / "out.bag"
+    path.write_bytes(b"".join(pieces))
+    with BagReader(path) as bag:
+        assert sorted(c.topic for c in bag.connections) == ["/r1/pose", "/r2/pose"]
+        assert len(bag.chunk_infos) > 10
+        read = [(c.topic, t, bytes(raw)) for c, t, raw in bag.messages()]
+    assert read == [(r.topic, r.log_time, r.data) for r in sent]
+    assert [t // NS for _topic, t, _raw in read] == list(range(3000))
+
+
+def test_a_bag_is_never_written_from_two_different_readings():
+    first = [files.Record("/r1/pose", "geometry_msgs/PoseStamped", b"", 1, b"a")]
+    readings = iter([first, [*first, first[0]]])
+    with pytest.raises(rosbag.BagSourceChanged):
+        b"".join(rosbag.bag_stream(lambda: next(readings)))
+
+
+def test_a_snapshot_of_a_file_being_written_reads_the_same_after_it_grew(tmp_path):
+    writer = files.RotatingFiles(tmp_path, "r1", max_seconds=3600, max_bytes=2**30)
+    schema = ros1.schema_text("geometry_msgs/PoseStamped").encode()
+    data = ros1.encode("geometry_msgs/PoseStamped", POSE)
+
+    def write(second: int) -> None:
+        record = files.Record("/r1/pose", "geometry_msgs/PoseStamped", schema, second * NS, data)
+        writer.write(record)
+
+    for second in range(10):
+        write(second)
+    writer.flush()
+    taken = export.snapshot(tmp_path, ["r1"], 0, 10**6 * NS)
+    before = [r.log_time for r in export.snapshot_records(taken, 0, 10**6 * NS)]
+    for second in range(10, 20):
+        write(second)
+    writer.flush()
+    after = [r.log_time for r in export.snapshot_records(taken, 0, 10**6 * NS)]
+    writer.close()
+    assert before == after == [s * NS for s in range(10)]
+    assert len(list(export.records(tmp_path, ["r1"], 0, 10**6 * NS))) == 20

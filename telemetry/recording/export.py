@@ -1,19 +1,19 @@
 """Any time range of one or several robots as one MCAP file (or ROS 1 bag), written as it
 is read.
 
-``mcap_stream`` yields the file in pieces as its chunks fill, so an hour or a month of
-recording is never held in memory: at most one chunk of output and one of input.
+``mcap_stream`` and ``bag_stream`` yield the file in pieces as its chunks fill, so an hour
+or a month of recording is never held in memory: at most one chunk of output and one of
+input.
 """
 
 from __future__ import annotations
 
 import heapq
-import uuid
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 from typing import Any
 
-from telemetry.domain import ros1
+from telemetry.domain import ros1, rosbag
 
 from . import files
 
@@ -45,13 +45,31 @@ def records(
     root: Path, robots: Iterable[str], start_ns: int, end_ns: int
 ) -> Iterator[files.Record]:
     """The robots' messages in ``[start_ns, end_ns]``, merged in time order."""
-    streams = [_robot_records(root, robot, start_ns, end_ns) for robot in sorted(set(robots))]
+    return snapshot_records(snapshot(root, robots, start_ns, end_ns), start_ns, end_ns)
+
+
+Snapshots = list[list[files.Snapshot]]
+
+
+def snapshot(root: Path, robots: Iterable[str], start_ns: int, end_ns: int) -> Snapshots:
+    """Each robot's files that may hold messages in the range, as they are now."""
+    return [
+        [files.snapshot(f) for f in files.files_between(root, robot, start_ns, end_ns)]
+        for robot in sorted(set(robots))
+    ]
+
+
+def snapshot_records(taken: Snapshots, start_ns: int, end_ns: int) -> Iterator[files.Record]:
+    """The messages of ``taken`` in the range, merged in time order; the same each time."""
+    streams = [_robot_records(robot_files, start_ns, end_ns) for robot_files in taken]
     return heapq.merge(*streams, key=lambda r: r.log_time)
 
 
-def _robot_records(root: Path, robot: str, start_ns: int, end_ns: int) -> Iterator[files.Record]:
-    for f in files.files_between(root, robot, start_ns, end_ns):
-        yield from files.open_messages(f.path, start_ns, end_ns)
+def _robot_records(
+    robot_files: list[files.Snapshot], start_ns: int, end_ns: int
+) -> Iterator[files.Record]:
+    for f in robot_files:
+        yield from files.snapshot_messages(f, start_ns, end_ns)
 
 
 def mcap_stream(source: Iterable[files.Record]) -> Iterator[bytes]:
@@ -67,31 +85,10 @@ def mcap_stream(source: Iterable[files.Record]) -> Iterator[bytes]:
     yield pipe.take()
 
 
-def bag_stream(source: Iterable[files.Record], scratch: Path) -> Iterator[bytes]:
-    """A ROS 1 bag of ``source`` written by ``rosbags`` into a scratch file (its writer
-    wants a path), then yielded in pieces and deleted; memory stays one piece."""
-    from rosbags.rosbag1 import Writer
-
-    scratch.mkdir(parents=True, exist_ok=True)
-    path = scratch / f"export-{uuid.uuid4().hex}.bag"
-    try:
-        with Writer(path) as bag:
-            connections: dict[str, Any] = {}
-            for record in source:
-                connection = connections.get(record.topic)
-                if connection is None:
-                    connection = connections[record.topic] = bag.add_connection(
-                        record.topic,
-                        ros1.store_name(record.type_name),
-                        msgdef=record.schema.decode(),
-                        md5sum=ros1.md5sum(record.type_name),
-                    )
-                bag.write(connection, record.log_time, record.data)
-        with open(path, "rb") as f:
-            while piece := f.read(EXPORT_CHUNK_BYTES):
-                yield piece
-    finally:
-        path.unlink(missing_ok=True)
+def bag_stream(source: Callable[[], Iterable[files.Record]]) -> Iterator[bytes]:
+    """A ROS 1 bag of ``source()``'s messages, yielded as it is written (``rosbag``: two
+    readings of ``source``, which must give the same messages, as a snapshot's do)."""
+    return rosbag.bag_stream(source, EXPORT_CHUNK_BYTES)
 
 
 def json_window(

@@ -229,12 +229,49 @@ def _indexed(path: Path, start_ns: int, end_ns: int) -> Iterator[Record]:
                 yield _record(schema, channel, message)
 
 
-def _streamed(path: Path, start_ns: int, end_ns: int) -> Iterator[Record]:
+@dataclass(frozen=True)
+class Snapshot:
+    """A file as it was at one moment: read again later it gives the same messages, as
+    files only grow (an export that reads twice, the bag's, relies on it)."""
+
+    path: Path
+    finished: bool
+    size: int
+
+
+def snapshot(f: RecordingFile) -> Snapshot:
+    return Snapshot(f.path, finished(f.path), f.size)
+
+
+def snapshot_messages(taken: Snapshot, start_ns: int, end_ns: int) -> Iterator[Record]:
+    """The messages of ``taken`` in ``[start_ns, end_ns]``, as ``open_messages`` read them
+    when the snapshot was taken: by the index if finished then, else up to its size then."""
+    if taken.finished:
+        yield from _indexed(taken.path, start_ns, end_ns)
+    else:
+        yield from _streamed(taken.path, start_ns, end_ns, taken.size)
+
+
+class _Capped:
+    """A binary file read no further than ``limit`` bytes."""
+
+    def __init__(self, f: IO[bytes], limit: int) -> None:
+        self.f, self.left = f, limit
+
+    def read(self, size: int = -1) -> bytes:
+        size = self.left if size < 0 else min(size, self.left)
+        data = self.f.read(size)
+        self.left -= len(data)
+        return data
+
+
+def _streamed(path: Path, start_ns: int, end_ns: int, limit: int | None = None) -> Iterator[Record]:
     schemas: dict[int, Schema] = {}
     channels: dict[int, Channel] = {}
     with open(path, "rb") as f:
+        stream: IO[bytes] = f if limit is None else _Capped(f, limit)  # type: ignore[assignment]
         try:
-            for item in StreamReader(f, skip_magic=False).records:
+            for item in StreamReader(stream, skip_magic=False).records:
                 if isinstance(item, Schema):
                     schemas[item.id] = item
                 elif isinstance(item, Channel):

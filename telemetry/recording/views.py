@@ -70,12 +70,13 @@ def recording_response(
     """The robots' recording in ``[start, end]`` as ``kind`` (``mcap`` or ``bag``)."""
     config = recording_config()
     flush_recordings(robots)
-    source = export.records(config.root, robots, start, end)
+    taken = export.snapshot(config.root, robots, start, end)
     if kind == "bag":
-        content = export.bag_stream(source, config.root / ".exports")
+        content = export.bag_stream(lambda: export.snapshot_records(taken, start, end))
         content_type = "application/x-rosbag"
     else:
-        content, content_type = export.mcap_stream(source), "application/mcap"
+        content = export.mcap_stream(export.snapshot_records(taken, start, end))
+        content_type = "application/mcap"
     response = StreamingHttpResponse(content, content_type=content_type)
     filename = f"{name}-{start // NS}-{end // NS}.{kind}"
     response["Content-Disposition"] = f'attachment; filename="{filename}"'
