@@ -80,10 +80,16 @@ def test_files_rotate_by_time_and_by_size(tmp_path):
         1200 * NS,
     ]
     small = files.RotatingFiles(tmp_path, "r2", max_seconds=3600, max_bytes=1)
-    for i in range(3):
+    for i in range(3 * files.SIZE_EVERY):
         small.write(record("/r2/pose", "geometry_msgs/PoseStamped", POSE, (10 + i) * NS))
     small.close()
-    assert len(files.files_of(tmp_path, "r2")) == 3
+    # the size is looked at every SIZE_EVERY messages: no file passes it by more
+    counts = [
+        len(list(files.open_messages(f.path, 0, 2**62))) for f in files.files_of(tmp_path, "r2")
+    ]
+    assert len(counts) == 3
+    assert max(counts) <= files.SIZE_EVERY
+    assert sum(counts) == 3 * files.SIZE_EVERY
 
 
 def test_a_file_cut_short_is_read_to_its_last_chunk_and_repaired(tmp_path):

@@ -138,8 +138,10 @@ class _Body:
 
     def object_check(self, value: str, name: str) -> None:
         self.emit(f"if {value} is None: {value} = _EMPTY")
+        # a dict (nearly always) skips the slower abstract-class check
         self.emit(
-            f"elif not isinstance({value}, _Mapping): raise TypeError('{name} wants an object')"
+            f"elif type({value}) is not dict and not isinstance({value}, _Mapping): "
+            f"raise TypeError('{name} wants an object')"
         )
 
     def message(self, name: str, value: str) -> None:
@@ -148,7 +150,9 @@ class _Body:
 
     def time(self, name: str, raw: str) -> None:
         value = self.assign(raw)
-        self.emit(f"if not isinstance({value}, _Mapping): {value} = _EMPTY")
+        self.emit(
+            f"if type({value}) is not dict and not isinstance({value}, _Mapping): {value} = _EMPTY"
+        )
         (_, (_, (sec, _))), (_, (_, (nanosec, _))) = self.compiler.fielddefs[name][1]
         self.fixed(_CODES[sec], f"int({value}.get('sec', {value}.get('secs', 0)) or 0)")
         self.fixed(_CODES[nanosec], f"int({value}.get('nanosec', {value}.get('nsecs', 0)) or 0)")
@@ -235,16 +239,12 @@ def _pack_numbers(values: Sequence[Any], code: str) -> bytes:
     """One ``struct`` call when every value is a number of the right kind; NaN for ``null``
     in a float array; numpy's conversions (text, floats into ints) otherwise."""
     layout = f"<{len(values)}{code}"
+    if code in "fd" and None in values:  # a laser scan's ranges out of reach, often
+        values = [_NAN if v is None else v for v in values]
     try:
         return struct.pack(layout, *values)
     except (struct.error, TypeError, OverflowError):
-        pass
-    if code in "fd":
-        try:
-            return struct.pack(layout, *[_NAN if v is None else v for v in values])
-        except (struct.error, TypeError, OverflowError):
-            pass
-    return np.asarray(values, dtype=_DTYPES[code]).tobytes()
+        return np.asarray(values, dtype=_DTYPES[code]).tobytes()
 
 
 def strings(value: Sequence[Any] | None, count: int) -> bytes:

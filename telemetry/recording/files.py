@@ -29,6 +29,7 @@ from mcap.writer import CompressionType, Writer
 from telemetry.domain import ros1
 
 CHUNK_BYTES = 256 * 1024
+SIZE_EVERY = 64
 SUFFIX = ".mcap"
 LIBRARY = "cloudnav"
 PROCESS_TOKEN = uuid.uuid4().hex[:6]
@@ -146,6 +147,7 @@ class RotatingFiles:
         self._out: IO[bytes] | None = None
         self._sink: McapSink | None = None
         self._opened_ns = 0
+        self._writes = 0
         self.path: Path | None = None
 
     def write(self, record: Record) -> None:
@@ -158,7 +160,12 @@ class RotatingFiles:
 
     def _due(self, now_ns: int) -> bool:
         assert self._out is not None
-        return now_ns - self._opened_ns >= self.max_ns or self._out.tell() >= self.max_bytes
+        if now_ns - self._opened_ns >= self.max_ns:
+            return True
+        # the size is looked at every SIZE_EVERY messages: a file passes its size by less
+        # than that many messages, and writing one costs no system call for it
+        self._writes += 1
+        return self._writes % SIZE_EVERY == 0 and self._out.tell() >= self.max_bytes
 
     def _open(self, start_ns: int) -> None:
         self.directory.mkdir(parents=True, exist_ok=True)
