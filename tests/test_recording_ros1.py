@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import base64
 import math
+from typing import Any
 
 import pytest
 
@@ -30,7 +31,7 @@ LOG = {"level": 8, "name": "goal_aborted", "msg": "no path", "topics": ["goal=g7
 STATUS = {"status_list": [{"goal_id": {"id": "g1"}, "status": 3, "text": "done"}]}
 
 
-def round_trip(type_name: str, msg: dict) -> object:
+def round_trip(type_name: str, msg: dict) -> Any:
     data = ros1.encode(type_name, msg)
     decoded = ros1.decode(type_name, data)
     store = ros1._store()
