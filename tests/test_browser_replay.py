@@ -65,6 +65,8 @@ def recordings(tmp_path: Path) -> Path:
             writer.write(event_record(EVENTS[tenth], START + second))
         if tenth in FRAMES:
             writer.write(frame_record(START + second, FRAMES[tenth]))
+        if tenth % 10 == 0:
+            writer.write(odom_record(START + second))
     writer.close()
     return root
 
@@ -89,6 +91,26 @@ def frame_record(at: float, grey: int) -> files.Record:
         int(at * NS),
         ros1.encode(image_type, msg),
     )
+
+
+def odom_record(at: float) -> files.Record:
+    odom_type = "nav_msgs/Odometry"
+    msg = {
+        "header": {"stamp": {"sec": int(at), "nanosec": 0}, "frame_id": "odom"},
+        "twist": {"twist": {"linear": {"x": 0.5}, "angular": {"z": 0.0}}},
+    }
+    return files.Record(
+        f"/{ROBOT}/odom",
+        odom_type,
+        ros1.schema_text(odom_type).encode(),
+        int(at * NS),
+        ros1.encode(odom_type, msg),
+    )
+
+
+def plotted_until(page) -> float | None:
+    """The time of the velocity plots' newest sample."""
+    return page.evaluate("() => window.cloudnav.robotPage.plots.linear.newest()")
 
 
 def shown_frame(page) -> tuple[int, int] | None:
@@ -183,6 +205,8 @@ def test_the_robot_page_replays_a_recording_with_its_timeline(
     expect(page.locator("#map-wrap")).to_have_attribute("data-robot", f"{x_at(10):.3f},23.200")
     expect(page.locator("#map-wrap")).to_have_attribute("data-loaded", CORRIDOR_A)
     assert abs(wait_for_frame(page, START + 8) - 120) <= 8
+    # the velocity plots run on the recording's clock, cleared on a seek
+    assert plotted_until(page) == START + 10
     # play at 10x: the robot drives on to where the recording ends
     page.select_option("#replay-speed", "10")
     page.click("#replay-play")
@@ -195,6 +219,8 @@ def test_the_robot_page_replays_a_recording_with_its_timeline(
     expect(page.locator("#replay-play")).to_have_text("Play")
     # and back to live
     assert wait_for_frame(page, START + 14)  # the last frame, played through
+    assert plotted_until(page) == START + 20
     page.click("#replay-toggle")
     expect(page.locator("#replay-bar")).to_be_hidden()
     expect(page.locator("#camera-frame")).to_be_visible()
+    assert plotted_until(page) is None  # back to live: the recording's samples are gone

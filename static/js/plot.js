@@ -27,6 +27,18 @@ export class TimePlot {
     this.#schedule();
   }
 
+  /** Forget every sample (a replay seeking, or going back to live). */
+  clear() {
+    for (const series of this.series) series.points = [];
+    this.#schedule();
+  }
+
+  /** The time of the newest sample, or null. */
+  newest() {
+    const times = this.series.flatMap((s) => (s.points.length ? [s.points[s.points.length - 1][0]] : []));
+    return times.length ? Math.max(...times) : null;
+  }
+
   latest(index) {
     const points = this.series[index].points;
     return points.length ? points[points.length - 1][1] : null;
@@ -66,8 +78,7 @@ export class TimePlot {
   }
 
   #now() {
-    const times = this.series.flatMap((s) => (s.points.length ? [s.points[s.points.length - 1][0]] : []));
-    return times.length ? Math.max(...times) : 0;
+    return this.newest() ?? 0;
   }
 
   #range() {

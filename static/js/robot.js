@@ -159,7 +159,8 @@ const angularPlot = new TimePlot($("plot-angular"), [{ label: "angular.z (°/s)"
 on(`${ns}/odom`, "nav_msgs/Odometry", (msg) => {
   heard();
   const { linear, angular } = msg.twist.twist;
-  const now = performance.now() / 1000;
+  // replaying, the plots run on the recording's clock (its stamps), else on the page's
+  const now = replay.active ? msg.header.stamp.sec + msg.header.stamp.nanosec / 1e9 : performance.now() / 1000;
   linearPlot.push(now, [linear.x]);
   angularPlot.push(now, [degrees(angular.z)]);
   $("linear-now").textContent = `${fixed(linear.x)} m/s`;
@@ -238,6 +239,8 @@ handlers.set(`${ns}/camera/image/compressed`, (msg) => {
 function clearPanels() {
   Object.assign(state, { robotMap: null, pose: null, trail: [], scan: null, plan: { frame: null, points: [] }, nav: null });
   drawRobotLayers();
+  linearPlot.clear();
+  angularPlot.clear();
   replayFrame.removeAttribute("src");
   delete replayFrame.dataset.stamp;
   $("camera-replay-note").hidden = false;
@@ -254,6 +257,7 @@ const replay = new Replay(robot, handlers, clearPanels, {
   note: $("replay-note"),
 });
 window.cloudnav.robotPage.replay = replay;
+window.cloudnav.robotPage.plots = { linear: linearPlot, angular: angularPlot };
 
 // ------------------------------------------------------------ rates, camera, topology
 
