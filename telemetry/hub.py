@@ -563,6 +563,12 @@ class Hub:
             "fragment_size": getattr(op, "fragment_size", None),
         }
 
+    async def flush_recording(self, robots: list[str]) -> None:
+        """Write out what this process's recorder holds of ``robots`` (an export on another
+        process is about to read their files); on a thread, never the loop."""
+        if self.recorder is not None:
+            await asyncio.to_thread(self.recorder.flush, robots)
+
     async def remote_request(self, message: dict[str, Any]) -> None:
         """Carry out a call, goal or cancel that a connection on another process sent."""
         caller = self.relay.remote(message["caller_channel"], message["caller"])

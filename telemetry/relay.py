@@ -29,6 +29,7 @@ from telemetry.domain import names
 from telemetry.domain.bus import Topic
 from telemetry.domain.encoding import Wire
 from telemetry.domain.protocol import Json
+from telemetry.recording.elsewhere import FLUSH_REQUEST, FLUSHED
 from telemetry.revocation import AccessChange, access_channel
 
 if TYPE_CHECKING:
@@ -255,6 +256,9 @@ class Relay:
             client = self.hub.clients.get(message["conn"])
             if client is not None:
                 client.conn.deliver(Wire(tuple(message["payloads"]), message["binary"]))
+        elif kind == FLUSH_REQUEST:
+            await self.hub.flush_recording(message["robots"])
+            self.send(message["reply"], {"type": FLUSHED})
         else:
             await self.hub.remote_request(message)
 

@@ -110,3 +110,29 @@ async def test_a_goal_sent_from_another_process_is_in_the_robots_recording(
     assert len(sent) == 1
     assert "actor=user:operator" in sent[0].topics
     assert "map_id=boccioni_1/Hall" in sent[0].topics
+
+
+async def test_an_export_from_another_process_holds_what_the_robots_process_still_held(
+    scaled_servers, tmp_path
+):
+    root = tmp_path / "recordings"
+    cluster = scaled_servers(2, env={"CLOUDNAV_RECORDING_DIR": str(root)})
+    here, there = cluster.servers
+    began = time.time()
+    async with websockets.connect(here.rosbridge_url(cluster.tokens["r1"])) as robot:
+        for i in range(20):  # far less than a chunk: all of it in the open chunk, here
+            msg = {**POSE, "pose": {"position": {"x": i, "y": 2}}}
+            await robot.send(json.dumps({"op": "publish", "topic": "pose", "msg": msg}))
+        await sync(robot)
+        url = f"{there.url}/api/robots/r1/recording.mcap?start={began - 5}&end={time.time() + 5}"
+        async with httpx.AsyncClient(timeout=DEADLINE) as http:
+            response = await http.get(url, headers={"Cookie": cluster.cookies["operator"]})
+        assert not any(files.finished(f.path) for f in files.files_of(root, "r1"))
+    assert response.status_code == 200
+    reader = make_reader(io.BytesIO(response.content), decoder_factories=[DecoderFactory()])
+    xs = [
+        ros.pose.position.x
+        for _s, channel, _m, ros in reader.iter_decoded_messages()
+        if channel.topic == "/r1/pose"
+    ]
+    assert xs == [float(i) for i in range(20)]

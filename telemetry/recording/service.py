@@ -6,11 +6,13 @@ import atexit
 from collections.abc import Callable
 from typing import TypeVar
 
+from django.conf import settings
 from django.db import connection
 
 from telemetry.domain.events import EventDraft
 from telemetry.events import foreign_events
 
+from .elsewhere import flush_elsewhere
 from .plans import Plan, Retention, plan_for, retentions
 from .recorder import Recorder, RecorderConfig, recording_on
 
@@ -37,10 +39,14 @@ def start_recorder() -> Recorder | None:
 
 
 def flush_recordings(robots: list[str]) -> None:
-    """Have this process's recorder write out what it holds of ``robots`` (before an
-    export reads their files); a no-op when it records nothing."""
+    """Have the recorders of ``robots`` write out what they hold of them (before an export
+    reads their files): this process's, and in scaled mode those of the processes the
+    robots are connected to."""
     if _recorder is not None:
         _recorder.flush(robots)
+    redis_url = getattr(settings, "REDIS_URL", "") or ""
+    if redis_url and robots:
+        flush_elsewhere(redis_url, robots)
 
 
 def recording_config() -> RecorderConfig:
