@@ -133,15 +133,17 @@ def test_the_same_seed_renders_the_same_frame() -> None:
 
 
 def test_it_renders_a_frame_in_well_under_30_ms() -> None:
+    # Processor time, all threads counted: what a frame costs, whatever else the machine
+    # runs (wall time on a loaded 2-core machine was 8 times this).
     world = demo_world()
     camera = Camera(world)
     pose = facing(tag_of(world, ENTRANCE), 0.4)  # the dearest case: a tag filling the view
     camera.render(pose)
     times = []
     for _ in range(10):
-        started = time.perf_counter()
+        started = time.process_time()
         camera.render(pose)
-        times.append(time.perf_counter() - started)
+        times.append(time.process_time() - started)
     assert sorted(times)[5] < 0.030  # median; about 6 ms on the development machine
 
 
