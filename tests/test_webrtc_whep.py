@@ -47,14 +47,16 @@ class Site:
         return [s for s in video_stats(self.url, self.token) if s["type"].startswith("webrtc")]
 
 
-async def publish(site: Site, jpegs: list[bytes], image_format: str = "jpeg") -> None:
+async def publish(
+    site: Site, jpegs: list[bytes], image_format: str = "jpeg", rate: float = RATE
+) -> None:
     camera = await Camera.connect(site.rosbridge)
     try:
         i = 0
         while True:
             await camera.send(jpegs[i % len(jpegs)], image_format=image_format)
             i += 1
-            await asyncio.sleep(1 / RATE)  # the camera's own rate
+            await asyncio.sleep(1 / rate)  # the camera's own rate
     finally:
         await camera.close()
 
@@ -150,6 +152,26 @@ async def test_viewers_of_one_parameter_set_share_one_encoder(site):
     assert stream["viewers"] == 1
     await viewers[2].close()
     await until(lambda: not site.rtc_streams(), "the encoder to stop", WAIT)
+
+
+async def test_a_viewer_of_a_slow_camera_sees_a_picture_within_seconds(
+    daphne_servers, tokens, jpegs
+):
+    # 4 frames/s: the encoder's own keyframe comes every 60 frames, 15 s apart; a viewer
+    # joining a running encoder must not wait for it (the browser's panel gives up at 8 s).
+    server = await asyncio.to_thread(daphne_servers.start)
+    site = Site(server.url, server.rosbridge_url(tokens["r1"]), tokens["r1"])
+    camera = asyncio.create_task(publish(site, jpegs, rate=4.0))
+    query = f"topic={TOPIC}&type=vp8"
+    first = await WhepViewer.open(site.url, query, site.headers)
+    assert len(await decoded(first, 2)) == 2
+    for _ in range(3):  # each joins an encoder already running, between its keyframes
+        late = await WhepViewer.open(site.url, query, site.headers)
+        async with asyncio.timeout(4.0):
+            assert len(await decoded(late, 1)) == 1
+        await late.close()
+    await first.close()
+    camera.cancel()
 
 
 VANISHING_VIEWER = """

@@ -152,6 +152,10 @@ class PacketTrack(MediaStreamTrack):
                 self._need_keyframe = False
             if not self._need_keyframe:
                 return packet
+            # Still waiting: the keyframe asked for may have gone out before this viewer
+            # read (its connection was still being set up). Without asking again it would
+            # wait for the encoder's interval: 60 frames, 12 s of a 5 frames/s camera.
+            self.pipeline.ask_keyframe()
 
 
 @dataclass
