@@ -84,6 +84,7 @@ async def main(options: argparse.Namespace) -> None:
         seed=options.seed,
         robot=RobotConfig(
             camera_rate=options.camera_rate,
+            camera_timecode=options.camera_timecode,
             depth_rate=options.depth_rate,
             local_planner=options.planner,
         ),

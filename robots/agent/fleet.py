@@ -54,13 +54,17 @@ class FleetOptions:
 
 def add_robot_arguments(parser: argparse.ArgumentParser) -> None:
     """The command-line options of how simulated robots run: ``--time-scale``,
-    ``--camera-rate``, ``--particles``, ``--planner`` (defaults: ``RobotConfig``'s),
-    ``--people`` and ``--people-seed``."""
+    ``--camera-rate``, ``--camera-timecode``, ``--particles``, ``--planner`` (defaults:
+    ``RobotConfig``'s), ``--people`` and ``--people-seed``."""
     defaults = RobotConfig()
     parser.add_argument("--time-scale", type=float, default=1.0, help="simulated s per wall s")
     parser.add_argument(
         "--camera-rate", type=float, default=defaults.camera_rate, help="JPEG frames/s published"
     )
+    parser.add_argument(
+        "--camera-timecode", action="store_true",
+        help="stamp each camera picture with the wall-clock time code (glass-to-glass delay)",
+    )  # fmt: skip
     parser.add_argument(
         "--depth-rate", type=float, default=defaults.depth_rate,
         help="depth images/s published (and offered as keyframes)",

@@ -54,6 +54,7 @@ from robots.agent.visual import LOST_SPREAD, TRUSTED_SPREAD, VisualMap, spread
 from robots.agent.whereabouts import Whereabouts
 from robots.domain.params import FilterParams, RobotConfig
 from robots.domain.se2 import Pose, compose, inverse
+from telemetry.domain import timecode
 from telemetry.domain.messages import (
     Json,
     Message,
@@ -424,6 +425,10 @@ class Robot(Generic[H]):
             await self.publisher.publish("localisation", now.status())
 
     async def _publish_image(self, image: NDArray[np.uint8]) -> None:
+        if self.config.camera_timecode:
+            # The wall clock, not the simulated one: a viewer compares it with its own.
+            image = image.copy()
+            timecode.stamp(image, int(time.time() * 1000))
         jpeg = encode_jpeg(image, self.config.jpeg_quality)
         message = compressed_image_message(jpeg, self.stamp)
         await self.publisher.publish("camera/image/compressed", message)

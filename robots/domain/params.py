@@ -196,6 +196,10 @@ class RobotConfig:
     """Times per second the robot asks again, conditionally, for the bundle of the sub-map
     it is in, so a new version reaches it while it drives there (0: only on entering)."""
     jpeg_quality: int = 80
+    camera_timecode: bool = False
+    """Stamp each published picture with the wall-clock time code of
+    ``telemetry.domain.timecode`` (glass-to-glass delay measurements); it hides the top
+    strip of the picture."""
     local_planner: LocalPlanner = "dwa"
     """``dwa`` (``controller``) or ``teb`` (``teb``)."""
     body: BodyLimits = field(default_factory=BodyLimits)

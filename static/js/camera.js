@@ -3,12 +3,19 @@
 // Extensions (`liveplayer.js`), or straight from the rosbridge topic when the relays are
 // not available. WebRTC that fails falls back to MJPEG by itself. Counts the frames it
 // shows, and shows the relay's figures of the very stream it plays (and, for WebRTC, the
-// browser's own: frame rate, bitrate, delay in its jitter buffer and decoder).
+// browser's own: frame rate, bitrate, delay in its jitter buffer and decoder). When the
+// camera stamps a time code into its pictures, it shows the glass-to-glass delay it reads
+// back from the pictures it shows (`timecode.js`). When the pictures stop coming it says
+// the camera is stalled, and clears that when they come again.
 
 import { LiveRtcPlayer, LiveWebmPlayer } from "./liveplayer.js";
 import { el, fixed } from "./page.js";
+import { DelayMeter } from "./timecode.js";
 
 const STATS_MS = 2000;
+// No new picture for this long (or four of the camera's recent intervals, if longer):
+// stalled. The simulated camera sends 5 pictures/s, a real one 10 to 30.
+const STALL_MS = 2000;
 // What the relay's statistics call each mode's stream (`topic`: the camera as published).
 const STATS_TYPE = { webrtc: "webrtc/vp8", mjpeg: "mjpeg", vp8: "vp8", topic: "source" };
 
@@ -33,12 +40,19 @@ export class CameraPanel {
     }
     setInterval(() => this.#renderRate(), 1000);
     this.lastCount = { at: performance.now(), frames: 0 };
+    this.lastFrameAt = 0;
+    this.interval = 0; // ms between pictures, smoothed
+    this.meter = null;
   }
 
   show(mode) {
     this.stopCurrent();
+    this.meter?.stop();
+    this.meter = null;
     this.mode = mode;
     this.frames = 0;
+    this.interval = 0;
+    this.#stalled(false);
     this.#message("Waiting for frames…");
     for (const button of this.ui.modes.querySelectorAll("button[data-mode]")) {
       button.classList.toggle("active", button.dataset.mode === mode);
@@ -47,6 +61,8 @@ export class CameraPanel {
     this.ui.stats.hidden = true; // until the figures of this mode's stream arrive
     this.ui.rtc.hidden = true;
     delete this.ui.frame.dataset.fallback;
+    delete this.ui.frame.dataset.fallbackReason;
+    for (const key of ["delayP50", "delayP95", "delayCount"]) delete this.ui.frame.dataset[key];
     const start = {
       webrtc: () => this.#webrtc(),
       mjpeg: () => this.#mjpeg(),
@@ -57,6 +73,9 @@ export class CameraPanel {
   }
 
   #frame() {
+    const now = performance.now();
+    if (this.frames > 0) this.interval = this.interval ? 0.9 * this.interval + 0.1 * (now - this.lastFrameAt) : now - this.lastFrameAt;
+    this.lastFrameAt = now;
     this.frames += 1;
     this.ui.frame.dataset.frames = String(this.frames);
     if (this.frames === 1) this.#message("");
@@ -90,6 +109,7 @@ export class CameraPanel {
     const player = new LiveRtcPlayer(video, whepUrl(this.topic), (error) => {
       this.show("mjpeg");
       this.ui.frame.dataset.fallback = "mjpeg";
+      this.ui.frame.dataset.fallbackReason = error;
       this.#message(`${error}: showing MJPEG.`);
     });
     this.rtc = player;
@@ -159,7 +179,17 @@ export class CameraPanel {
       if (value === true) node.setAttribute(key, "");
     }
     this.ui.frame.prepend(node);
+    this.meter = new DelayMeter(node);
     return node;
+  }
+
+  #stalled(stalled, seconds = 0) {
+    const badge = this.ui.stalled;
+    if (stalled) this.ui.frame.dataset.stalled = "true";
+    else delete this.ui.frame.dataset.stalled;
+    if (!badge) return;
+    badge.hidden = !stalled;
+    badge.textContent = stalled ? `Stalled: no new picture for ${seconds.toFixed(0)} s` : "";
   }
 
   #renderRate() {
@@ -167,7 +197,15 @@ export class CameraPanel {
     const fps = ((this.frames - this.lastCount.frames) * 1000) / (now - this.lastCount.at);
     this.lastCount = { at: now, frames: this.frames };
     this.ui.fps.dataset.fps = Math.max(0, fps).toFixed(1);
-    this.ui.fps.replaceChildren(...figures([["Shown here", `${Math.max(0, fps).toFixed(1)} fps · ${this.frames} frames`]]));
+    const shown = [["Shown here", `${Math.max(0, fps).toFixed(1)} fps · ${this.frames} frames`]];
+    const delay = this.meter?.summary();
+    if (delay?.p50 !== null && delay?.p50 !== undefined) {
+      shown.push(["Glass to glass", `p50 ${Math.round(delay.p50)} ms · p95 ${Math.round(delay.p95)} ms`]);
+      Object.assign(this.ui.frame.dataset, { delayP50: delay.p50, delayP95: delay.p95, delayCount: delay.count });
+    }
+    this.ui.fps.replaceChildren(...figures(shown));
+    const quiet = now - this.lastFrameAt;
+    this.#stalled(this.frames > 0 && quiet > Math.max(STALL_MS, 4 * this.interval), quiet / 1000);
   }
 
   /** Poll the relay's statistics of the stream this panel plays, and show them. */

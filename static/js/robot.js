@@ -272,6 +272,7 @@ const camera = new CameraPanel(connection, `${ns}/camera/image/compressed`, {
   modes: $("camera-modes"),
   frame: $("camera-frame"),
   note: $("camera-note"),
+  stalled: $("camera-stalled"),
   fps: $("camera-fps"),
   stats: $("camera-stats"),
   rtc: $("camera-rtc"),
