@@ -10,14 +10,17 @@ access rules of ``/stream``; offers beyond a client's share refused.
 from __future__ import annotations
 
 import asyncio
+import base64
 import json
 import sys
+import time
 from collections.abc import AsyncIterator
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import httpx
 import pytest
+import websockets
 
 from telemetry.domain.camera_feed import Camera, camera_frames
 from telemetry.domain.video import Frame
@@ -31,6 +34,7 @@ pytestmark = pytest.mark.django_db(transaction=True)
 TOPIC = "/r1/camera/image/compressed"
 WAIT = 20.0
 RATE = 30.0
+VIDEO_TYPE = "foxglove_msgs/CompressedVideo"
 
 
 @dataclass
@@ -38,6 +42,7 @@ class Site:
     url: str
     rosbridge: str
     token: str
+    units: list[bytes] = field(default_factory=list)  # an H.264 camera's access units
 
     @property
     def headers(self) -> dict[str, str]:
@@ -97,6 +102,7 @@ async def h264_site(daphne_servers, tokens, jpegs) -> AsyncIterator[Site]:
         b"".join(bytes(p) for p in encoder.packets(Frame(jpeg, "jpeg", None, 0.0), i * 33))
         for i, jpeg in enumerate(jpegs)
     ]
+    site.units = units
     camera = asyncio.create_task(publish(site, units, "h264"))
     yield site
     camera.cancel()
@@ -136,6 +142,45 @@ async def test_an_h264_camera_is_relayed_without_decoding(h264_site):
     [stream] = await asyncio.to_thread(site.rtc_streams)
     assert stream["encoder_cpu"] == 0
     await viewer.close()
+
+
+async def publish_compressed_video(site: Site, units: list[bytes]) -> None:
+    """A camera that encodes H.264 itself, as Foxglove's ``CompressedVideo`` on a topic of
+    its own choosing (``camera/video``, not the contract's image topic)."""
+    async with websockets.connect(site.rosbridge, max_size=None) as ws:
+        topic = {"topic": "camera/video"}
+        await ws.send(json.dumps({"op": "advertise", **topic, "type": VIDEO_TYPE}))
+        for i in range(10**6):
+            now = time.time()
+            msg = {
+                "timestamp": {"sec": int(now), "nanosec": int(now % 1 * 1e9)},
+                "frame_id": "camera",
+                "data": base64.b64encode(units[i % len(units)]).decode(),
+                "format": "h264",
+            }
+            await ws.send(json.dumps({"op": "publish", **topic, "msg": msg}))
+            await asyncio.sleep(1 / RATE)
+
+
+async def test_a_foxglove_compressed_video_camera_is_relayed_without_decoding(h264_site):
+    site = h264_site
+    units = h264_site.units
+    camera = asyncio.create_task(publish_compressed_video(site, units))
+    viewer = None
+    async with asyncio.timeout(WAIT):  # the topic is a camera once it is advertised
+        while viewer is None:
+            try:
+                query = "topic=/r1/camera/video&type=h264"
+                viewer = await WhepViewer.open(site.url, query, site.headers)
+            except WhepRefused as refused:
+                if refused.status != 404:
+                    raise
+                await asyncio.sleep(0.1)
+    assert await decoded(viewer, 10) == [(320, 240)] * 10
+    stream = next(s for s in await asyncio.to_thread(site.rtc_streams) if "video" in s["topic"])
+    assert stream["encoder_cpu"] == 0
+    await viewer.close()
+    camera.cancel()
 
 
 async def test_viewers_of_one_parameter_set_share_one_encoder(site):

@@ -31,6 +31,10 @@ SOURCE = "source"
 DEFAULT_TYPE = MJPEG
 
 COMPRESSED_IMAGE = "sensor_msgs/CompressedImage"
+COMPRESSED_VIDEO = "foxglove_msgs/CompressedVideo"
+"""Foxglove's video message (``timestamp``, ``frame_id``, ``data``, ``format``): a camera
+that encodes H.264 itself; its access units are relayed to WebRTC viewers as they are."""
+CAMERA_TYPES = (COMPRESSED_IMAGE, COMPRESSED_VIDEO)
 COMPRESSED_SUFFIX = "/compressed"
 
 # web_video_server's defaults: JPEG quality of a re-encode, and its libav (VP8) settings.
@@ -124,7 +128,8 @@ def is_h264(image_format: str) -> bool:
 
 
 def frame_from_message(msg: Mapping[str, Any], received: float | None = None) -> Frame:
-    """Return the frame in a ``sensor_msgs/CompressedImage`` message.
+    """Return the frame in a ``sensor_msgs/CompressedImage`` or
+    ``foxglove_msgs/CompressedVideo`` message (only H.264 of the latter).
 
     ``data`` may be base64 text (rosbridge JSON), bytes (CBOR) or a list of byte values.
     Raises BadFrame when the data is missing or undecodable, or the format is neither an
@@ -159,9 +164,10 @@ def _image_bytes(data: Any) -> bytes:
 
 
 def stamp_seconds(msg: Mapping[str, Any]) -> float | None:
-    """Return ``header.stamp`` in seconds, or None if the message has none (or a zero one)."""
+    """Return ``header.stamp`` (``timestamp`` in a ``CompressedVideo``) in seconds, or None
+    if the message has none (or a zero one)."""
     header = msg.get("header")
-    value = header.get("stamp") if isinstance(header, Mapping) else None
+    value = header.get("stamp") if isinstance(header, Mapping) else msg.get("timestamp")
     if not isinstance(value, Mapping):
         return None
     try:

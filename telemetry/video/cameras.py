@@ -9,8 +9,9 @@ refused outright (403).
 
 A topic is a camera if it belongs to a registered robot (its first segment) and carries
 ``sensor_msgs/CompressedImage``: the contract's ``/{robot}/camera/image/compressed``
-always does; any other topic does while it is published with that type, on this server
-process or, in scaled mode, on another.
+always does; any other topic does while it is published with that type, or as
+``foxglove_msgs/CompressedVideo`` (H.264, for WebRTC viewers), on this server process or,
+in scaled mode, on another.
 """
 
 from __future__ import annotations
@@ -25,7 +26,7 @@ from telemetry.domain import names, rules
 from telemetry.domain.names import canonical_type
 from telemetry.domain.rules import Owner, Principal
 from telemetry.domain.video import (
-    COMPRESSED_IMAGE,
+    CAMERA_TYPES,
     NotAuthenticated,
     NotWatchable,
     UnknownStream,
@@ -119,7 +120,7 @@ def may_watch(principal: Principal, owner: Owner | None) -> bool:
 
 
 async def carries_images(hub: Hub, topic: str) -> bool:
-    """True if ``topic`` is (or is now published as) a compressed image topic."""
+    """True if ``topic`` is (or is now published as) a compressed image or video topic."""
     known = fleet_type(topic)
     local = hub.bus.get(topic)
     if known is None and local is not None:
@@ -127,18 +128,19 @@ async def carries_images(hub: Hub, topic: str) -> bool:
     if known is None:
         found = await hub.relay.find("topics", topic)
         known = found[1] if found else None
-    return known is not None and canonical_type(known) == COMPRESSED_IMAGE
+    return known is not None and canonical_type(known) in CAMERA_TYPES
 
 
 async def published_cameras(hub: Hub) -> set[str]:
-    """Return the compressed image topics published now, here or on other processes."""
+    """Return the compressed image and video topics published now, here or on other
+    processes."""
     found = {
         name
         for name, type_name in hub.bus.published_topics()
-        if canonical_type(type_name) == COMPRESSED_IMAGE
+        if canonical_type(type_name) in CAMERA_TYPES
     }
     entries = await hub.relay.entries("topics")
-    found |= {n for n, t, _ in entries if t and canonical_type(t) == COMPRESSED_IMAGE}
+    found |= {n for n, t, _ in entries if t and canonical_type(t) in CAMERA_TYPES}
     return found
 
 

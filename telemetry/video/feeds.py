@@ -19,8 +19,15 @@ import cbor2
 from telemetry.domain.bus import SubscribeParams, TopicBus
 from telemetry.domain.encoding import Wire
 from telemetry.domain.newest import Newest
-from telemetry.domain.video import COMPRESSED_IMAGE, BadFrame, Frame, frame_from_message
+from telemetry.domain.video import (
+    COMPRESSED_IMAGE,
+    COMPRESSED_VIDEO,
+    BadFrame,
+    Frame,
+    frame_from_message,
+)
 from telemetry.domain.video_stats import StreamStats
+from telemetry.exceptions import TypeConflict
 
 logger = logging.getLogger(__name__)
 
@@ -44,8 +51,11 @@ class CameraFeed:
 
     def start(self) -> None:
         """Subscribe to the topic. Raises RosbridgeError (TypeConflict) if the topic is
-        not a compressed image topic."""
-        self.bus.subscribe(self, self.topic, COMPRESSED_IMAGE, _AS_CBOR)
+        neither a compressed image topic nor a Foxglove compressed video topic."""
+        try:
+            self.bus.subscribe(self, self.topic, COMPRESSED_IMAGE, _AS_CBOR)
+        except TypeConflict:
+            self.bus.subscribe(self, self.topic, COMPRESSED_VIDEO, _AS_CBOR)
 
     def stop(self) -> None:
         """Unsubscribe; readers waiting for a frame are told it is over."""
