@@ -18,7 +18,7 @@ from playwright.sync_api import BrowserContext, Page, Route, expect
 
 from telemetry.domain.camera_feed import Camera, camera_frames
 from tests.browser_support import ROBOT, TIME_SCALE, Demo, open_as, screenshot
-from tests.fixtures_live import agent_process
+from tests.fixtures_live import agent_process, video_stats
 
 pytest_plugins = ["tests.browser_support"]
 pytestmark = [pytest.mark.browser, pytest.mark.django_db(transaction=True)]
@@ -251,3 +251,18 @@ def test_the_same_webrtc_stream_resumes_when_the_robot_reconnects(
     assert page.get_attribute("#camera-frame", "data-mode") == "webrtc"
     assert page.get_attribute("#camera-frame", "data-fallback") is None
     assert page.evaluate(f"v => v === {VIDEO}", video)  # the same player, not a new one
+
+
+def test_debian_chromium_plays_h264_by_webrtc(
+    context: BrowserContext, demo: Demo, stamping_agent: Path
+) -> None:
+    # Debian's chromium decodes H.264 (its RTCRtpReceiver lists constrained baseline,
+    # main and high): the viewer page's codec=h264 plays without falling back to MJPEG.
+    wait_for_camera(demo)
+    page = open_as(context, demo, "viewer", f"/stream_viewer?topic={TOPIC}&type=webrtc&codec=h264")
+    page.wait_for_function("() => window.delayMeter?.count >= 10", timeout=30_000)
+    assert page.evaluate("() => document.getElementById('stream').tagName") == "VIDEO"
+    streams = video_stats(demo.server.url, demo.tokens[ROBOT])
+    assert [s["viewers"] for s in streams if s["type"] == "webrtc/h264"] == [1]
+    delays = page.evaluate("() => window.delayMeter.summary()")
+    assert 0 < delays["p50"] < GLASS_TO_GLASS_P95_MS
