@@ -40,7 +40,7 @@ import numpy as np
 
 from maps.domain.demo_building import demo_building
 from maps.domain.planning import warm_up
-from robots.agent.navigation import Driver, DriveState, LocalObstacles
+from robots.agent.navigation import STOP, Driver, DriveState, LocalObstacles
 from robots.agent.sim.crowd import Crowd, Person, seeded_people
 from robots.agent.sim.hardware import SimHardware
 from robots.agent.sim.world import World, demo_world
@@ -221,7 +221,7 @@ def _step(run: RobotRun, submap: SubMap, seconds: float, crowd: Crowd) -> None:
         run.goal, submap, after, hardware.reported_velocity, obstacles, seconds, hardware.odom_pose
     )
     run.cycles_ms.append(1000 * (time.thread_time() - started))
-    hardware.command(*drive.command)
+    hardware.command(*(drive.command or STOP))  # the agent's Driver always commands
     if drive.state is DriveState.ARRIVED:
         run.arrived_at = seconds
     elif drive.state is DriveState.FAILED:

@@ -2,7 +2,8 @@
 
 ``python -m benchmarks NAME [options]`` and ``python manage.py bench NAME [options]``
 both come here. A benchmark is a module of this package with ``add_arguments(parser)``
-(argparse) and ``run(options)``, whose docstring's first line is its help; an experiment
+(argparse) and ``run(options)``, whose docstring's first line is its help, named after
+the module or its ``NAME`` (``ros-bridge``, which no module name can spell); an experiment
 is an entry of ``robots.agent.experiments``' table (``main(argv) -> int``), which the
 robot side also runs without the server's packages (``python -m robots.agent.experiments``).
 """
@@ -37,7 +38,7 @@ def benchmark_modules() -> dict[str, ModuleType]:
             continue
         module = importlib.import_module(f"benchmarks.{info.name}")
         if hasattr(module, "add_arguments") and hasattr(module, "run"):
-            found[info.name] = module
+            found[getattr(module, "NAME", info.name)] = module
     return found
 
 

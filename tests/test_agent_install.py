@@ -25,7 +25,8 @@ IMPORT_CHECK = """
 import importlib, importlib.util, pkgutil, sys
 import robots.agent
 names = [m.name for m in pkgutil.walk_packages(robots.agent.__path__, "robots.agent.")]
-names = [n for n in names if not n.startswith("robots.agent.ros.")]  # needs ROS installed
+ros = ("robots.agent.ros.", "robots.agent.sim.ros_nodes")  # need ROS installed
+names = [n for n in names if not n.startswith(ros)]
 for name in names:
     importlib.import_module(name)
 server = [n for n in {server!r} if n in sys.modules or importlib.util.find_spec(n)]

@@ -103,10 +103,13 @@ def test_maps_poses_goals_and_cancel_reach_ros(
     import actionlib  # type: ignore[import-not-found,unused-ignore]
     import rospy  # type: ignore[import-not-found,unused-ignore]
     from geometry_msgs.msg import (  # type: ignore[import-not-found,unused-ignore]
+        PoseStamped,
         PoseWithCovarianceStamped,
     )
     from move_base_msgs.msg import MoveBaseAction  # type: ignore[import-not-found,unused-ignore]
+    from nav_msgs.msg import Path as PlanPath  # type: ignore[import-not-found,unused-ignore]
 
+    from robots.agent.hardware import StackGoal
     from robots.agent.ros.navigation import RosNavigationStack
 
     # A minimal move_base: holds each goal active until it is preempted.
@@ -120,12 +123,21 @@ def test_maps_poses_goals_and_cancel_reach_ros(
                 return
             time.sleep(0.02)
 
-    server = actionlib.SimpleActionServer("move_base", MoveBaseAction, execute, auto_start=False)
+    # Its names are the test's own: the session's roscore serves later tests too.
+    server = actionlib.SimpleActionServer(
+        "/probe/move_base", MoveBaseAction, execute, auto_start=False
+    )
     server.start()
     poses: list[Any] = []
-    rospy.Subscriber("/initialpose", PoseWithCovarianceStamped, poses.append)
+    rospy.Subscriber("/probe/initialpose", PoseWithCovarianceStamped, poses.append)
 
-    stack = RosNavigationStack()
+    stack = RosNavigationStack(
+        map_topic="/probe/map",
+        initial_pose_topic="/probe/initialpose",
+        action="/probe/move_base",
+        pose_source="/probe/amcl_pose",
+        plan_topic="/probe/plan",
+    )
     assert stack.wait_for_server(30)
     grid = np.zeros((30, 40), dtype=np.int8)
     grid[0, :] = 100
@@ -134,7 +146,7 @@ def test_maps_poses_goals_and_cancel_reach_ros(
 
     # Latched: a subscriber that arrives afterwards still gets it.
     echoed = subprocess.run(
-        ["rostopic", "echo", "-n", "1", "/map/info"],
+        ["rostopic", "echo", "-n", "1", "/probe/map/info"],
         env=ros_env,
         capture_output=True,
         text=True,
@@ -162,9 +174,28 @@ def test_maps_poses_goals_and_cancel_reach_ros(
     assert goal.target_pose.pose.position.x == pytest.approx(3.0)
     assert goal.target_pose.pose.position.y == pytest.approx(4.0)
     wait_for(lambda: stack.state() == ACTIVE, 30, "an active goal")
+    assert stack.goal_state() is StackGoal.ACTIVE
 
     stack.cancel()
     wait_for(lambda: stack.state() == PREEMPTED, 30, "the goal preempted")
+    assert stack.goal_state() is StackGoal.NONE
+
+    # AMCL's pose counts once stamped after the last initial pose; so does a plan.
+    assert stack.pose() is None
+    localised = PoseWithCovarianceStamped()
+    localised.header.stamp, localised.header.frame_id = rospy.Time.now(), "map"
+    localised.pose.pose.position.x, localised.pose.pose.orientation.w = 1.6, 1.0
+    amcl = rospy.Publisher("/probe/amcl_pose", PoseWithCovarianceStamped, queue_size=1, latch=True)
+    amcl.publish(localised)
+    assert wait_for(stack.pose, 30, "the pose from amcl_pose") == pytest.approx((1.6, 0.0, 0.0))
+    plan = PlanPath()
+    plan.header.frame_id = "map"
+    plan.poses = [PoseStamped(), PoseStamped()]
+    plan.poses[1].pose.position.x = 2.0
+    planner = rospy.Publisher("/probe/plan", PlanPath, queue_size=1, latch=True)
+    planner.publish(plan)
+    wait_for(lambda: stack.plan()[0] > 0, 30, "the plan")
+    assert list(stack.plan()[1]) == [(0.0, 0.0), (2.0, 0.0)]
 
 
 def test_a_ros_robot_is_the_softwares_hardware(node: None) -> None:
@@ -198,15 +229,21 @@ def test_a_ros_robot_is_the_softwares_hardware(node: None) -> None:
     image = CompressedImage()
     image.format, image.data = "jpeg", cv2.imencode(".jpg", frame)[1].tobytes()
     for topic, kind, msg in (
-        ("/odom", Odometry, odom),
-        ("/scan", LaserScan, scan),
-        ("/camera/image/compressed", CompressedImage, image),
+        ("/probe/odom", Odometry, odom),
+        ("/probe/scan", LaserScan, scan),
+        ("/probe/camera/image/compressed", CompressedImage, image),
     ):
         rospy.Publisher(topic, kind, queue_size=1, latch=True).publish(msg)
     commands: list[Any] = []
-    rospy.Subscriber("/cmd_vel", Twist, commands.append)
+    rospy.Subscriber("/probe/cmd_vel", Twist, commands.append)
 
-    hardware: Hardware = RosHardware(timeout=30)
+    hardware: Hardware = RosHardware(
+        odom="/probe/odom",
+        scan="/probe/scan",
+        camera="/probe/camera/image/compressed",
+        cmd_vel="/probe/cmd_vel",
+        timeout=30,
+    )
     assert hardware.odom_pose == pytest.approx((1.0, 2.0, 0.5))
     assert hardware.reported_velocity == pytest.approx((0.3, -0.1))
     ranges = hardware.scan()
@@ -237,7 +274,7 @@ def start_bridge(ros_env: dict[str, str], server: str, token: str) -> subprocess
     return subprocess.Popen(
         [
             *(sys.executable, "-m", "robots.agent.ros", "--server", server, "--token", token),
-            *("--particles", "0", "--node", "cloudnav_bridge_robot_0"),
+            *("--particles", "0", "--node", "cloudnav_bridge_robot_0", "--navigation", "agent"),
         ],
         env={**ros_env, "PYTHONPATH": str(ROOT)},
         cwd=ROOT,
@@ -315,9 +352,255 @@ async def test_the_bridge_node_carries_an_operators_goal_to_ros_and_survives_the
         )
         assert bridge.poll() is None
     finally:
+        odom_out.unregister()  # latched: later tests' robots would read them
+        scan_out.unregister()
         bridge.terminate()
         try:
             bridge.wait(timeout=30)
         except subprocess.TimeoutExpired:
             bridge.kill()
             bridge.wait(timeout=30)
+
+
+# --- a ROS 1 robot of rospy nodes, its own move_base, the bridge and the cloud -----------
+
+ATRIUM_1 = "boccioni_1/Atrium1"
+IN_ATRIUM_1 = (20.0, 23.8, 0.0)
+BACK_IN_CORRIDOR_A = (14.0, 23.2, math.pi)
+TAG_1_APPROACH = (17.3, 22.6)  # 0.5 m in front of tag 1, which leads to Atrium 1
+SUCCEEDED = 3
+SUB_MAP_SIZES = {CORRIDOR_A: (392, 160), ATRIUM_1: (232, 232)}  # width, height
+
+
+def start_node(ros_env: dict[str, str], log: Path, *command: str) -> subprocess.Popen[bytes]:
+    """``python -m <command>`` as a process on the test's roscore, its output in ``log``."""
+    with log.open("wb") as out:
+        return subprocess.Popen(
+            [sys.executable, "-m", *command],
+            env={**ros_env, "PYTHONPATH": str(ROOT)},
+            cwd=ROOT,
+            stdout=out,
+            stderr=subprocess.STDOUT,
+        )
+
+
+def stop_node(process: subprocess.Popen[Any]) -> None:
+    process.terminate()
+    try:
+        process.wait(timeout=30)
+    except subprocess.TimeoutExpired:
+        process.kill()
+        process.wait(timeout=30)
+
+
+class RosSide:
+    """What the test sees on ROS: ``/map``, ``/initialpose``, ``move_base`` goals, results
+    and cancels, ``cmd_vel`` with the node that sent it; and a ``LoadMap`` service."""
+
+    def __init__(self) -> None:
+        import rospy  # type: ignore[import-not-found,unused-ignore]
+        from actionlib_msgs.msg import GoalID  # type: ignore[import-not-found,unused-ignore]
+        from geometry_msgs.msg import (  # type: ignore[import-not-found,unused-ignore]
+            PoseWithCovarianceStamped,
+            Twist,
+        )
+        from move_base_msgs.msg import (  # type: ignore[import-not-found,unused-ignore]
+            MoveBaseActionGoal,
+            MoveBaseActionResult,
+        )
+        from nav_msgs.msg import OccupancyGrid  # type: ignore[import-not-found,unused-ignore]
+        from nav_msgs.srv import LoadMap, LoadMapResponse  # type: ignore[import-not-found,unused-ignore]
+
+        self.maps: list[Any] = []
+        self.initial_poses: list[Any] = []
+        self.goals: list[tuple[float, Any]] = []
+        self.results: list[tuple[float, Any]] = []
+        self.cancels: list[float] = []
+        self.commands: list[tuple[float, str, float, float]] = []
+        self.loaded: list[str] = []
+        now = time.monotonic
+        rospy.Subscriber("/map", OccupancyGrid, self.maps.append)
+        rospy.Subscriber("/initialpose", PoseWithCovarianceStamped, self.initial_poses.append)
+        rospy.Subscriber(
+            "/move_base/goal", MoveBaseActionGoal, lambda m: self.goals.append((now(), m.goal))
+        )
+        rospy.Subscriber(
+            "/move_base/result", MoveBaseActionResult, lambda m: self.results.append((now(), m))
+        )
+        rospy.Subscriber("/move_base/cancel", GoalID, lambda _m: self.cancels.append(now()))
+
+        def commanded(msg: Any) -> None:
+            sender = msg._connection_header["callerid"]
+            self.commands.append((now(), sender, msg.linear.x, msg.angular.z))
+
+        rospy.Subscriber("/cmd_vel", Twist, commanded)
+
+        def load(request: Any) -> Any:
+            self.loaded.append(request.map_url)
+            return LoadMapResponse(result=0)
+
+        self.service = rospy.Service("/change_map", LoadMap, load)
+
+    def goal_near(self, x: float, y: float, since: float = 0.0) -> bool:
+        return any(
+            t >= since
+            and math.dist((g.target_pose.pose.position.x, g.target_pose.pose.position.y), (x, y))
+            < 0.05
+            for t, g in self.goals
+        )
+
+    def succeeded_since(self, since: float) -> bool:
+        return any(t >= since and r.status.status == SUCCEEDED for t, r in self.results)
+
+
+def echoed_map_info(ros_env: dict[str, str]) -> str:
+    """``rostopic echo -n 1 /map/info``, as a person on the robot would look."""
+    echoed = subprocess.run(
+        ["rostopic", "echo", "-n", "1", "/map/info"],
+        env=ros_env,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert echoed.returncode == 0, echoed.stderr
+    return echoed.stdout
+
+
+async def cloud_grid(server: Any, token: str, map_id: str) -> Any:
+    """The grid of ``map_id`` as the cloud serves it to the robot."""
+    import httpx
+
+    from robots.agent.supervisor import submap_from_bundle
+
+    building, _, code = map_id.partition("/")
+    async with httpx.AsyncClient(
+        base_url=server.url, headers={"Authorization": f"Token {token}"}, timeout=30
+    ) as http:
+        answer = await http.get(f"/api/buildings/{building}/maps/{code}/bundle")
+    assert answer.status_code == 200
+    return submap_from_bundle(answer.json(), "").grid
+
+
+@pytest.mark.slow
+async def test_a_ros_robot_crosses_sub_maps_through_its_own_move_base(
+    node: None,
+    ros_env: dict[str, str],
+    daphne_server: Any,
+    demo_token: str,
+    operator_headers: Any,
+    tmp_path: Path,
+) -> None:
+    import websockets
+
+    from tests.test_agent_live import Operator, pose
+
+    ros = RosSide()
+    processes = [
+        start_node(ros_env, tmp_path / "body.log", "robots.agent.sim.ros_robot", "body",
+                   "--cloud", daphne_server.url),
+        start_node(ros_env, tmp_path / "move_base.log", "robots.agent.sim.ros_robot", "move_base"),
+        start_node(ros_env, tmp_path / "bridge.log", "robots.agent.ros", "--server",
+                   daphne_server.url, "--token", demo_token, "--load-map", "/change_map",
+                   "--map-dir", str(tmp_path / "maps"), "--node", "cloudnav_bridge_robot_0"),
+    ]  # fmt: skip
+
+    def logs() -> str:
+        tails = (
+            f"--- {p.name}\n{p.read_text(errors='replace')[-3000:]}" for p in tmp_path.glob("*.log")
+        )
+        goals = [(round(t), g.target_pose.pose.position) for t, g in ros.goals]
+        results = [(round(t), r.status.status) for t, r in ros.results]
+        return "\n".join(tails) + f"\ngoals: {goals}\nresults: {results}"
+
+    try:
+        async with websockets.connect(
+            daphne_server.rosbridge_url(), additional_headers=operator_headers
+        ) as ws:
+            operator = Operator(ws)
+            for topic in ("pose", "nav_status", "map_id", "plan"):
+                await operator.send(op="subscribe", topic=f"/{ROBOT}/{topic}")
+
+            def entered(map_id: str) -> bool:
+                held = operator.latest.get(f"/{ROBOT}/map_id", {}).get("data", "")
+                return bool(held.split("@")[0] == map_id)
+
+            # Standing before the entrance tag, the robot reads it: Corridor A on /map.
+            await operator.until(lambda: entered(CORRIDOR_A), f"Corridor A\n{logs()}", 120)
+            wait_for(lambda: ros.maps, 30, "/map")
+            info = echoed_map_info(ros_env)
+            assert "width: 392" in info, info
+            assert "height: 160" in info, info
+            grid = np.asarray(ros.maps[-1].data, dtype=np.int8).reshape(160, 392)
+            assert np.array_equal(grid, await cloud_grid(daphne_server, demo_token, CORRIDOR_A))
+            placed = wait_for(lambda: ros.initial_poses, 30, "/initialpose")[-1]
+            assert placed.pose.covariance[0] > 0  # the tag's covariance, not zeros
+            wait_for(lambda: ros.loaded, 30, "load_map")
+            assert ros.loaded[-1].endswith("boccioni_1__CorridorA.yaml")
+
+            # The operator's goal in Atrium 1 reaches move_base as a goal to tag 1 first.
+            sent = time.monotonic()
+            goal = pose(ATRIUM_1, *IN_ATRIUM_1)
+            await operator.send(op="publish", topic=f"/{ROBOT}/goal", msg=goal)
+            await operator.until(
+                lambda: ros.goal_near(*TAG_1_APPROACH, since=sent),
+                f"a move_base goal\n{logs()}",
+                60,
+            )
+            await operator.until(lambda: operator.last_status() == ACTIVE, "ACTIVE", 30)
+            answer = await operator.call(f"/{ROBOT}/cancel_goal", {}, "cancel")
+            assert answer["result"] is True
+            await operator.until(lambda: operator.last_status() == PREEMPTED, "PREEMPTED", 30)
+            assert ros.cancels
+            assert ros.cancels[-1] >= sent
+
+            # Sent again, it crosses into Atrium 1 by reading tag 1, and arrives.
+            await operator.send(op="publish", topic=f"/{ROBOT}/goal", msg=goal)
+            await operator.until(lambda: f"/{ROBOT}/plan" in operator.latest, "a plan", 60)
+            await operator.until(lambda: entered(ATRIUM_1), f"Atrium 1\n{logs()}", 240)
+            wait_for(lambda: ros.maps[-1].info.width == 232, 30, "Atrium 1 on /map")
+            assert "width: 232" in echoed_map_info(ros_env)
+            await operator.until(
+                lambda: operator.last_status() == SUCCEEDED, f"SUCCEEDED\n{logs()}", 180
+            )
+            here = operator.latest[f"/{ROBOT}/pose"]["pose"]["position"]
+            assert math.dist((here["x"], here["y"]), IN_ATRIUM_1[:2]) < 0.5
+
+            # Back to Corridor A; teleop meanwhile, and the cloud goes away mid-teleop.
+            back = pose(CORRIDOR_A, *BACK_IN_CORRIDOR_A)
+            await operator.send(op="publish", topic=f"/{ROBOT}/goal", msg=back)
+            await operator.until(lambda: operator.last_status() == ACTIVE, "ACTIVE again", 30)
+            lock = await operator.call("/cloudnav/teleop_lock", {"robot": ROBOT}, "lock")
+            assert lock["values"]["success"] is True
+            turn = {"linear": {"x": 0.0, "y": 0, "z": 0}, "angular": {"x": 0, "y": 0, "z": 0.4}}
+            bridge = "/cloudnav_bridge_robot_0"
+
+            def teleop_reached() -> bool:
+                return any(s == bridge and w == pytest.approx(0.4) for _, s, _, w in ros.commands)
+
+            give_up = time.monotonic() + 30
+            while not teleop_reached():
+                assert time.monotonic() < give_up, "teleop never reached cmd_vel"
+                await operator.send(op="publish", topic=f"/{ROBOT}/cmd_vel", msg=turn)
+                await operator.read_for(0.1)
+        daphne_server.stop()
+        cut = time.monotonic()
+
+        # The dead-man rule on the robot itself: its last teleop command is followed by a
+        # stop, though the cloud's own stop can no longer come.
+        def stopped_by_the_bridge() -> bool:
+            mine = [(t, v, w) for t, s, v, w in ros.commands if s == bridge]
+            turning = [t for t, _, w in mine if w == pytest.approx(0.4)]
+            return any(t > turning[-1] and v == w == 0.0 for t, v, w in mine)
+
+        wait_for(stopped_by_the_bridge, 30, "a stop after teleop")
+        # Then it drives on with its held maps: tag 2 read, Corridor A on /map again, and
+        # move_base takes it to the goal with no cloud at all.
+        wait_for(
+            lambda: ros.goal_near(*BACK_IN_CORRIDOR_A[:2], since=cut), 240, f"the goal\n{logs()}"
+        )
+        assert ros.maps[-1].info.width == 392
+        wait_for(lambda: ros.succeeded_since(cut), 180, f"arrived offline\n{logs()}")
+        assert all(p.poll() is None for p in processes), logs()
+    finally:
+        for process in processes:
+            stop_node(process)

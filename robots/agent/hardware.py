@@ -16,6 +16,8 @@ Rates and times are the software's clock (``Robot.seconds``); messages are
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from enum import Enum
 from typing import Any, Protocol
 
 import cv2
@@ -23,7 +25,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from robots.agent.perception import CameraModel
-from robots.domain.se2 import Pose
+from robots.domain.se2 import Point, Pose
 from telemetry.domain.messages import CompressedImage, Json, Odometry, compressed_image
 
 
@@ -89,9 +91,20 @@ class Hardware(Protocol):
         ...
 
 
+class StackGoal(Enum):
+    """Where the navigation stack's latest goal stands (an actionlib or Nav2 action's
+    status, folded)."""
+
+    NONE = "none"  # no goal sent, or the last one cancelled
+    ACTIVE = "active"  # pending or being driven
+    SUCCEEDED = "succeeded"
+    FAILED = "failed"  # aborted or rejected by the stack
+
+
 class NavigationStack(Protocol):
     """A robot's own navigation (move_base or Nav2, AMCL, a map server), fed by the Maps
-    Supervisor. ``map_id`` names the sub-map every pose is in."""
+    Supervisor. ``map_id`` names the sub-map every pose is in; every pose is in the
+    building's frame, which all its sub-maps share."""
 
     def set_map(self, map_id: str, grid: Any, resolution: float, origin: Pose) -> None:
         """Replace the map (``/map`` latched, or a map server's ``load_map``)."""
@@ -104,6 +117,19 @@ class NavigationStack(Protocol):
 
     def cancel(self) -> None:
         """Cancel the active goal, if any."""
+
+    def goal_state(self) -> StackGoal:
+        """How the latest goal sent is going."""
+        ...
+
+    def pose(self) -> Pose | None:
+        """Where the stack's localisation (AMCL, tf ``map -> base``) puts the robot, once
+        it has localised since the last ``set_initial_pose``; None before."""
+        ...
+
+    def plan(self) -> tuple[int, Sequence[Point]]:
+        """The stack's latest global plan and a number that grows with each new one."""
+        ...
 
 
 def encode_jpeg(image: NDArray[np.uint8], quality: int = 80) -> bytes:

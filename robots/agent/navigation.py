@@ -17,7 +17,9 @@
   the last path and waits: what blocks a doorway is often a person who will move on.
 - ``Navigator`` joins them to the Maps Supervisor: each tick the supervisor says which
   leg comes next (search, approach a tag, the goal itself), the driver drives it, and
-  the board records how the goal ends.
+  the board records how the goal ends. The driver is a ``LegDriver``: the agent's own
+  ``Driver``, or ``robots.agent.stack.StackDriver``, which hands each leg to the robot's
+  own navigation stack (move_base, Nav2) as a goal.
 
 Frames: targets, paths and the pose estimate share the frame of the current sub-map
 (the building's); obstacles and the controller's trajectories are in the robot's frame.
@@ -32,6 +34,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from enum import Enum
+from typing import Protocol
 
 import cv2
 import numpy as np
@@ -260,9 +263,47 @@ class DriveState(Enum):
 
 @dataclass(frozen=True)
 class Drive:
-    command: Command
+    """A tick's command (None: the robot's own navigation stack drives, leave it be)."""
+
+    command: Command | None
     state: DriveState = DriveState.MOVING
     reason: str = ""
+
+
+class LegDriver(Protocol):
+    """What drives one leg at a time: ``Driver``, or a robot's own navigation stack."""
+
+    @property
+    def path(self) -> Sequence[Point]:
+        """The current global plan, in the map frame."""
+        ...
+
+    @property
+    def plan_version(self) -> int:
+        """Changes whenever ``path`` does."""
+        ...
+
+    def drive(
+        self,
+        target: Pose,
+        submap: SubMap | None,
+        pose: Pose,
+        velocity: Command,
+        obstacles: LocalObstacles,
+        seconds: float,
+        odom: Pose = (0.0, 0.0, 0.0),
+    ) -> Drive: ...
+
+    def clear(self) -> None:
+        """Forget the target and the plan (a navigation stack's goal is cancelled)."""
+
+    def hold(self) -> Command | None:
+        """Stand still for now, keeping the target: the command that does it."""
+        ...
+
+    def idle(self) -> Command | None:
+        """The command with no goal at all (None: send nothing)."""
+        ...
 
 
 @dataclass
@@ -304,6 +345,14 @@ class Driver:
             self.plan_version += 1
         self.path, self._target, self._submap = [], None, None
         self._aligning = False
+
+    def hold(self) -> Command:
+        """A stop; the target and plan stand."""
+        return STOP
+
+    def idle(self) -> Command:
+        """A stop every tick: the body's own watchdog stops it too, but say so."""
+        return STOP
 
     def drive(
         self,
@@ -543,9 +592,14 @@ class Navigator:
     """The robot's navigation: goals from ``/r/goal``, legs from the supervisor, commands
     from the driver, statuses on the board."""
 
-    def __init__(self, supervisor: MapsSupervisor, config: RobotConfig | None = None) -> None:
+    def __init__(
+        self,
+        supervisor: MapsSupervisor,
+        config: RobotConfig | None = None,
+        driver: LegDriver | None = None,
+    ) -> None:
         self.supervisor = supervisor
-        self.driver = Driver(config)
+        self.driver: LegDriver = driver or Driver(config)
         self.board = GoalBoard()
 
     def set_goal(self, map_id: str, pose: Pose, seconds: float) -> None:
@@ -570,10 +624,11 @@ class Navigator:
 
     def step(
         self, pose: Pose, odom: Pose, velocity: Command, obstacles: LocalObstacles, seconds: float
-    ) -> Command:
-        """This tick's command (a stop without an active goal)."""
+    ) -> Command | None:
+        """This tick's command (the driver's ``idle`` without an active goal; None: the
+        robot's own navigation stack drives)."""
         if self.board.active is None:
-            return STOP
+            return self.driver.idle()
         leg = self.supervisor.leg(pose, odom, seconds)
         self.board.describe(leg.text)
         if leg.kind is LegKind.FAIL:
@@ -583,7 +638,7 @@ class Navigator:
             self.driver.clear()
             return 0.0, SEARCH_RATE
         if leg.kind is LegKind.HOLD or leg.target is None:
-            return STOP
+            return self.driver.hold()
         return self._drive(leg, pose, odom, velocity, obstacles, seconds)
 
     def _drive(
@@ -594,7 +649,7 @@ class Navigator:
         velocity: Command,
         obstacles: LocalObstacles,
         seconds: float,
-    ) -> Command:
+    ) -> Command | None:
         assert leg.target is not None
         drive = self.driver.drive(leg.target, leg.submap, pose, velocity, obstacles, seconds, odom)
         if drive.state is DriveState.FAILED:

@@ -26,8 +26,11 @@ active goal. (The server lets operators publish only ``cmd_vel``, ``goal`` and
 is what an operator may call.)
 
 Teleop has priority: a ``cmd_vel`` drives the body at once (clamped to its limits) and
-navigation stays silent until ``TELEOP_HOLD`` seconds after the last one; the body
-stops by itself ``watchdog`` seconds after its last command, as a TurtleBot does.
+navigation stays silent until ``TELEOP_HOLD`` seconds after the last one (a navigation
+stack's goal is cancelled meanwhile and sent again after); then the robot sends a stop
+itself (the dead-man rule: a teleop command never outlives the commands, even when the
+cloud is gone), and the body also stops by itself ``watchdog`` seconds after its last
+command, as a TurtleBot does.
 """
 
 from __future__ import annotations
@@ -46,7 +49,7 @@ from numpy.typing import NDArray
 from robots.agent.client import RosbridgeClient
 from robots.agent.hardware import Hardware, compressed_image_message, encode_jpeg
 from robots.agent.localisation import ParticleFilter, odometry_delta
-from robots.agent.navigation import LocalObstacles, Navigator
+from robots.agent.navigation import LegDriver, LocalObstacles, Navigator
 from robots.agent.perception import TagDetection, TagDetector
 from robots.agent.relocalise import PoseEstimate
 from robots.agent.supervisor import BundleError, MapsSupervisor, SubMap
@@ -204,6 +207,7 @@ class Robot(Generic[H]):
         config: RobotConfig | None = None,
         epoch: float | None = None,
         visual: VisualMap | None = None,
+        driver: LegDriver | None = None,
     ) -> None:
         self.hardware = hardware
         self.visual = visual
@@ -211,7 +215,7 @@ class Robot(Generic[H]):
         self.tracker = tracker
         self.publisher = publisher
         self.config = config or RobotConfig()
-        self.navigator = Navigator(supervisor, self.config)
+        self.navigator = Navigator(supervisor, self.config, driver)
         self.detector = TagDetector(hardware.camera_model)
         self.epoch = time.time() if epoch is None else epoch
         self._epoch_given = epoch is not None
@@ -372,7 +376,11 @@ class Robot(Generic[H]):
 
     def _drive(self, obstacles: LocalObstacles) -> None:
         if self.seconds < self._teleop_until:
+            self.navigator.driver.hold()  # a navigation stack's goal waits for teleop
             return
+        if self._teleop_until > -math.inf:
+            self._teleop_until = -math.inf
+            self.hardware.command(0.0, 0.0)  # the dead-man rule: teleop ends in a stop
         command = self.navigator.step(
             self.tracker.pose(),
             self.tracker.odom,
@@ -380,7 +388,8 @@ class Robot(Generic[H]):
             obstacles,
             self.seconds,
         )
-        self.hardware.command(*command)
+        if command is not None:
+            self.hardware.command(*command)
 
     # --- publishing --------------------------------------------------------------------
 

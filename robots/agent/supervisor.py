@@ -424,6 +424,7 @@ class MapsSupervisor:
 
     def _start_entering(self, detection: TagDetection, odom: Pose) -> None:
         map_id, source = _named(detection), f"tag {detection.marker_id}"
+        logger.info("%s read: entering %s", source, map_id)
         self._entering_by = Whereabouts(Localisation.ENTERING, map_id, source)
         self._entering = asyncio.create_task(self._enter(map_id, detection, odom))
 

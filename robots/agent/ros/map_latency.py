@@ -4,43 +4,23 @@ from ``RosNavigationStack.set_map`` to a ``/map`` subscriber's callback, on a pr
 
 from __future__ import annotations
 
-import os
-import socket
 import statistics
-import subprocess
 import sys
-import tempfile
 import time
 
 import numpy as np
 
 from robots.agent.ros import ros_path
-
-
-def free_port() -> int:
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        return int(probe.getsockname()[1])
+from robots.agent.ros.master import private_roscore
 
 
 def measure(rows: int, cols: int, maps: int = 20) -> list[float]:
     """Milliseconds from ``set_map`` to the subscriber holding it, one per map."""
-    import rosgraph  # type: ignore[import-not-found,unused-ignore]
     import rospy  # type: ignore[import-not-found,unused-ignore]
     from nav_msgs.msg import OccupancyGrid  # type: ignore[import-not-found,unused-ignore]
 
     from robots.agent.ros.navigation import RosNavigationStack
 
-    master = rosgraph.Master("/probe")
-    deadline = time.monotonic() + 60
-    while True:
-        try:
-            master.getPid()
-            break
-        except OSError:
-            if time.monotonic() > deadline:
-                raise
-            time.sleep(0.1)
     rospy.init_node("cloudnav_map_latency", disable_signals=True)
     arrived: list[float] = []
     rospy.Subscriber("/map", OccupancyGrid, lambda _msg: arrived.append(time.perf_counter()))
@@ -63,23 +43,8 @@ def main(argv: list[str]) -> None:
     rows, cols = (int(n) for n in (argv[0] if argv else "312x120").split("x"))
     if not ros_path():
         raise SystemExit("ROS 1 is not installed (scripts/setup.sh installs it)")
-    port = free_port()
-    os.environ.update(
-        ROS_MASTER_URI=f"http://127.0.0.1:{port}",
-        ROS_HOSTNAME="127.0.0.1",
-        ROS_HOME=tempfile.mkdtemp(prefix="cloudnav-ros-"),
-    )
-    core = subprocess.Popen(
-        ["roscore", "-p", str(port)],
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
-        start_new_session=True,
-    )
-    try:
+    with private_roscore():
         times = measure(rows, cols)
-    finally:
-        core.terminate()
-        core.wait(timeout=30)
     print(
         f"{rows}x{cols} grid, set_map -> /map subscriber: median "
         f"{statistics.median(times):.1f} ms, worst {max(times):.1f} ms ({len(times)} maps)"

@@ -1,16 +1,23 @@
 """A ROS 1 navigation stack fed by the Maps Supervisor (``NavigationStack``): the sub-map
-on the latched ``/map``, the tag's pose on ``/initialpose`` and goals as ``move_base``
-action goals (actionlib). Call ``robots.agent.ros.ros_path()`` and ``rospy.init_node``
-first."""
+on the latched ``/map`` (and, where a map server's ``nav_msgs/LoadMap`` service is
+configured, in map_server files it is asked to load), the tag's pose on ``/initialpose``,
+goals as ``move_base`` action goals (actionlib); the pose from AMCL's ``amcl_pose`` or
+from tf (``map -> base_footprint``), the global planner's plan from its topic. Call
+``robots.agent.ros.ros_path()`` and ``rospy.init_node`` first."""
 
 from __future__ import annotations
 
+import logging
 import math
+import threading
+from collections.abc import Sequence
+from pathlib import Path
 from typing import Any
 
 import actionlib  # type: ignore[import-not-found,unused-ignore]
 import numpy as np
 import rospy  # type: ignore[import-not-found,unused-ignore]
+from actionlib_msgs.msg import GoalStatus  # type: ignore[import-not-found,unused-ignore]
 from geometry_msgs.msg import (  # type: ignore[import-not-found,unused-ignore]
     PoseWithCovarianceStamped,
     Quaternion,
@@ -19,10 +26,35 @@ from move_base_msgs.msg import (  # type: ignore[import-not-found,unused-ignore]
     MoveBaseAction,
     MoveBaseGoal,
 )
-from nav_msgs.msg import OccupancyGrid  # type: ignore[import-not-found,unused-ignore]
+from nav_msgs.msg import (  # type: ignore[import-not-found,unused-ignore]
+    OccupancyGrid,
+)
+from nav_msgs.msg import (  # type: ignore[import-not-found,unused-ignore]
+    Path as RosPath,
+)
+from nav_msgs.srv import LoadMap  # type: ignore[import-not-found,unused-ignore]
 from numpy.typing import NDArray
 
-from robots.domain.se2 import Pose
+from maps.domain.mapfile import MapMetadata, export_map, map_yaml_text
+from robots.agent.hardware import StackGoal
+from robots.agent.ros.hardware import yaw_of
+from robots.domain.se2 import Point, Pose
+
+logger = logging.getLogger(__name__)
+
+STATES = {
+    GoalStatus.PENDING: StackGoal.ACTIVE,
+    GoalStatus.ACTIVE: StackGoal.ACTIVE,
+    GoalStatus.PREEMPTING: StackGoal.ACTIVE,
+    GoalStatus.RECALLING: StackGoal.ACTIVE,
+    GoalStatus.SUCCEEDED: StackGoal.SUCCEEDED,
+    GoalStatus.ABORTED: StackGoal.FAILED,
+    GoalStatus.REJECTED: StackGoal.FAILED,
+    GoalStatus.LOST: StackGoal.FAILED,
+    GoalStatus.PREEMPTED: StackGoal.NONE,
+    GoalStatus.RECALLED: StackGoal.NONE,
+}
+"""actionlib's statuses as the Maps Supervisor's driver needs them."""
 
 
 def quaternion(yaw: float) -> Any:
@@ -31,18 +63,48 @@ def quaternion(yaw: float) -> Any:
 
 class RosNavigationStack:
     """``/map`` (latched), ``/initialpose`` and the ``move_base`` action of one robot; the
-    frame of every pose is ``frame`` (the map frame ``/map`` is published in)."""
+    frame of every pose is ``frame`` (the map frame ``/map`` is published in).
+
+    ``pose_source`` is ``amcl_pose`` (or any ``PoseWithCovarianceStamped`` topic) or
+    ``tf`` (``frame -> base_frame``); ``plan_topic`` the global planner's ``nav_msgs/Path``;
+    ``load_map`` a ``nav_msgs/LoadMap`` service (map_server's ``change_map``), whose map
+    files are written under ``map_dir``, or None."""
 
     def __init__(
-        self, frame: str = "map", map_topic: str = "/map", action: str = "move_base"
+        self,
+        frame: str = "map",
+        map_topic: str = "/map",
+        initial_pose_topic: str = "/initialpose",
+        action: str = "move_base",
+        pose_source: str = "amcl_pose",
+        base_frame: str = "base_footprint",
+        plan_topic: str = "/move_base/NavfnROS/plan",
+        load_map: str | None = None,
+        map_dir: Path | None = None,
     ) -> None:
-        self.frame = frame
+        self.frame, self.base_frame = frame, base_frame
         self.map_id: str | None = None
         self._map = rospy.Publisher(map_topic, OccupancyGrid, queue_size=1, latch=True)
         self._initial = rospy.Publisher(
-            "/initialpose", PoseWithCovarianceStamped, queue_size=1, latch=True
+            initial_pose_topic, PoseWithCovarianceStamped, queue_size=1, latch=True
         )
         self._move_base = actionlib.SimpleActionClient(action, MoveBaseAction)
+        self._goal_sent = False
+        self._lock = threading.Lock()
+        self._placed_at: Any = None  # the stamp of the last initial pose
+        self._pose: tuple[Any, Pose] | None = None  # (stamp, pose) from the pose source
+        self._plan: tuple[int, list[Point]] = (0, [])
+        self._tf: Any = None
+        if pose_source == "tf":
+            import tf2_ros  # type: ignore[import-not-found,unused-ignore]
+
+            self._tf = tf2_ros.Buffer()
+            self._tf_listener = tf2_ros.TransformListener(self._tf)
+        else:
+            rospy.Subscriber(pose_source, PoseWithCovarianceStamped, self._on_pose, queue_size=1)
+        rospy.Subscriber(plan_topic, RosPath, self._on_plan, queue_size=1)
+        self._load_map = rospy.ServiceProxy(load_map, LoadMap) if load_map else None
+        self._map_dir = map_dir
 
     def set_map(self, map_id: str, grid: Any, resolution: float, origin: Pose) -> None:
         cells = np.asarray(grid, dtype=np.int8)
@@ -57,6 +119,33 @@ class RosNavigationStack:
         msg.data = cells.ravel().tolist()
         self.map_id = map_id
         self._map.publish(msg)
+        if self._load_map is not None:
+            url = self._write_map_files(map_id, cells, resolution, origin)
+            threading.Thread(target=self._ask_map_server, args=(url,), daemon=True).start()
+
+    def _write_map_files(self, map_id: str, cells: Any, resolution: float, origin: Pose) -> str:
+        """The sub-map as map_server files (PGM and YAML) under ``map_dir``; the YAML's path."""
+        assert self._map_dir is not None
+        name = map_id.replace("/", "__")
+        meta = MapMetadata(f"{name}.pgm", float(resolution), origin, 0.65, 0.196, False)
+        image, exported = export_map(cells, meta, f"{name}.pgm")
+        self._map_dir.mkdir(parents=True, exist_ok=True)
+        (self._map_dir / f"{name}.pgm").write_bytes(image)
+        yaml_path = self._map_dir / f"{name}.yaml"
+        yaml_path.write_text(map_yaml_text(exported))
+        return str(yaml_path)
+
+    def _ask_map_server(self, url: str) -> None:
+        """Call the ``LoadMap`` service (off the control loop); failures are logged."""
+        assert self._load_map is not None
+        try:
+            self._load_map.wait_for_service(10.0)
+            answer = self._load_map(url)
+        except (rospy.ROSException, rospy.ServiceException) as error:
+            logger.warning("load_map %s: %s", url, error)
+            return
+        if answer.result != 0:  # LoadMap.RESULT_SUCCESS
+            logger.warning("load_map %s: the map server answered %d", url, answer.result)
 
     def _held(self, map_id: str) -> None:
         if map_id != self.map_id:
@@ -77,6 +166,8 @@ class RosNavigationStack:
             for j, column in enumerate(index):
                 full[row, column] = small[i, j]
         msg.pose.covariance = full.ravel().tolist()
+        with self._lock:
+            self._placed_at = msg.header.stamp
         self._initial.publish(msg)
 
     def send_goal(self, map_id: str, pose: Pose) -> None:
@@ -88,9 +179,53 @@ class RosNavigationStack:
         goal.target_pose.pose.position.x, goal.target_pose.pose.position.y = pose[0], pose[1]
         goal.target_pose.pose.orientation = quaternion(pose[2])
         self._move_base.send_goal(goal)
+        self._goal_sent = True
 
     def cancel(self) -> None:
         self._move_base.cancel_all_goals()
+
+    def goal_state(self) -> StackGoal:
+        if not self._goal_sent:
+            return StackGoal.NONE
+        return STATES.get(self.state(), StackGoal.FAILED)
+
+    def pose(self) -> Pose | None:
+        """The pose source's latest pose, if stamped after the last initial pose."""
+        if self._tf is not None:
+            self._pose_from_tf()
+        with self._lock:
+            placed, found = self._placed_at, self._pose
+        if placed is None or found is None or found[0] < placed:
+            return None
+        return found[1]
+
+    def _on_pose(self, msg: Any) -> None:
+        pose = msg.pose.pose
+        found = (pose.position.x, pose.position.y, yaw_of(pose.orientation))
+        with self._lock:
+            self._pose = (msg.header.stamp, found)
+
+    def _pose_from_tf(self) -> None:
+        import tf2_ros  # type: ignore[import-not-found,unused-ignore]
+
+        try:
+            seen = self._tf.lookup_transform(self.frame, self.base_frame, rospy.Time(0))
+        except (tf2_ros.LookupException, tf2_ros.ExtrapolationException,
+                tf2_ros.ConnectivityException):  # fmt: skip
+            return
+        t = seen.transform
+        found = (t.translation.x, t.translation.y, yaw_of(t.rotation))
+        with self._lock:
+            self._pose = (seen.header.stamp, found)
+
+    def plan(self) -> tuple[int, Sequence[Point]]:
+        with self._lock:
+            return self._plan
+
+    def _on_plan(self, msg: Any) -> None:
+        points = [(p.pose.position.x, p.pose.position.y) for p in msg.poses]
+        with self._lock:
+            self._plan = (self._plan[0] + 1, points)
 
     def map_subscribers(self) -> int:
         """How many subscribers ``/map`` has connected."""
