@@ -198,6 +198,39 @@ def test_maps_poses_goals_and_cancel_reach_ros(
     assert list(stack.plan()[1]) == [(0.0, 0.0), (2.0, 0.0)]
 
 
+def test_the_pose_may_come_from_tf(node: None) -> None:
+    import rospy  # type: ignore[import-not-found,unused-ignore]
+    import tf2_ros  # type: ignore[import-not-found,unused-ignore]
+    from geometry_msgs.msg import TransformStamped  # type: ignore[import-not-found,unused-ignore]
+
+    from robots.agent.ros.navigation import RosNavigationStack
+
+    stack = RosNavigationStack(
+        frame="probe_tf_map",
+        map_topic="/probe_tf/map",
+        initial_pose_topic="/probe_tf/initialpose",
+        action="/probe_tf/move_base",
+        pose_source="tf",
+        base_frame="probe_tf_base",
+    )
+    stack.set_map("b/m", np.zeros((2, 2), dtype=np.int8), 0.05, (0.0, 0.0, 0.0))
+    stack.set_initial_pose("b/m", (0.0, 0.0, 0.0), np.eye(3))
+    localised = TransformStamped()
+    localised.header.stamp, localised.header.frame_id = rospy.Time.now(), "probe_tf_map"
+    localised.child_frame_id = "probe_tf_base"
+    localised.transform.translation.x, localised.transform.translation.y = 2.0, 3.0
+    localised.transform.rotation.z = math.sin(0.2)
+    localised.transform.rotation.w = math.cos(0.2)
+    broadcaster = tf2_ros.TransformBroadcaster()
+
+    def seen() -> Any:
+        localised.header.stamp = rospy.Time.now()
+        broadcaster.sendTransform(localised)
+        return stack.pose()
+
+    assert wait_for(seen, 30, "the pose from tf") == pytest.approx((2.0, 3.0, 0.4))
+
+
 def test_a_ros_robot_is_the_softwares_hardware(node: None) -> None:
     import cv2
     import rospy  # type: ignore[import-not-found,unused-ignore]
