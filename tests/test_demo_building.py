@@ -339,9 +339,9 @@ def test_it_is_deterministic_and_fast() -> None:
     timings = []
     for _ in range(3):
         demo_building.cache_clear()
-        started = time.perf_counter()
+        started = time.process_time()
         again = demo_building()
-        timings.append(time.perf_counter() - started)
+        timings.append(time.process_time() - started)
     assert min(timings) < 0.5
     assert again is not first
     assert again == first

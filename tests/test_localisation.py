@@ -321,9 +321,9 @@ def test_one_update_of_500_particles_and_60_beams_takes_a_few_milliseconds() -> 
     seconds = []
     for _ in range(30):
         particle_filter.predict((0.2, 0.0, 0.0))
-        started = time.perf_counter()
+        started = time.process_time()
         assert particle_filter.update(scan)
-        seconds.append(time.perf_counter() - started)
+        seconds.append(time.process_time() - started)
     assert len(particle_filter.particles()) == 500
     assert statistics.median(seconds) < 0.01  # about 1 ms on the development machine
 

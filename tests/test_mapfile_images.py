@@ -123,9 +123,9 @@ def test_it_checks_the_pixel_count_before_decoding(monkeypatch: pytest.MonkeyPat
     ids=["pgm", "png"],
 )
 def test_it_refuses_a_header_claiming_100000_by_100000_without_decoding(header: bytes) -> None:
-    started = time.perf_counter()
+    started = time.process_time()
     assert refusal(header).field == "image"
-    assert time.perf_counter() - started < 0.5
+    assert time.process_time() - started < 0.5
 
 
 def test_it_refuses_what_pillow_calls_a_decompression_bomb() -> None:
