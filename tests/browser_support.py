@@ -89,6 +89,21 @@ def context(browser: Browser) -> Iterator[BrowserContext]:
     opened.close()
 
 
+# The two sizes every page is tested at: a desktop and a phone.
+SIZES = [{"width": 1440, "height": 900}, {"width": 390, "height": 844}]
+
+
+@pytest.fixture(params=SIZES, ids=["desktop", "phone"])
+def sized(browser: Browser, request: pytest.FixtureRequest) -> Iterator[BrowserContext]:
+    """A browser context at desktop (1440x900) or phone (390x844) size, with touch on the
+    phone."""
+    phone = request.param["width"] < 600
+    opened = browser.new_context(viewport=request.param, has_touch=phone)
+    opened.set_default_timeout(15_000)
+    yield opened
+    opened.close()
+
+
 @pytest.fixture
 def agent(demo: Demo, tmp_path: Path) -> Iterator[Path]:
     """The simulated robot ``robot_0`` in its own process, at the paper's start: before the

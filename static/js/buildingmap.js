@@ -6,13 +6,12 @@
 import { api, splitMapId, urls } from "./api.js";
 import { FloorPlan, LAYERS } from "./floorplan.js";
 import { planarPose, poseStamped } from "./geometry.js";
+import { heardRecently, liveness } from "./liveness.js";
 import { MissionsPanel } from "./missions.js";
 import { badge, connectFleet, el, navigationState, pageConfig, whereabouts } from "./page.js";
 
 const TRAIL_POINTS = 300;
 const TRAIL_STEP_M = 0.05;
-// Online means heard from within this; anything older is drawn grey and said to be silent.
-const LIVE_FOR_MS = 3000;
 const FLEET_MS = 5000;
 // nav_status codes after which a goal is over (actionlib_msgs/GoalStatus).
 const FINISHED = new Set([2, 3, 4, 5, 8, 9]);
@@ -171,8 +170,7 @@ async function routeOf(track) {
 // ------------------------------------------------------------ the list and the selection
 
 function stateOf(track) {
-  if (!track.heard) return ["no data", "idle"];
-  if (!track.live) return [`silent ${Math.round((Date.now() - track.heard) / 1000)} s`, "idle"];
+  if (!track.live) return liveness(track.heard);
   if (track.elsewhere) return [`in ${track.elsewhere}`, "plain"];
   if (track.whereabouts?.state === "lost") return ["lost", "warn"];
   return ["online", "ok"];
@@ -216,7 +214,7 @@ function renderSelected() {
 function ageTracks() {
   const now = Date.now();
   for (const track of plan.robots.values()) {
-    const live = Boolean(track.heard) && now - track.heard < LIVE_FOR_MS;
+    const live = heardRecently(track.heard, now);
     if (live !== track.live) {
       track.live = live;
       plan.changed();
@@ -292,9 +290,6 @@ function bindControls() {
   });
 }
 
-// A lost connection is said on the plan itself, not only in the banner.
-connection.addEventListener("disconnected", () => { $("plan-offline").hidden = false; });
-connection.addEventListener("connected", () => { $("plan-offline").hidden = true; });
 bindControls();
 new MissionsPanel({ building, plan, connection, mayDrive, hint }).start();
 loadBuilding().catch((error) => hint(`Cannot load the building: ${error.message}`));

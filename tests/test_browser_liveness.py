@@ -1,0 +1,114 @@
+"""Robot state is shown as live only while it is: on the building page a robot is online,
+and on the sub-map it says, only while the page hears from it (whatever the server's
+record of its connection), and a lost server connection is said on every live element of
+every live page; in a real browser at desktop and phone sizes."""
+
+from __future__ import annotations
+
+import asyncio
+import re
+import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
+
+import pytest
+from playwright.sync_api import BrowserContext, Page, WebSocketRoute, expect
+
+from robots.agent.client import RosbridgeClient
+from tests.browser_support import BUILDING, ROBOT, Demo, open_as, screenshot
+
+pytest_plugins = ["tests.browser_support"]
+pytestmark = [pytest.mark.browser, pytest.mark.django_db(transaction=True)]
+
+MAP_ID = f"{BUILDING}/CorridorA"
+LIVE_PAGES = ["/", f"/buildings/{BUILDING}/", f"/buildings/{BUILDING}/map/", f"/robots/{ROBOT}/"]
+
+
+@contextmanager
+def robot_that_falls_silent(demo: Demo, speaking: threading.Event) -> Iterator[None]:
+    """``robot_0`` connects and publishes its pose in CorridorA at 5 Hz while ``speaking``
+    is set, then stays connected saying nothing, until the block ends."""
+    done = threading.Event()
+
+    async def run() -> None:
+        client = RosbridgeClient(demo.server.rosbridge_url(), demo.tokens[ROBOT])
+        client.advertise("pose", "geometry_msgs/PoseStamped")
+        task = asyncio.create_task(client.run())
+        await asyncio.wait_for(client.wait_connected(), 10)
+        pose = {"position": {"x": 2.0, "y": 1.0, "z": 0}, "orientation": {"w": 1.0}}
+        while not done.is_set():
+            if speaking.is_set():
+                await client.publish("pose", {"header": {"frame_id": MAP_ID}, "pose": pose})
+            await asyncio.sleep(0.2)
+        await client.close()
+        await task
+
+    thread = threading.Thread(target=asyncio.run, args=(run(),))
+    thread.start()
+    try:
+        yield
+    finally:
+        done.set()
+        thread.join(20)
+
+
+def server_says_online(page: Page) -> bool:
+    entries = page.request.get(page.url.split("/buildings/")[0] + "/api/fleet/").json()
+    return bool(next(e for e in entries if e["robot"] == ROBOT)["online"])
+
+
+def test_the_building_page_shows_a_robot_online_only_while_it_is_heard(
+    sized: BrowserContext, demo: Demo
+) -> None:
+    speaking = threading.Event()
+    speaking.set()
+    with robot_that_falls_silent(demo, speaking):
+        page = open_as(sized, demo, "operator", f"/buildings/{BUILDING}/")
+        row = page.locator(f"#building-robots tr[data-robot={ROBOT}]")
+        expect(row).to_have_attribute("data-state", "online", timeout=20_000)
+        expect(row.locator(".submap")).to_have_text("CorridorA")
+        expect(page.locator("#topology .topo-robot")).to_have_count(1)
+        width = page.viewport_size["width"]  # type: ignore[index]
+        screenshot(page, f"building-robots-live-{width}")
+
+        speaking.clear()
+        expect(row).to_have_attribute("data-state", re.compile(r"^silent \d+ s$"), timeout=10_000)
+        expect(row.locator(".submap")).to_have_text("last: CorridorA")
+        expect(page.locator("#topology .topo-robot")).to_have_count(0)
+        # The server still holds the connection, and its record says online: the page
+        # goes by what it hears.
+        assert server_says_online(page)
+        screenshot(page, f"building-robots-silent-{width}")
+
+
+@pytest.mark.parametrize("path", LIVE_PAGES)
+def test_a_lost_server_is_said_on_every_live_element(
+    sized: BrowserContext, demo: Demo, path: str
+) -> None:
+    sockets: list[WebSocketRoute] = []
+
+    def relay(socket: WebSocketRoute) -> None:
+        socket.connect_to_server()
+        sockets.append(socket)
+
+    sized.route_web_socket(re.compile(r"/rosbridge$"), relay)
+    page = open_as(sized, demo, "operator", path)
+    expect(page.locator("#conn-state")).to_contain_text("Live")
+    live = page.locator(".live-element:visible")
+    expect(live.first).to_be_visible()
+    expect(page.locator(".live-lost:visible")).to_have_count(0)
+
+    sockets[-1].close(code=1006, reason="network lost")
+    expect(page.locator("body")).to_have_class(re.compile("server-lost"))
+    count = live.count()
+    assert count >= 1
+    notes = page.locator(".live-element:visible > .live-lost")
+    expect(notes).to_have_count(count)
+    for index in range(count):
+        expect(notes.nth(index)).to_have_text("Not connected to the server: not live.")
+        expect(notes.nth(index)).to_be_visible()
+    name = path.strip("/").replace("/", "-") or "fleet"
+    screenshot(page, f"server-lost-{name}-{page.viewport_size['width']}")  # type: ignore[index]
+
+    expect(page.locator("#conn-state")).to_contain_text("Live", timeout=15_000)
+    expect(page.locator(".live-lost:visible")).to_have_count(0)
