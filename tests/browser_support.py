@@ -162,3 +162,30 @@ def drawn_robot(page: Page) -> tuple[float, float] | None:
         return None
     x, y = value.split(",")
     return float(x), float(y)
+
+
+def topology_ids(page: Page, element: str, selector: str) -> list[str]:
+    """The ids of what the cytoscape topology in ``#element`` draws for ``selector``
+    (sub-maps ``node.submap``, edges ``edge``, classes ``.route``, ``.invalid``, ...)."""
+    found: Any = page.evaluate(
+        """([id, selector]) =>
+            window.cloudnav.topologies[id].cy.elements(selector).map((e) => e.id())""",
+        [element, selector],
+    )
+    return [str(value) for value in found]
+
+
+def topology_point(page: Page, element: str, key: str) -> tuple[float, float]:
+    """Where the node (a sub-map's code) or edge (``edgeKey``) ``key`` of the topology in
+    ``#element`` is drawn on the page, for mouse actions."""
+    found: Any = page.evaluate(
+        """([id, key]) => {
+            const view = window.cloudnav.topologies[id];
+            const item = view.cy.getElementById(key);
+            const at = item.isNode() ? item.renderedPosition() : item.renderedMidpoint();
+            const rect = view.element.getBoundingClientRect();
+            return [rect.left + at.x, rect.top + at.y];
+        }""",
+        [element, key],
+    )
+    return float(found[0]), float(found[1])

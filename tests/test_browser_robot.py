@@ -101,7 +101,9 @@ def test_an_operator_sends_a_goal_and_watches_the_robot_arrive(
     page.click("#map-tools button[data-tool=goal]")
     press_and_drag(page, *ATRIUM_1)
     expect(page.locator("#route-label")).to_have_text("route: CorridorA → Atrium1")
-    expect(page.locator("#robot-topology g.topo-node.route")).to_have_count(2)
+    page.wait_for_function(
+        "window.cloudnav.topologies['robot-topology'].cy.nodes('.route').length === 2"
+    )
     expect(page.locator("#goal-state")).to_have_text("active", timeout=15_000)
     screenshot(page, "robot-goal-in-another-submap")
     page.click("#goal-cancel")
