@@ -4,6 +4,7 @@
 
 import { ApiError, api, splitMapId, urls } from "./api.js";
 import { heardRecently, liveness } from "./liveness.js";
+import { MembersPanel } from "./members.js";
 import { askToConfirm, badge, connectFleet, el, pageConfig } from "./page.js";
 import { TopologyView, edgeKey } from "./topology.js";
 
@@ -220,7 +221,10 @@ for (const row of document.querySelectorAll("tr[data-href]")) {
 }
 $("route-from").addEventListener("change", showRoute);
 $("route-to").addEventListener("change", showRoute);
-if (editable) bindEditor();
+if (editable) {
+  bindEditor();
+  new MembersPanel(building).load();
+}
 window.cloudnav = { ...(window.cloudnav || {}), topology: view };
 loadTopology();
 refreshRobots();
