@@ -17,6 +17,9 @@ const FLEET_MS = 5000;
 const FINISHED = new Set([2, 3, 4, 5, 8, 9]);
 // A goal just sent is not ended by the status of the one before it.
 const GOAL_GRACE_MS = 1500;
+// The cloud's planner (the robots' own A*), for the legs of a route in other sub-maps.
+const PLAN_PATH = "/cloudnav/plan_path";
+const PLAN_PATH_TYPE = "cloudnav/PlanPath";
 const $ = (id) => document.getElementById(id);
 
 const config = pageConfig();
@@ -150,7 +153,10 @@ function onStatus(track, msg) {
   }
 }
 
-/** The tags a robot drives to on its way to a goal in another sub-map. */
+/**
+ * A robot's way to a goal in another sub-map: through the tags it drives to (straight at
+ * first), then along the paths the cloud's planner finds in each sub-map of the route.
+ */
 async function routeOf(track) {
   const goal = track.goal;
   if (!goal || !track.map || goal.map === track.map) {
@@ -161,10 +167,38 @@ async function routeOf(track) {
     const answer = await api.get(urls.route(building, track.map, goal.map));
     if (track.goal !== goal) return;
     track.route = answer.steps.filter((step) => step.tag).map((step) => ({ x: step.tag.x, y: step.tag.y }));
+    plan.changed();
+    const planned = await plannedRoute(answer.steps, track.pose, goal.pose);
+    if (track.goal === goal) track.route = planned;
   } catch {
     track.route = [];
   }
   plan.changed();
+}
+
+/** The route's legs, planned in their sub-maps: from `start` (or the first tag when the
+ * robot's pose is unknown) through each step's tag to `end`. */
+async function plannedRoute(steps, start, end) {
+  const legs = [];
+  let from = start;
+  for (const step of steps) {
+    const to = step.tag ? { x: step.tag.x, y: step.tag.y } : end;
+    if (from) legs.push(leg(step.map_id, from, to));
+    from = to;
+  }
+  return (await Promise.all(legs)).flat();
+}
+
+/** The planner's path from `from` to `to` in sub-map `mapId`, or the straight line. */
+async function leg(mapId, from, to) {
+  try {
+    const answer = await connection.call(PLAN_PATH, PLAN_PATH_TYPE, {
+      map_id: mapId, start: { x: from.x, y: from.y }, goal: { x: to.x, y: to.y },
+    });
+    return answer.path.poses.map((p) => ({ x: p.pose.position.x, y: p.pose.position.y }));
+  } catch {
+    return [from, to];
+  }
 }
 
 // ------------------------------------------------------------ the list and the selection
