@@ -403,3 +403,74 @@ def test_the_route_across_submaps_follows_the_planned_path(
     assert free == 1.0, f"{free:.1%} of the route is on free cells"
     width = page.viewport_size["width"]  # type: ignore[index]
     screenshot(page, f"building-map-planned-route-{width}")
+
+
+TURN = -math.pi / 2  # Office 7 turned a quarter clockwise about its origin, for the test
+
+
+@pytest.fixture
+def turned_office(demo: Demo) -> Any:
+    """Office 7 with its origin's yaw set to TURN (a new version, as an admin's edit)."""
+    from django.db import transaction
+
+    from maps import services
+    from maps.models import SubMap
+
+    with transaction.atomic():
+        office = SubMap.objects.get(building__code=BUILDING, code="Office7")
+        origin = [office.origin_x, office.origin_y, TURN]
+        return services.update_submap(office, {"origin": origin})
+
+
+def turned_corners(office: Any, turn: float = TURN) -> list[tuple[float, float]]:
+    w, h = office.width * office.resolution, office.height * office.resolution
+    cos, sin = math.cos(turn), math.sin(turn)
+    return [
+        (office.origin_x + cos * u - sin * v, office.origin_y + sin * u + cos * v)
+        for u, v in [(0, 0), (w, 0), (w, h), (0, h)]
+    ]
+
+
+def only_in(box: list[tuple[float, float]], others: list[Any]) -> tuple[float, float]:
+    """A point inside the box of ``box``'s corners and in none of ``others``' footprints."""
+    xs, ys = [p[0] for p in box], [p[1] for p in box]
+    for i in range(1, 20):
+        for j in range(1, 20):
+            x = min(xs) + (max(xs) - min(xs)) * i / 20
+            y = min(ys) + (max(ys) - min(ys)) * j / 20
+            if not any(footprint_holds(s, x, y) for s in others):
+                return x, y
+    raise AssertionError("no such point")
+
+
+def test_a_submap_is_drawn_turned_by_its_origin_yaw(
+    turned_office: Any, sized: BrowserContext, demo: Demo
+) -> None:
+    page = open_plan(sized, demo)
+    corners = turned_corners(turned_office)
+    drawn = page.locator(".submap-image[alt=Office7]")
+    expect(drawn).to_have_attribute("style", re.compile(r"rotate\(1\.57\d*rad\)"))
+    box = drawn.bounding_box()
+    assert box is not None
+    on_page = page.evaluate(
+        "(points) => points.map(([x, y]) => window.cloudnav.floorPlan.toPage(x, y))", corners
+    )
+    left, top = min(p[0] for p in on_page), min(p[1] for p in on_page)
+    right, bottom = max(p[0] for p in on_page), max(p[1] for p in on_page)
+    # The image's box on the page is the box around its turned corners.
+    drawn_box = (box["x"], box["y"], box["x"] + box["width"], box["y"] + box["height"])
+    off = max(abs(a - b) for a, b in zip(drawn_box, (left, top, right, bottom), strict=True))
+    assert off < 2
+
+    # The pointer over the turned office is over Office7; over where it stood unturned, not.
+    others = [s for s in demo_building().submaps if s.code != "Office7"]
+    inside = only_in(corners, others)
+    at = page.evaluate("([x, y]) => window.cloudnav.floorPlan.toPage(x, y)", list(inside))
+    page.mouse.move(*at)
+    expect(page.locator("#plan-cursor")).to_contain_text("Office7")
+    # Unturned it stood above its origin; turned a quarter clockwise, it stands below.
+    outside = only_in(turned_corners(turned_office, 0.0), others)
+    at = page.evaluate("([x, y]) => window.cloudnav.floorPlan.toPage(x, y)", list(outside))
+    page.mouse.move(*at)
+    expect(page.locator("#plan-cursor")).not_to_contain_text("Office7")
+    screenshot(page, f"building-map-turned-submap-{page.viewport_size['width']}")  # type: ignore[index]
