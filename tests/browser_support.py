@@ -13,10 +13,13 @@ state through its API, not the ORM. (No asserts here: PYTEST_DONT_REWRITE.)
 
 from __future__ import annotations
 
+import asyncio
 import io
 import json
 import math
+import threading
 from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -27,6 +30,7 @@ from django.core.management import call_command
 from playwright.sync_api import Browser, BrowserContext, Page, sync_playwright
 
 from maps.domain.demo_building import demo_building
+from robots.agent.client import RosbridgeClient
 from tests.fixtures_live import BASE_DIR, LiveServer, agent_process, session_cookie
 
 CHROMIUM = "/usr/bin/chromium"
@@ -45,6 +49,9 @@ BUILDING = "boccioni_1"
 ROBOT = "robot_0"
 # The agent's simulated seconds per wall second: quick, yet teleop stays responsive.
 TIME_SCALE = 3.0
+
+
+MAP_ID = f"{BUILDING}/CorridorA"
 
 
 @dataclass
@@ -115,6 +122,42 @@ def agent(demo: Demo, tmp_path: Path) -> Iterator[Path]:
         demo.server.url, demo.tokens[ROBOT], tmp_path / "agent.log", *options
     ) as log:
         yield log
+
+
+@contextmanager
+def speaking_robot(
+    demo: Demo, speaking: threading.Event, goal_active: bool = False
+) -> Iterator[None]:
+    """``robot_0`` (no simulation, a rosbridge client) connects and, while ``speaking`` is
+    set, publishes at 5 Hz that it stands still in Corridor A (and, if ``goal_active``,
+    that it has an active goal); else it stays connected saying nothing, until the block
+    ends."""
+    done = threading.Event()
+
+    async def run() -> None:
+        client = RosbridgeClient(demo.server.rosbridge_url(), demo.tokens[ROBOT])
+        client.advertise("pose", "geometry_msgs/PoseStamped")
+        client.advertise("nav_status", "actionlib_msgs/GoalStatusArray")
+        task = asyncio.create_task(client.run())
+        await asyncio.wait_for(client.wait_connected(), 10)
+        pose = {"position": {"x": 2.0, "y": 1.0, "z": 0}, "orientation": {"w": 1.0}}
+        goal = {"goal_id": {"id": "g1"}, "status": 1, "text": "driving"}
+        status = {"header": {"frame_id": ""}, "status_list": [goal] if goal_active else []}
+        while not done.is_set():
+            if speaking.is_set():
+                await client.publish("pose", {"header": {"frame_id": MAP_ID}, "pose": pose})
+                await client.publish("nav_status", status)
+            await asyncio.sleep(0.2)
+        await client.close()
+        await task
+
+    thread = threading.Thread(target=asyncio.run, args=(run(),))
+    thread.start()
+    try:
+        yield
+    finally:
+        done.set()
+        thread.join(20)
 
 
 def open_as(context: BrowserContext, demo: Demo, username: str, path: str) -> Page:

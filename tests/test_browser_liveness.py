@@ -5,53 +5,20 @@ every live page; in a real browser at desktop and phone sizes."""
 
 from __future__ import annotations
 
-import asyncio
 import re
 import threading
-from collections.abc import Iterator
-from contextlib import contextmanager
 
 import pytest
 from playwright.sync_api import BrowserContext, Page, WebSocketRoute, expect
 
-from robots.agent.client import RosbridgeClient
-from tests.browser_support import BUILDING, ROBOT, Demo, open_as, screenshot
+from tests.browser_support import BUILDING, ROBOT, Demo, open_as, screenshot, speaking_robot
 
 pytest_plugins = ["tests.browser_support"]
 pytestmark = [pytest.mark.browser, pytest.mark.django_db(transaction=True)]
 
-MAP_ID = f"{BUILDING}/CorridorA"
 # The robots the building page's topology (cytoscape) draws on its sub-maps.
 MARKERS = "window.cloudnav.topologies.topology.cy.nodes('.robot-marker')"
 LIVE_PAGES = ["/", f"/buildings/{BUILDING}/", f"/buildings/{BUILDING}/map/", f"/robots/{ROBOT}/"]
-
-
-@contextmanager
-def robot_that_falls_silent(demo: Demo, speaking: threading.Event) -> Iterator[None]:
-    """``robot_0`` connects and publishes its pose in CorridorA at 5 Hz while ``speaking``
-    is set, then stays connected saying nothing, until the block ends."""
-    done = threading.Event()
-
-    async def run() -> None:
-        client = RosbridgeClient(demo.server.rosbridge_url(), demo.tokens[ROBOT])
-        client.advertise("pose", "geometry_msgs/PoseStamped")
-        task = asyncio.create_task(client.run())
-        await asyncio.wait_for(client.wait_connected(), 10)
-        pose = {"position": {"x": 2.0, "y": 1.0, "z": 0}, "orientation": {"w": 1.0}}
-        while not done.is_set():
-            if speaking.is_set():
-                await client.publish("pose", {"header": {"frame_id": MAP_ID}, "pose": pose})
-            await asyncio.sleep(0.2)
-        await client.close()
-        await task
-
-    thread = threading.Thread(target=asyncio.run, args=(run(),))
-    thread.start()
-    try:
-        yield
-    finally:
-        done.set()
-        thread.join(20)
 
 
 def server_says_online(page: Page) -> bool:
@@ -64,7 +31,7 @@ def test_the_building_page_shows_a_robot_online_only_while_it_is_heard(
 ) -> None:
     speaking = threading.Event()
     speaking.set()
-    with robot_that_falls_silent(demo, speaking):
+    with speaking_robot(demo, speaking):
         page = open_as(sized, demo, "operator", f"/buildings/{BUILDING}/")
         row = page.locator(f"#building-robots tr[data-robot={ROBOT}]")
         expect(row).to_have_attribute("data-state", "online", timeout=20_000)
