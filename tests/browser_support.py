@@ -13,10 +13,13 @@ state through its API, not the ORM. (No asserts here: PYTEST_DONT_REWRITE.)
 
 from __future__ import annotations
 
+import asyncio
 import io
 import json
 import math
+import threading
 from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -27,6 +30,7 @@ from django.core.management import call_command
 from playwright.sync_api import Browser, BrowserContext, Page, sync_playwright
 
 from maps.domain.demo_building import demo_building
+from robots.agent.client import RosbridgeClient
 from tests.fixtures_live import BASE_DIR, LiveServer, agent_process, session_cookie
 
 CHROMIUM = "/usr/bin/chromium"
@@ -45,6 +49,9 @@ BUILDING = "boccioni_1"
 ROBOT = "robot_0"
 # The agent's simulated seconds per wall second: quick, yet teleop stays responsive.
 TIME_SCALE = 3.0
+
+
+MAP_ID = f"{BUILDING}/CorridorA"
 
 
 @dataclass
@@ -89,6 +96,21 @@ def context(browser: Browser) -> Iterator[BrowserContext]:
     opened.close()
 
 
+# The two sizes every page is tested at: a desktop and a phone.
+SIZES = [{"width": 1440, "height": 900}, {"width": 390, "height": 844}]
+
+
+@pytest.fixture(params=SIZES, ids=["desktop", "phone"])
+def sized(browser: Browser, request: pytest.FixtureRequest) -> Iterator[BrowserContext]:
+    """A browser context at desktop (1440x900) or phone (390x844) size, with touch on the
+    phone."""
+    phone = request.param["width"] < 600
+    opened = browser.new_context(viewport=request.param, has_touch=phone)
+    opened.set_default_timeout(15_000)
+    yield opened
+    opened.close()
+
+
 @pytest.fixture
 def agent(demo: Demo, tmp_path: Path) -> Iterator[Path]:
     """The simulated robot ``robot_0`` in its own process, at the paper's start: before the
@@ -100,6 +122,42 @@ def agent(demo: Demo, tmp_path: Path) -> Iterator[Path]:
         demo.server.url, demo.tokens[ROBOT], tmp_path / "agent.log", *options
     ) as log:
         yield log
+
+
+@contextmanager
+def speaking_robot(
+    demo: Demo, speaking: threading.Event, goal_active: bool = False
+) -> Iterator[None]:
+    """``robot_0`` (no simulation, a rosbridge client) connects and, while ``speaking`` is
+    set, publishes at 5 Hz that it stands still in Corridor A (and, if ``goal_active``,
+    that it has an active goal); else it stays connected saying nothing, until the block
+    ends."""
+    done = threading.Event()
+
+    async def run() -> None:
+        client = RosbridgeClient(demo.server.rosbridge_url(), demo.tokens[ROBOT])
+        client.advertise("pose", "geometry_msgs/PoseStamped")
+        client.advertise("nav_status", "actionlib_msgs/GoalStatusArray")
+        task = asyncio.create_task(client.run())
+        await asyncio.wait_for(client.wait_connected(), 10)
+        pose = {"position": {"x": 2.0, "y": 1.0, "z": 0}, "orientation": {"w": 1.0}}
+        goal = {"goal_id": {"id": "g1"}, "status": 1, "text": "driving"}
+        status = {"header": {"frame_id": ""}, "status_list": [goal] if goal_active else []}
+        while not done.is_set():
+            if speaking.is_set():
+                await client.publish("pose", {"header": {"frame_id": MAP_ID}, "pose": pose})
+                await client.publish("nav_status", status)
+            await asyncio.sleep(0.2)
+        await client.close()
+        await task
+
+    thread = threading.Thread(target=asyncio.run, args=(run(),))
+    thread.start()
+    try:
+        yield
+    finally:
+        done.set()
+        thread.join(20)
 
 
 def open_as(context: BrowserContext, demo: Demo, username: str, path: str) -> Page:
@@ -147,3 +205,30 @@ def drawn_robot(page: Page) -> tuple[float, float] | None:
         return None
     x, y = value.split(",")
     return float(x), float(y)
+
+
+def topology_ids(page: Page, element: str, selector: str) -> list[str]:
+    """The ids of what the cytoscape topology in ``#element`` draws for ``selector``
+    (sub-maps ``node.submap``, edges ``edge``, classes ``.route``, ``.invalid``, ...)."""
+    found: Any = page.evaluate(
+        """([id, selector]) =>
+            window.cloudnav.topologies[id].cy.elements(selector).map((e) => e.id())""",
+        [element, selector],
+    )
+    return [str(value) for value in found]
+
+
+def topology_point(page: Page, element: str, key: str) -> tuple[float, float]:
+    """Where the node (a sub-map's code) or edge (``edgeKey``) ``key`` of the topology in
+    ``#element`` is drawn on the page, for mouse actions."""
+    found: Any = page.evaluate(
+        """([id, key]) => {
+            const view = window.cloudnav.topologies[id];
+            const item = view.cy.getElementById(key);
+            const at = item.isNode() ? item.renderedPosition() : item.renderedMidpoint();
+            const rect = view.element.getBoundingClientRect();
+            return [rect.left + at.x, rect.top + at.y];
+        }""",
+        [element, key],
+    )
+    return float(found[0]), float(found[1])

@@ -330,3 +330,147 @@ def test_an_operator_runs_a_mission_that_outlives_the_page_and_every_operator_se
     expect(row).to_have_attribute("data-state", "running")
     row.locator("button[data-command=cancel]").click()
     expect(row).to_have_count(0)
+
+
+@pytest.fixture
+def standing_robot(demo: Demo) -> Iterator[None]:
+    """``robot_0`` standing at the demo's start in Corridor A, saying so at 5 Hz (no
+    simulation: the route is the page's and the cloud planner's, not the robot's)."""
+    stop = threading.Event()
+    start = demo_building().start_pose
+
+    async def run() -> None:
+        client = RosbridgeClient(demo.server.rosbridge_url(), demo.tokens[ROBOT])
+        client.advertise("pose", "geometry_msgs/PoseStamped")
+        task = asyncio.create_task(client.run())
+        await asyncio.wait_for(client.wait_connected(), 10)
+        while not stop.is_set():
+            frame = f"{BUILDING}/CorridorA"
+            await client.publish("pose", pose_stamped(frame, start, time.time()))
+            await asyncio.sleep(0.2)
+        await client.close()
+        await task
+
+    thread = threading.Thread(target=asyncio.run, args=(run(),))
+    thread.start()
+    yield
+    stop.set()
+    thread.join(20)
+
+
+# Of a route's points, sampled every 5 cm, the share that some sub-map knows to be free.
+FREE_SHARE = """(name) => {
+    const plan = window.cloudnav.floorPlan;
+    const route = plan.robots.get(name).route;
+    const free = (x, y) => [...plan.grids.values()].some((grid) => {
+        const { width, height, resolution, origin } = grid.info;
+        const col = Math.floor((x - origin.position.x) / resolution);
+        const row = Math.floor((y - origin.position.y) / resolution);
+        if (col < 0 || row < 0 || col >= width || row >= height) return false;
+        const value = grid.data[row * width + col];
+        return value >= 0 && value < 65;
+    });
+    let samples = 0, clear = 0;
+    for (let i = 1; i < route.length; i += 1) {
+        const [a, b] = [route[i - 1], route[i]];
+        const steps = Math.max(1, Math.ceil(Math.hypot(b.x - a.x, b.y - a.y) / 0.05));
+        for (let k = 0; k <= steps; k += 1) {
+            samples += 1;
+            if (free(a.x + (b.x - a.x) * k / steps, a.y + (b.y - a.y) * k / steps)) clear += 1;
+        }
+    }
+    return [route.length, clear / Math.max(1, samples)];
+}"""
+
+
+def test_the_route_across_submaps_follows_the_planned_path(
+    sized: BrowserContext, demo: Demo, standing_robot: None
+) -> None:
+    page = open_plan(sized, demo)
+    select_robot(page)
+    robot_drawn(page, ROBOT)
+    page.click("#tool-goal")
+    press_and_drag(page, 21.4, 14.0, -math.pi / 2)  # in Corridor B, two sub-maps away
+    expect(page.locator("#floor-plan")).to_have_attribute(
+        "data-goal", f"{ROBOT}:{BUILDING}/CorridorB"
+    )
+    # Straight through the two tags first, then the planner's paths in the three sub-maps.
+    page.wait_for_function(
+        "(name) => window.cloudnav.floorPlan.robots.get(name).route.length > 10", arg=ROBOT
+    )
+    points, free = page.evaluate(FREE_SHARE, ROBOT)
+    assert points > 10
+    assert free == 1.0, f"{free:.1%} of the route is on free cells"
+    width = page.viewport_size["width"]  # type: ignore[index]
+    screenshot(page, f"building-map-planned-route-{width}")
+
+
+TURN = -math.pi / 2  # Office 7 turned a quarter clockwise about its origin, for the test
+
+
+@pytest.fixture
+def turned_office(demo: Demo) -> Any:
+    """Office 7 with its origin's yaw set to TURN (a new version, as an admin's edit)."""
+    from django.db import transaction
+
+    from maps import services
+    from maps.models import SubMap
+
+    with transaction.atomic():
+        office = SubMap.objects.get(building__code=BUILDING, code="Office7")
+        origin = [office.origin_x, office.origin_y, TURN]
+        return services.update_submap(office, {"origin": origin})
+
+
+def turned_corners(office: Any, turn: float = TURN) -> list[tuple[float, float]]:
+    w, h = office.width * office.resolution, office.height * office.resolution
+    cos, sin = math.cos(turn), math.sin(turn)
+    return [
+        (office.origin_x + cos * u - sin * v, office.origin_y + sin * u + cos * v)
+        for u, v in [(0, 0), (w, 0), (w, h), (0, h)]
+    ]
+
+
+def only_in(box: list[tuple[float, float]], others: list[Any]) -> tuple[float, float]:
+    """A point inside the box of ``box``'s corners and in none of ``others``' footprints."""
+    xs, ys = [p[0] for p in box], [p[1] for p in box]
+    for i in range(1, 20):
+        for j in range(1, 20):
+            x = min(xs) + (max(xs) - min(xs)) * i / 20
+            y = min(ys) + (max(ys) - min(ys)) * j / 20
+            if not any(footprint_holds(s, x, y) for s in others):
+                return x, y
+    raise AssertionError("no such point")
+
+
+def test_a_submap_is_drawn_turned_by_its_origin_yaw(
+    turned_office: Any, sized: BrowserContext, demo: Demo
+) -> None:
+    page = open_plan(sized, demo)
+    corners = turned_corners(turned_office)
+    drawn = page.locator(".submap-image[alt=Office7]")
+    expect(drawn).to_have_attribute("style", re.compile(r"rotate\(1\.57\d*rad\)"))
+    box = drawn.bounding_box()
+    assert box is not None
+    on_page = page.evaluate(
+        "(points) => points.map(([x, y]) => window.cloudnav.floorPlan.toPage(x, y))", corners
+    )
+    left, top = min(p[0] for p in on_page), min(p[1] for p in on_page)
+    right, bottom = max(p[0] for p in on_page), max(p[1] for p in on_page)
+    # The image's box on the page is the box around its turned corners.
+    drawn_box = (box["x"], box["y"], box["x"] + box["width"], box["y"] + box["height"])
+    off = max(abs(a - b) for a, b in zip(drawn_box, (left, top, right, bottom), strict=True))
+    assert off < 2
+
+    # The pointer over the turned office is over Office7; over where it stood unturned, not.
+    others = [s for s in demo_building().submaps if s.code != "Office7"]
+    inside = only_in(corners, others)
+    at = page.evaluate("([x, y]) => window.cloudnav.floorPlan.toPage(x, y)", list(inside))
+    page.mouse.move(*at)
+    expect(page.locator("#plan-cursor")).to_contain_text("Office7")
+    # Unturned it stood above its origin; turned a quarter clockwise, it stands below.
+    outside = only_in(turned_corners(turned_office, 0.0), others)
+    at = page.evaluate("([x, y]) => window.cloudnav.floorPlan.toPage(x, y)", list(outside))
+    page.mouse.move(*at)
+    expect(page.locator("#plan-cursor")).not_to_contain_text("Office7")
+    screenshot(page, f"building-map-turned-submap-{page.viewport_size['width']}")  # type: ignore[index]

@@ -86,7 +86,7 @@ def test_a_viewer_finds_no_controls(context: BrowserContext, demo: Demo, agent: 
     expect(page.locator(".building-card")).to_have_count(1)
     screenshot(page, "buildings-viewer")
     page.goto(demo.url("/buildings/boccioni_1/"))
-    expect(page.locator("#topology .topo-node")).to_have_count(10)
+    page.wait_for_function("window.cloudnav.topologies.topology.cy.nodes('.submap').length === 10")
     for editor in ("#topology-save", "#edge-editor", "#upload-link"):
         expect(page.locator(editor)).to_have_count(0)
     page.goto(demo.url("/buildings/boccioni_1/maps/CorridorA/"))

@@ -3,7 +3,10 @@ within reach on a robot's page, and the map zooms with two fingers."""
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+import json
+import re
+import time
+from collections.abc import Callable, Iterator
 
 import pytest
 from playwright.sync_api import Browser, BrowserContext, Page, expect
@@ -93,6 +96,9 @@ def test_the_touch_joystick_drives_once_the_operator_holds_control(
     phone: BrowserContext, demo: Demo
 ) -> None:
     page = open_as(phone, demo, "operator", f"/robots/{ROBOT}/")
+    sent: list[str] = []
+    page.on("websocket", lambda ws: ws.on("framesent", lambda frame: sent.append(str(frame))))
+    page.reload(wait_until="domcontentloaded")
     expect(page.locator("#conn-state")).to_contain_text("Live")
     page.click("#lock-acquire")
     expect(page.locator("#lock-state")).to_have_text("You are driving")
@@ -112,6 +118,33 @@ def test_the_touch_joystick_drives_once_the_operator_holds_control(
     stick = page.evaluate("window.cloudnav.robotPage.teleop.stick")
     assert stick["y"] < -0.8  # pushed forward (up the screen)
     assert abs(stick["x"]) < 0.2
+    # nipplejs draws the stick where the finger is, and the page drives forward with it.
+    expect(page.locator("#joystick .front")).to_have_attribute(
+        "style", re.compile(r"translate\(-?\d+(\.\d+)?px, ?-\d+")
+    )
+    screenshot(page, "robot-phone-joystick")
+    page.wait_for_function("window.cloudnav.robotPage.teleop.command()[0] > 0")
+    wait_for(page, lambda: any(forward_command(frame) for frame in sent), "a forward cmd_vel")
     cdp.send("Input.dispatchTouchEvent", {"type": "touchEnd", "touchPoints": []})
     expect(page.locator("#stop-button")).to_be_in_viewport()
     page.wait_for_function("window.cloudnav.robotPage.teleop.stick.y === 0")
+
+
+def forward_command(frame: str) -> bool:
+    """Whether ``frame`` publishes a cmd_vel that drives forward."""
+    try:
+        message = json.loads(frame)
+    except ValueError:
+        return False
+    if message.get("op") != "publish" or not message.get("topic", "").endswith("/cmd_vel"):
+        return False
+    return float(message["msg"]["linear"]["x"]) > 0
+
+
+def wait_for(page: Page, condition: Callable[[], bool], what: str, seconds: float = 10.0) -> None:
+    """Wait until ``condition()``; Playwright delivers the page's events meanwhile."""
+    deadline = time.monotonic() + seconds
+    while not condition():
+        if time.monotonic() > deadline:
+            raise AssertionError(f"no {what} within {seconds} s")
+        page.wait_for_timeout(100)

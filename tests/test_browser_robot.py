@@ -101,7 +101,9 @@ def test_an_operator_sends_a_goal_and_watches_the_robot_arrive(
     page.click("#map-tools button[data-tool=goal]")
     press_and_drag(page, *ATRIUM_1)
     expect(page.locator("#route-label")).to_have_text("route: CorridorA → Atrium1")
-    expect(page.locator("#robot-topology g.topo-node.route")).to_have_count(2)
+    page.wait_for_function(
+        "window.cloudnav.topologies['robot-topology'].cy.nodes('.route').length === 2"
+    )
     expect(page.locator("#goal-state")).to_have_text("active", timeout=15_000)
     screenshot(page, "robot-goal-in-another-submap")
     page.click("#goal-cancel")
@@ -122,6 +124,11 @@ def test_an_operator_takes_the_lock_and_drives_with_the_keyboard(
     page.keyboard.down("ArrowUp")
     expect(page.locator("#keys kbd[data-direction=forward]")).to_have_class("on")
     wait_until_moved(page, before, 0.3, timeout=15_000)
+    # uPlot draws the speed it drives at.
+    expect(page.locator("#plot-linear .uplot canvas")).to_be_visible()
+    page.wait_for_function(
+        "window.cloudnav.robotPage.plots.linear.chart.data[1].some((speed) => speed > 0.05)"
+    )
     screenshot(page, "robot-teleop")
     page.keyboard.up("ArrowUp")
     expect(page.locator("#odom-speed")).to_have_text("0.00 m/s", timeout=10_000)

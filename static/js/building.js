@@ -1,11 +1,16 @@
 // A building's page: its topology (edited by admins and saved whole, with the server's
-// validation shown), routes between sub-maps drawn on it, and the robots in it.
+// validation shown), routes between sub-maps drawn on it, and the robots in it, live: a
+// robot is online, and on the sub-map it says, only while this page hears from it.
 
 import { ApiError, api, splitMapId, urls } from "./api.js";
-import { askToConfirm, badge, el, pageConfig } from "./page.js";
+import { heardRecently, liveness } from "./liveness.js";
+import { MembersPanel } from "./members.js";
+import { askToConfirm, badge, connectFleet, el, pageConfig } from "./page.js";
 import { TopologyView, edgeKey } from "./topology.js";
 
-const ROBOTS_MS = 3000;
+// The registered robots are asked for this often; their state comes over rosbridge.
+const FLEET_MS = 5000;
+const RENDER_MS = 1000;
 const CHECK_DELAY_MS = 300;
 const $ = (id) => document.getElementById(id);
 const config = pageConfig();
@@ -152,22 +157,63 @@ function bindEditor() {
   });
 }
 
-async function showRobots() {
-  const entries = await api.get(`${urls.fleet()}?building=${encodeURIComponent(building)}`).catch(() => []);
-  const onNodes = new Map();
-  for (const entry of entries.filter((e) => e.online)) {
-    const [home, map] = splitMapId(entry.map_id);
-    if (home === building) onNodes.set(map, [...(onNodes.get(map) || []), entry.robot]);
+// ------------------------------------------------------------ the robots, live
+
+const connection = connectFleet();
+// Robot name -> {name, heard, mapId, lastMapId}: mapId is what it said while live;
+// lastMapId the server's record, shown as "last" and never as where it is.
+const robots = new Map();
+let drawnRobots = "";
+
+async function refreshRobots() {
+  const entries = await api.get(`${urls.fleet()}?building=${encodeURIComponent(building)}`).catch(() => null);
+  if (!entries) return;
+  for (const entry of entries) {
+    if (!robots.has(entry.robot)) listen({ name: entry.robot, heard: 0, mapId: "" });
+    robots.get(entry.robot).lastMapId = entry.map_id;
   }
-  view.setRobots(onNodes);
-  $("building-robots").replaceChildren(...(entries.length ? entries.map(robotRow) : [el("tr", {}, el("td", { class: "muted" }, "No robots registered here."))]));
+  renderRobots();
 }
 
-function robotRow(entry) {
-  return el("tr", {},
-    el("td", {}, el("a", { href: `/robots/${entry.robot}/` }, el("strong", {}, entry.robot))),
-    el("td", {}, badge(entry.online ? "online" : "offline", entry.online ? "ok" : "idle")),
-    el("td", { class: "mono muted" }, splitMapId(entry.map_id)[1] || "—"));
+function listen(robot) {
+  robots.set(robot.name, robot);
+  const ns = `/${robot.name}`;
+  const heard = () => { robot.heard = Date.now(); };
+  connection.subscribe(`${ns}/pose`, "geometry_msgs/PoseStamped", (msg) => {
+    heard();
+    robot.mapId = msg.header.frame_id;
+  }, { throttle_rate: 1000, queue_length: 1 });
+  connection.subscribe(`${ns}/localisation`, "diagnostic_msgs/DiagnosticStatus", (msg) => {
+    heard();
+    if (msg.values?.find((value) => value.key === "state")?.value === "lost") robot.mapId = "";
+  }, { queue_length: 1 });
+  connection.subscribe(`${ns}/nav_status`, "actionlib_msgs/GoalStatusArray", heard, { queue_length: 1 });
+}
+
+function renderRobots() {
+  const now = Date.now();
+  const live = [...robots.values()].filter((robot) => heardRecently(robot.heard, now));
+  const onNodes = new Map();
+  for (const robot of live) {
+    const [home, map] = splitMapId(robot.mapId);
+    if (home === building) onNodes.set(map, [...(onNodes.get(map) || []), robot.name]);
+  }
+  // Drawn again only when it changes: an admin may be dragging a node.
+  const drawn = JSON.stringify([...onNodes]);
+  if (drawn !== drawnRobots) view.setRobots(onNodes);
+  drawnRobots = drawn;
+  const rows = [...robots.values()].sort((a, b) => a.name.localeCompare(b.name, undefined, { numeric: true }));
+  $("building-robots").replaceChildren(...(rows.length ? rows.map((robot) => robotRow(robot, now)) : [el("tr", {}, el("td", { class: "muted" }, "No robots registered here."))]));
+}
+
+function robotRow(robot, now) {
+  const [word, kind] = liveness(robot.heard, "offline", now);
+  const live = kind === "ok";
+  const last = splitMapId(robot.lastMapId || robot.mapId)[1];
+  return el("tr", { dataset: { robot: robot.name, state: word } },
+    el("td", {}, el("a", { href: `/robots/${robot.name}/` }, el("strong", {}, robot.name))),
+    el("td", {}, badge(word, kind)),
+    el("td", { class: "mono muted submap" }, live ? splitMapId(robot.mapId)[1] || "—" : last ? `last: ${last}` : "—"));
 }
 
 for (const row of document.querySelectorAll("tr[data-href]")) {
@@ -175,8 +221,12 @@ for (const row of document.querySelectorAll("tr[data-href]")) {
 }
 $("route-from").addEventListener("change", showRoute);
 $("route-to").addEventListener("change", showRoute);
-if (editable) bindEditor();
+if (editable) {
+  bindEditor();
+  new MembersPanel(building).load();
+}
 window.cloudnav = { ...(window.cloudnav || {}), topology: view };
 loadTopology();
-showRobots();
-setInterval(showRobots, ROBOTS_MS);
+refreshRobots();
+setInterval(refreshRobots, FLEET_MS);
+setInterval(renderRobots, RENDER_MS);

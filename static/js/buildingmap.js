@@ -6,18 +6,20 @@
 import { api, splitMapId, urls } from "./api.js";
 import { FloorPlan, LAYERS } from "./floorplan.js";
 import { planarPose, poseStamped } from "./geometry.js";
+import { heardRecently, liveness } from "./liveness.js";
 import { MissionsPanel } from "./missions.js";
 import { badge, connectFleet, el, navigationState, pageConfig, whereabouts } from "./page.js";
 
 const TRAIL_POINTS = 300;
 const TRAIL_STEP_M = 0.05;
-// Online means heard from within this; anything older is drawn grey and said to be silent.
-const LIVE_FOR_MS = 3000;
 const FLEET_MS = 5000;
 // nav_status codes after which a goal is over (actionlib_msgs/GoalStatus).
 const FINISHED = new Set([2, 3, 4, 5, 8, 9]);
 // A goal just sent is not ended by the status of the one before it.
 const GOAL_GRACE_MS = 1500;
+// The cloud's planner (the robots' own A*), for the legs of a route in other sub-maps.
+const PLAN_PATH = "/cloudnav/plan_path";
+const PLAN_PATH_TYPE = "cloudnav/PlanPath";
 const $ = (id) => document.getElementById(id);
 
 const config = pageConfig();
@@ -151,7 +153,10 @@ function onStatus(track, msg) {
   }
 }
 
-/** The tags a robot drives to on its way to a goal in another sub-map. */
+/**
+ * A robot's way to a goal in another sub-map: through the tags it drives to (straight at
+ * first), then along the paths the cloud's planner finds in each sub-map of the route.
+ */
 async function routeOf(track) {
   const goal = track.goal;
   if (!goal || !track.map || goal.map === track.map) {
@@ -162,17 +167,44 @@ async function routeOf(track) {
     const answer = await api.get(urls.route(building, track.map, goal.map));
     if (track.goal !== goal) return;
     track.route = answer.steps.filter((step) => step.tag).map((step) => ({ x: step.tag.x, y: step.tag.y }));
+    plan.changed();
+    const planned = await plannedRoute(answer.steps, track.pose, goal.pose);
+    if (track.goal === goal) track.route = planned;
   } catch {
     track.route = [];
   }
   plan.changed();
 }
 
+/** The route's legs, planned in their sub-maps: from `start` (or the first tag when the
+ * robot's pose is unknown) through each step's tag to `end`. */
+async function plannedRoute(steps, start, end) {
+  const legs = [];
+  let from = start;
+  for (const step of steps) {
+    const to = step.tag ? { x: step.tag.x, y: step.tag.y } : end;
+    if (from) legs.push(leg(step.map_id, from, to));
+    from = to;
+  }
+  return (await Promise.all(legs)).flat();
+}
+
+/** The planner's path from `from` to `to` in sub-map `mapId`, or the straight line. */
+async function leg(mapId, from, to) {
+  try {
+    const answer = await connection.call(PLAN_PATH, PLAN_PATH_TYPE, {
+      map_id: mapId, start: { x: from.x, y: from.y }, goal: { x: to.x, y: to.y },
+    });
+    return answer.path.poses.map((p) => ({ x: p.pose.position.x, y: p.pose.position.y }));
+  } catch {
+    return [from, to];
+  }
+}
+
 // ------------------------------------------------------------ the list and the selection
 
 function stateOf(track) {
-  if (!track.heard) return ["no data", "idle"];
-  if (!track.live) return [`silent ${Math.round((Date.now() - track.heard) / 1000)} s`, "idle"];
+  if (!track.live) return liveness(track.heard);
   if (track.elsewhere) return [`in ${track.elsewhere}`, "plain"];
   if (track.whereabouts?.state === "lost") return ["lost", "warn"];
   return ["online", "ok"];
@@ -216,7 +248,7 @@ function renderSelected() {
 function ageTracks() {
   const now = Date.now();
   for (const track of plan.robots.values()) {
-    const live = Boolean(track.heard) && now - track.heard < LIVE_FOR_MS;
+    const live = heardRecently(track.heard, now);
     if (live !== track.live) {
       track.live = live;
       plan.changed();
@@ -292,9 +324,6 @@ function bindControls() {
   });
 }
 
-// A lost connection is said on the plan itself, not only in the banner.
-connection.addEventListener("disconnected", () => { $("plan-offline").hidden = false; });
-connection.addEventListener("connected", () => { $("plan-offline").hidden = true; });
 bindControls();
 new MissionsPanel({ building, plan, connection, mayDrive, hint }).start();
 loadBuilding().catch((error) => hint(`Cannot load the building: ${error.message}`));

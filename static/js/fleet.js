@@ -4,12 +4,10 @@
 
 import { api, splitMapId, urls } from "./api.js";
 import { EventsPanel } from "./events.js";
+import { heardRecently } from "./liveness.js";
 import { ago, badge, connectFleet, el, fixed, navigationState, pageConfig, whereabouts } from "./page.js";
 
 const POLL_MS = 3000;
-// Online means heard from within this; the server's record of a connection is not enough
-// (a server that restarted still holds the poses of before).
-const LIVE_FOR_MS = 3000;
 // How a lost robot is got out, said to whoever reads the dashboard.
 const WAY_OUT = ["operator", "admin"].includes(pageConfig().role)
   ? "Open it to set its initial pose, or drive it to a tag."
@@ -66,7 +64,7 @@ class FleetDashboard {
   }
 
   online(robot) {
-    return Boolean(robot.heard) && Date.now() - robot.heard < LIVE_FOR_MS;
+    return heardRecently(robot.heard);
   }
 
   render() {

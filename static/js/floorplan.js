@@ -6,6 +6,7 @@
 // zoom; the page gives a goal tool: press on the plan and drag for the heading.
 
 import * as L from "../vendor/leaflet.js";
+import { yawOfQuaternion } from "./geometry.js";
 import { drawArrow, gridPixels } from "./mapview.js";
 
 const COLORS = {
@@ -36,23 +37,60 @@ export const LAYERS = {
   labels: "Names",
 };
 
-/** A sub-map's footprint in the building frame: [x0, y0, x1, y1] (its origin yaw ignored). */
-export function footprint(grid) {
-  const { width, height, resolution, origin } = grid.info;
-  const x0 = origin.position.x;
-  const y0 = origin.position.y;
-  return [x0, y0, x0 + width * resolution, y0 + height * resolution];
+/** A sub-map's origin in the building frame: {x, y, yaw} of its bottom-left cell's corner. */
+function originOf(grid) {
+  const { position, orientation } = grid.info.origin;
+  return { x: position.x, y: position.y, yaw: yawOfQuaternion(orientation) };
 }
 
-/** The occupancy value of `grid` at (x, y), or undefined outside it. */
+/** A sub-map's corners in the building frame, turned by its origin's yaw (map_server):
+ * bottom-left (the origin), bottom-right, top-right, top-left. */
+export function corners(grid) {
+  const { width, height, resolution } = grid.info;
+  const { x, y, yaw } = originOf(grid);
+  const [cos, sin] = [Math.cos(yaw), Math.sin(yaw)];
+  const [w, h] = [width * resolution, height * resolution];
+  return [[0, 0], [w, 0], [w, h], [0, h]].map(([u, v]) => ({ x: x + cos * u - sin * v, y: y + sin * u + cos * v }));
+}
+
+/** The box around a sub-map in the building frame: [x0, y0, x1, y1]. */
+export function footprint(grid) {
+  const points = corners(grid);
+  const xs = points.map((p) => p.x);
+  const ys = points.map((p) => p.y);
+  return [Math.min(...xs), Math.min(...ys), Math.max(...xs), Math.max(...ys)];
+}
+
+/** The occupancy value of `grid` at building point (x, y), or undefined outside it. */
 export function cellAt(grid, x, y) {
-  const [x0, y0, x1, y1] = footprint(grid);
-  if (x < x0 || y < y0 || x >= x1 || y >= y1) return undefined;
-  const { width, resolution } = grid.info;
-  const col = Math.floor((x - x0) / resolution);
-  const row = Math.floor((y - y0) / resolution);
+  const { width, height, resolution } = grid.info;
+  const origin = originOf(grid);
+  const [dx, dy, cos, sin] = [x - origin.x, y - origin.y, Math.cos(origin.yaw), Math.sin(origin.yaw)];
+  const col = Math.floor((cos * dx + sin * dy) / resolution);
+  const row = Math.floor((-sin * dx + cos * dy) / resolution);
+  if (col < 0 || row < 0 || col >= width || row >= height) return undefined;
   return grid.data[row * width + col];
 }
+
+/**
+ * A sub-map's image in the building frame: Leaflet places it unturned on its origin, and
+ * CSS turns it about its bottom-left corner (the origin) by the origin's yaw.
+ */
+const SubmapImage = L.ImageOverlay.extend({
+  initialize(url, grid, options) {
+    const { width, height, resolution } = grid.info;
+    const { x, y, yaw } = originOf(grid);
+    L.ImageOverlay.prototype.initialize.call(this, url, [[y, x], [y + height * resolution, x + width * resolution]], options);
+    this.yaw = yaw;
+  },
+
+  _reset() {
+    L.ImageOverlay.prototype._reset.call(this);
+    if (!this.yaw) return;
+    this._image.style.transformOrigin = "0 100%";
+    this._image.style.transform += ` rotate(${-this.yaw}rad)`;
+  },
+});
 
 /**
  * The sub-map a point belongs to, of `submaps` (code -> grid): the `preferred` one if the
@@ -186,8 +224,7 @@ export class FloorPlan extends EventTarget {
     canvas.height = height;
     // Unknown cells are transparent, so where sub-maps overlap each shows what it knows.
     canvas.getContext("2d").putImageData(new ImageData(gridPixels(grid, { unknownAlpha: 0 }), width, height), 0, 0);
-    const [x0, y0, x1, y1] = footprint(grid);
-    L.imageOverlay(canvas.toDataURL(), [[y0, x0], [y1, x1]], { className: "submap-image", alt: code }).addTo(this.images);
+    new SubmapImage(canvas.toDataURL(), grid, { className: "submap-image", alt: code }).addTo(this.images);
     this.live.redraw();
   }
 
@@ -349,14 +386,17 @@ export class FloorPlan extends EventTarget {
     ctx.save();
     ctx.font = "600 12px system-ui, sans-serif";
     for (const [code, grid] of this.grids) {
-      const [x0, y0, x1, y1] = footprint(grid);
-      const [ax, ay] = project(x0, y1);
-      const [bx, by] = project(x1, y0);
+      const outline = corners(grid).map((p) => project(p.x, p.y));
       const hovered = code === this.hover && this.tool;
       ctx.strokeStyle = hovered ? COLORS.hover : COLORS.outline;
       ctx.lineWidth = hovered ? 2.5 : 1;
       ctx.setLineDash(hovered ? [] : [4, 4]);
-      ctx.strokeRect(ax, ay, bx - ax, by - ay);
+      ctx.beginPath();
+      outline.forEach(([sx, sy], index) => (index ? ctx.lineTo(sx, sy) : ctx.moveTo(sx, sy)));
+      ctx.closePath();
+      ctx.stroke();
+      // The name stands inside the corner nearest the top left of the screen.
+      const [ax, ay] = outline.reduce((best, point) => (point[0] + point[1] < best[0] + best[1] ? point : best));
       if (this.visible.labels) label(ctx, code, ax + 4, ay + 14, hovered ? COLORS.hover : "#4a5468");
     }
     ctx.restore();

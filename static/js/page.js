@@ -8,7 +8,13 @@ export function pageConfig() {
   return node ? JSON.parse(node.textContent) : {};
 }
 
-/** Open the page's rosbridge connection and show its state in the top bar and banner. */
+// What every live element says while the page has no connection to the server.
+const NOT_LIVE = "Not connected to the server: not live.";
+
+/**
+ * Open the page's rosbridge connection and show its state in the top bar, in the banner
+ * and on every `.live-element` of the page (greyed, with NOT_LIVE over it).
+ */
 export function connectFleet() {
   const connection = new Connection();
   const banner = document.getElementById("ws-banner");
@@ -26,12 +32,20 @@ export function connectFleet() {
   connection.addEventListener("disconnected", (event) => {
     banner.hidden = false;
     document.body.classList.add("server-lost");
+    sayNotLive();
     const seconds = Math.max(1, Math.round(event.detail.retryInMs / 1000));
     banner.textContent = `Connection to the fleet lost — reconnecting in ${seconds} s…`;
     show("Offline", "danger");
   });
   window.cloudnav = { ...(window.cloudnav || {}), connection };
   return connection.start();
+}
+
+/** Give each live element its note; CSS shows the notes while the body is `server-lost`. */
+function sayNotLive() {
+  for (const element of document.querySelectorAll(".live-element")) {
+    if (!element.querySelector(":scope > .live-lost")) element.append(el("div", { class: "live-lost", role: "status" }, NOT_LIVE));
+  }
 }
 
 /** Create an element: `el("td", {class: "num"}, "3.2")`. */

@@ -1,47 +1,82 @@
-// A rolling time plot on a canvas: the last `windowSeconds` of a few series, drawn at most
-// a few times a second, with a symmetric y axis that grows to fit.
+// A rolling time plot drawn by uPlot: the last `windowSeconds` of a few series, drawn
+// again at most a few times a second, with a symmetric y axis that grows to fit.
+
+import uPlot from "../vendor/uplot.js";
 
 const GRID = "#e1e5ee";
 const AXIS_TEXT = "#66708a";
 const REDRAW_MS = 100;
+const DEFAULT_HEIGHT = 140;
+const TICK_S = 15;
 
 export class TimePlot {
-  /** `series`: [{label, color, unit}]. */
-  constructor(canvas, series, { windowSeconds = 60, minRange = 0.2 } = {}) {
-    this.canvas = canvas;
-    this.series = series.map((s) => ({ ...s, points: [] }));
+  /** `element`: the box the plot fills; `series`: [{label, color}]. */
+  constructor(element, series, { windowSeconds = 60, minRange = 0.2 } = {}) {
+    this.element = element;
     this.windowSeconds = windowSeconds;
     this.minRange = minRange;
+    this.times = [];
+    this.values = series.map(() => []);
     this.lastDraw = 0;
     this.timer = null;
-    new ResizeObserver(() => this.draw()).observe(canvas);
+    this.chart = new uPlot(this.#options(series), this.#data(), element);
+    new ResizeObserver(() => this.#resize()).observe(element);
   }
 
   /** Add one sample of every series at `time` (seconds). */
   push(time, values) {
-    this.series.forEach((series, index) => {
-      series.points.push([time, values[index]]);
-      const cutoff = time - this.windowSeconds;
-      while (series.points.length && series.points[0][0] < cutoff) series.points.shift();
-    });
+    this.times.push(time);
+    values.forEach((value, index) => this.values[index].push(value));
+    const cutoff = time - this.windowSeconds;
+    let old = 0;
+    while (old < this.times.length && this.times[old] < cutoff) old += 1;
+    if (old) {
+      this.times.splice(0, old);
+      for (const list of this.values) list.splice(0, old);
+    }
     this.#schedule();
   }
 
   /** Forget every sample (a replay seeking, or going back to live). */
   clear() {
-    for (const series of this.series) series.points = [];
+    this.times = [];
+    this.values = this.values.map(() => []);
     this.#schedule();
   }
 
   /** The time of the newest sample, or null. */
   newest() {
-    const times = this.series.flatMap((s) => (s.points.length ? [s.points[s.points.length - 1][0]] : []));
-    return times.length ? Math.max(...times) : null;
+    return this.times.length ? this.times[this.times.length - 1] : null;
   }
 
   latest(index) {
-    const points = this.series[index].points;
-    return points.length ? points[points.length - 1][1] : null;
+    const list = this.values[index];
+    return list.length ? list[list.length - 1] : null;
+  }
+
+  #options(series) {
+    const axis = { stroke: AXIS_TEXT, grid: { stroke: GRID, width: 1 }, ticks: { show: false }, font: "11px system-ui, sans-serif" };
+    return {
+      width: this.element.clientWidth || 300,
+      height: this.element.clientHeight || DEFAULT_HEIGHT,
+      legend: { show: false },
+      cursor: { show: false },
+      series: [{}, ...series.map((s) => ({ label: s.label, stroke: s.color, width: 2, points: { show: false } }))],
+      scales: {
+        // x is seconds before the newest sample: the plot ends at "now".
+        x: { time: false, range: () => [-this.windowSeconds, 0] },
+        y: { range: () => { const r = this.#range(); return [-r, r]; } },
+      },
+      axes: [
+        { ...axis, splits: () => this.#secondTicks(), values: (_, ticks) => ticks.map((t) => (t ? `${t}s` : "now")) },
+        { ...axis, size: 44, splits: () => this.#valueTicks(), values: (_, ticks) => ticks.map(formatTick) },
+      ],
+    };
+  }
+
+  #data() {
+    const now = this.newest() ?? 0;
+    return [this.times.map((time) => time - now), ...this.values];
   }
 
   #schedule() {
@@ -55,71 +90,29 @@ export class TimePlot {
 
   draw() {
     this.lastDraw = performance.now();
-    const { ctx, width, height } = this.#surface();
-    const box = { left: 44, right: width - 8, top: 8, bottom: height - 20 };
-    const now = this.#now();
+    this.chart.setData(this.#data());
+  }
+
+  #resize() {
+    const width = this.element.clientWidth;
+    if (width) this.chart.setSize({ width, height: this.element.clientHeight || DEFAULT_HEIGHT });
+  }
+
+  #valueTicks() {
     const range = this.#range();
-    const toX = (t) => box.left + ((t - (now - this.windowSeconds)) / this.windowSeconds) * (box.right - box.left);
-    const toY = (v) => box.top + ((range - v) / (2 * range)) * (box.bottom - box.top);
-    drawAxes(ctx, box, range, toY, this.windowSeconds);
-    for (const series of this.series) drawSeries(ctx, series, toX, toY);
+    return [-range, -range / 2, 0, range / 2, range];
   }
 
-  #surface() {
-    const ratio = window.devicePixelRatio || 1;
-    const width = this.canvas.clientWidth || 300;
-    const height = this.canvas.clientHeight || 140;
-    this.canvas.width = Math.round(width * ratio);
-    this.canvas.height = Math.round(height * ratio);
-    const ctx = this.canvas.getContext("2d");
-    ctx.setTransform(ratio, 0, 0, ratio, 0, 0);
-    ctx.clearRect(0, 0, width, height);
-    return { ctx, width, height };
-  }
-
-  #now() {
-    return this.newest() ?? 0;
+  #secondTicks() {
+    const ticks = [];
+    for (let seconds = this.windowSeconds - TICK_S; seconds >= 0; seconds -= TICK_S) ticks.push(-seconds);
+    return ticks;
   }
 
   #range() {
-    const values = this.series.flatMap((s) => s.points.map(([, v]) => Math.abs(v)));
-    const peak = Math.max(this.minRange, ...values.filter(Number.isFinite));
-    return niceCeiling(peak * 1.1);
+    const values = this.values.flat().map(Math.abs).filter(Number.isFinite);
+    return niceCeiling(Math.max(this.minRange, ...values) * 1.1);
   }
-}
-
-function drawAxes(ctx, box, range, toY, windowSeconds) {
-  ctx.font = "11px system-ui, sans-serif";
-  ctx.fillStyle = AXIS_TEXT;
-  ctx.strokeStyle = GRID;
-  ctx.lineWidth = 1;
-  ctx.textAlign = "right";
-  for (const value of [-range, -range / 2, 0, range / 2, range]) {
-    const y = Math.round(toY(value)) + 0.5;
-    ctx.beginPath();
-    ctx.moveTo(box.left, y);
-    ctx.lineTo(box.right, y);
-    ctx.stroke();
-    ctx.fillText(formatTick(value), box.left - 6, y + 4);
-  }
-  ctx.textAlign = "center";
-  for (let seconds = 0; seconds < windowSeconds; seconds += 15) {
-    const x = box.left + (1 - seconds / windowSeconds) * (box.right - box.left);
-    ctx.fillText(seconds ? `-${seconds}s` : "now", Math.min(x, box.right - 12), box.bottom + 15);
-  }
-}
-
-function drawSeries(ctx, series, toX, toY) {
-  if (series.points.length < 2) return;
-  ctx.strokeStyle = series.color;
-  ctx.lineWidth = 2;
-  ctx.lineJoin = "round";
-  ctx.beginPath();
-  series.points.forEach(([t, v], index) => {
-    if (index === 0) ctx.moveTo(toX(t), toY(v));
-    else ctx.lineTo(toX(t), toY(v));
-  });
-  ctx.stroke();
 }
 
 function formatTick(value) {

@@ -4,6 +4,7 @@
 import { api, splitMapId, splitMapRef, urls } from "./api.js";
 import { CameraPanel } from "./camera.js";
 import { degrees, planarPose, poseStamped, poseWithCovariance, scanPoints } from "./geometry.js";
+import { liveness } from "./liveness.js";
 import { MapView } from "./mapview.js";
 import { badge, connectFleet, fixed, navigationState, pageConfig, whereabouts } from "./page.js";
 import { TimePlot } from "./plot.js";
@@ -13,7 +14,6 @@ import { Teleop } from "./teleop.js";
 import { TopologyView } from "./topology.js";
 
 const TRAIL_POINTS = 600;
-const STALE_MS = 2500;
 const VIDEO_STATS_URL = "/api/video/stats";
 const $ = (id) => document.getElementById(id);
 
@@ -217,11 +217,10 @@ function renderWhereabouts() {
 }
 
 setInterval(() => {
-  const age = Date.now() - state.heard;
-  const online = state.heard && age < STALE_MS;
+  const [word, kind] = liveness(state.heard, "waiting for data");
   const node = $("robot-online");
-  node.className = `badge ${online ? "ok" : "idle"}`;
-  node.textContent = online ? "online" : state.heard ? `silent for ${Math.round(age / 1000)} s` : "waiting for data";
+  node.className = `badge ${kind}`;
+  node.textContent = word;
 }, 500);
 
 // ------------------------------------------------------------ replay of the recording

@@ -1,13 +1,16 @@
 // Teleoperation of one robot: the teleop lock (/cloudnav/teleop_lock), keyboard (arrows and
-// WASD), an on-screen joystick, speed limits and a stop. Commands go out at 10 Hz while
-// any input is held, then one zero Twist; the lock is renewed while held.
+// WASD), an on-screen joystick (nipplejs: mouse, pen and touch), speed limits and a stop.
+// Commands go out at 10 Hz while any input is held, then one zero Twist; the lock is
+// renewed while held.
 
+import nipplejs from "../vendor/nipplejs.js";
 import { degrees } from "./geometry.js";
 
 const LOCK_SERVICE = "/cloudnav/teleop_lock";
 const LOCK_TYPE = "cloudnav/TeleopLock";
 const COMMAND_MS = 100;
 const RENEW_MS = 2000;
+const STICK_PX = 150;
 const KEYS = {
   ArrowUp: "forward", KeyW: "forward",
   ArrowDown: "back", KeyS: "back",
@@ -181,34 +184,22 @@ export class Teleop extends EventTarget {
     this.#renderKeys();
   }
 
-  #bindJoystick(pad) {
-    const move = (event) => {
-      const rect = pad.getBoundingClientRect();
-      const radius = rect.width / 2;
-      let x = (event.clientX - rect.left - radius) / radius;
-      let y = (event.clientY - rect.top - radius) / radius;
-      const length = Math.hypot(x, y);
-      if (length > 1) [x, y] = [x / length, y / length];
-      this.#setStick(x, y);
-    };
-    pad.addEventListener("pointerdown", (event) => {
-      if (!this.holding) return;
-      pad.setPointerCapture(event.pointerId);
-      move(event);
+  /** A static nipplejs stick in `zone`; `stick` is in screen axes (y down: back). */
+  #bindJoystick(zone) {
+    const sticks = nipplejs.create({
+      zone, mode: "static", position: { left: "50%", top: "50%" }, size: STICK_PX,
+      color: { front: "#2f6fed", back: "rgba(47, 111, 237, 0.15)" }, restOpacity: 0.9,
+      // The page's cards load and grow above the stick: measure where it is on each move.
+      dynamicPage: true,
     });
-    pad.addEventListener("pointermove", (event) => {
-      if (pad.hasPointerCapture(event.pointerId)) move(event);
+    sticks.on("move", ({ data }) => {
+      if (this.holding) this.#setStick(data.vector.x, -data.vector.y);
     });
-    const recentre = () => this.#setStick(0, 0);
-    pad.addEventListener("pointerup", recentre);
-    pad.addEventListener("pointercancel", recentre);
+    sticks.on("end", () => this.#setStick(0, 0));
   }
 
   #setStick(x, y) {
     this.stick = { x, y };
-    const knob = this.ui.joystick.querySelector(".knob");
-    const travel = this.ui.joystick.clientWidth / 2 - knob.clientWidth / 2;
-    knob.style.transform = `translate(${x * travel}px, ${y * travel}px)`;
   }
 
   // ------------------------------------------------------------ display

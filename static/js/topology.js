@@ -1,17 +1,19 @@
-// A building's topology graph on SVG: sub-maps as nodes at their (x, y) in metres, edges
-// with their costs, a route and robots highlighted. When editable: drag nodes, click two
-// nodes to join them, click an edge to select it (then set its cost or remove it).
+// A building's topology graph drawn by cytoscape.js: sub-maps as nodes at their (x, y) in
+// metres, edges with their costs, a route, tags no robot can cross and robots highlighted;
+// pan and zoom (wheel, pinch). When editable: drag nodes, tap two nodes to join them, tap
+// an edge to select it (then set its cost or remove it). The graph itself (nodes, edges)
+// is this view's; cytoscape only draws it and reports gestures.
 
-const SVG = "http://www.w3.org/2000/svg";
-const NODE_RADIUS = 19;
-const PADDING = 44;
+import cytoscape from "../vendor/cytoscape.js";
 
-function svg(tag, attributes = {}, text = null) {
-  const node = document.createElementNS(SVG, tag);
-  for (const [key, value] of Object.entries(attributes)) node.setAttribute(key, value);
-  if (text !== null) node.textContent = text;
-  return node;
-}
+// Screen pixels per metre of the nodes' coordinates before fitting (cytoscape's model units).
+const UNITS_PER_M = 20;
+const NODE_PX = 38;
+const ROBOT_PX = 14;
+const COLORS = {
+  surface: "#ffffff", border: "#e1e5ee", text: "#1c2333", muted: "#66708a", accent: "#2f6fed",
+  accentSoft: "#e6eefe", ok: "#1f9d55", okSoft: "#e3f6ea", danger: "#d93636", warn: "#d98a00", edge: "#9aa5bf",
+};
 
 export function edgeKey(a, b) {
   return [a, b].sort().join("\u2194");
@@ -20,7 +22,7 @@ export function edgeKey(a, b) {
 export class TopologyView extends EventTarget {
   constructor(element, { editable = false } = {}) {
     super();
-    this.svg = element;
+    this.element = element;
     this.editable = editable;
     this.nodes = [];
     this.edges = [];
@@ -29,9 +31,15 @@ export class TopologyView extends EventTarget {
     this.invalid = new Set();
     this.selected = null;
     this.linking = null;
-    this.frame = null;
     element.classList.toggle("editable", editable);
-    new ResizeObserver(() => this.render()).observe(element);
+    this.cy = cytoscape({
+      container: element, style: STYLE, layout: { name: "preset" }, minZoom: 0.2, maxZoom: 4,
+      boxSelectionEnabled: false, autounselectify: true, autoungrabify: !editable,
+    });
+    this.#bind();
+    new ResizeObserver(() => this.cy.resize()).observe(element);
+    window.cloudnav = { ...(window.cloudnav || {}) };
+    window.cloudnav.topologies = { ...(window.cloudnav.topologies || {}), [element.id]: this };
   }
 
   load({ nodes, edges }) {
@@ -39,8 +47,8 @@ export class TopologyView extends EventTarget {
     this.edges = edges.map((edge) => ({ ...edge }));
     this.selected = null;
     this.linking = null;
-    this.frame = null;
     this.render();
+    this.cy.fit(undefined, NODE_PX);
   }
 
   /** The graph as the topology API takes it. */
@@ -56,6 +64,7 @@ export class TopologyView extends EventTarget {
     this.render();
   }
 
+  /** `robots`: sub-map code -> robot names standing in it. */
   setRobots(robots) {
     this.robots = robots;
     this.render();
@@ -85,8 +94,24 @@ export class TopologyView extends EventTarget {
     this.#changed();
   }
 
-  #clickNode(code) {
+  #bind() {
     if (!this.editable) return;
+    this.cy.on("tap", "node.submap", (event) => this.#tapNode(event.target.id()));
+    this.cy.on("tap", "edge", (event) => {
+      const key = event.target.id();
+      this.selected = this.selected === key ? null : key;
+      this.render();
+      this.dispatchEvent(new CustomEvent("select"));
+    });
+    this.cy.on("drag", "node.submap", (event) => this.#moveRobots(event.target));
+    this.cy.on("dragfree", "node.submap", (event) => {
+      const node = this.nodes.find((n) => n.code === event.target.id());
+      Object.assign(node, toMetres(event.target.position()));
+      this.#changed();
+    });
+  }
+
+  #tapNode(code) {
     if (!this.linking || this.linking === code) {
       this.linking = this.linking === code ? null : code;
       this.render();
@@ -111,128 +136,102 @@ export class TopologyView extends EventTarget {
     this.dispatchEvent(new CustomEvent("change"));
   }
 
-  // ------------------------------------------------------------ layout
-
-  /** Fit the nodes' metres to the element once per load, so dragging keeps the scale. */
-  #fit() {
-    if (this.frame) return this.frame;
-    const width = this.svg.clientWidth || 600;
-    const height = this.svg.clientHeight || 400;
-    const xs = this.nodes.map((n) => n.x);
-    const ys = this.nodes.map((n) => n.y);
-    const [minX, maxX, minY, maxY] = [Math.min(...xs), Math.max(...xs), Math.min(...ys), Math.max(...ys)];
-    const scale = Math.min((width - 2 * PADDING) / (maxX - minX || 1), (height - 2 * PADDING) / (maxY - minY || 1));
-    this.frame = { width, height, scale, cx: (minX + maxX) / 2, cy: (minY + maxY) / 2 };
-    return this.frame;
-  }
-
-  #toScreen(node) {
-    const f = this.#fit();
-    return [f.width / 2 + (node.x - f.cx) * f.scale, f.height / 2 - (node.y - f.cy) * f.scale];
-  }
-
-  #toWorld(sx, sy) {
-    const f = this.#fit();
-    return [f.cx + (sx - f.width / 2) / f.scale, f.cy - (sy - f.height / 2) / f.scale];
-  }
-
   // ------------------------------------------------------------ drawing
 
+  /** Draw the graph again as it stands, keeping the pan and zoom. */
   render() {
-    if (!this.nodes.length) {
-      this.svg.replaceChildren();
-      return;
-    }
-    const f = this.#fit();
-    this.svg.setAttribute("viewBox", `0 0 ${f.width} ${f.height}`);
     const routeEdges = new Set(this.route.slice(1).map((code, i) => edgeKey(this.route[i], code)));
-    const edges = this.edges.map((edge) => this.#edge(edge, routeEdges));
-    const nodes = this.nodes.map((node) => this.#node(node));
-    this.svg.replaceChildren(...edges, ...nodes);
+    const codes = new Set(this.nodes.map((node) => node.code));
+    const elements = [
+      ...this.nodes.map((node) => this.#node(node)),
+      ...this.edges.filter((edge) => codes.has(edge.a) && codes.has(edge.b)).map((edge) => this.#edge(edge, routeEdges)),
+      ...this.nodes.flatMap((node) => this.#robotMarkers(node)),
+    ];
+    this.cy.batch(() => {
+      this.cy.elements().remove();
+      this.cy.add(elements);
+    });
+  }
+
+  #node(node) {
+    const classes = ["submap"];
+    if (this.route.includes(node.code)) classes.push("route");
+    if (this.linking === node.code) classes.push("linking");
+    if ((this.robots.get(node.code) || []).length) classes.push("robot");
+    return {
+      group: "nodes", classes,
+      data: { id: node.code, name: node.name || node.code },
+      position: toModel(node),
+    };
   }
 
   #edge(edge, routeEdges) {
     const key = edgeKey(edge.a, edge.b);
-    const [a, b] = [edge.a, edge.b].map((code) => this.nodes.find((node) => node.code === code));
-    const group = svg("g", { class: "topo-edge-group", "data-edge": key });
-    if (!a || !b) return group;
-    const [x1, y1] = this.#toScreen(a);
-    const [x2, y2] = this.#toScreen(b);
-    const classes = ["topo-edge"];
+    const classes = [];
     if (routeEdges.has(key)) classes.push("route");
     if (this.invalid.has(key)) classes.push("invalid");
     if (this.selected === key) classes.push("selected");
-    group.append(
-      svg("line", { x1, y1, x2, y2, class: classes.join(" ") }),
-      svg("line", { x1, y1, x2, y2, class: "topo-edge-hit" }),
-      svg("text", { x: (x1 + x2) / 2, y: (y1 + y2) / 2 - 6, class: "topo-cost", "text-anchor": "middle" }, formatCost(edge.cost)),
-    );
-    group.addEventListener("click", () => {
-      if (!this.editable) return;
-      this.selected = this.selected === key ? null : key;
-      this.render();
-      this.dispatchEvent(new CustomEvent("select"));
-    });
-    return group;
+    return { group: "edges", classes, data: { id: key, source: edge.a, target: edge.b, cost: formatCost(edge.cost) } };
   }
 
-  #node(node) {
-    const [x, y] = this.#toScreen(node);
-    const classes = ["topo-node"];
-    if (this.route.includes(node.code)) classes.push("route");
-    if (this.linking === node.code) classes.push("linking");
-    const robots = this.robots.get(node.code) || [];
-    if (robots.length) classes.push("robot");
-    const group = svg("g", { class: classes.join(" "), "data-node": node.code, transform: `translate(${x} ${y})` });
-    group.append(
-      svg("circle", { r: NODE_RADIUS }),
-      svg("text", { y: 4 }, shortCode(node.code)),
-      svg("text", { y: NODE_RADIUS + 14, class: "sub" }, node.name || node.code),
-    );
-    robots.forEach((robot, index) => {
-      const marker = svg("circle", { r: 7, cx: NODE_RADIUS - 4 + index * 10, cy: -NODE_RADIUS + 4, class: "topo-robot" });
-      marker.append(svg("title", {}, robot));
-      group.append(marker);
-    });
-    if (this.editable) this.#draggable(group, node);
-    return group;
+  /** A small dot per robot at the top right of its sub-map's node, named on hover. */
+  #robotMarkers(node) {
+    return (this.robots.get(node.code) || []).map((robot, index) => ({
+      group: "nodes", classes: ["robot-marker"], grabbable: false,
+      data: { id: `robot:${robot}`, robot, on: node.code, index },
+      position: markerPosition(toModel(node), index),
+    }));
   }
 
-  #draggable(group, node) {
-    // Rendering replaces the node's element, so the drag listens on the window.
-    group.addEventListener("pointerdown", (event) => {
-      event.preventDefault();
-      const start = { x: event.clientX, y: event.clientY, moved: false };
-      const move = (e) => {
-        if (Math.hypot(e.clientX - start.x, e.clientY - start.y) > 3) start.moved = true;
-        if (!start.moved) return;
-        const rect = this.svg.getBoundingClientRect();
-        const f = this.#fit();
-        const sx = ((e.clientX - rect.left) / rect.width) * f.width;
-        const sy = ((e.clientY - rect.top) / rect.height) * f.height;
-        const [wx, wy] = this.#toWorld(sx, sy);
-        node.x = Math.round(wx * 100) / 100;
-        node.y = Math.round(wy * 100) / 100;
-        this.render();
-      };
-      const up = () => {
-        window.removeEventListener("pointermove", move);
-        window.removeEventListener("pointerup", up);
-        if (start.moved) this.#changed();
-        else this.#clickNode(node.code);
-      };
-      window.addEventListener("pointermove", move);
-      window.addEventListener("pointerup", up);
-    });
+  #moveRobots(submap) {
+    for (const marker of this.cy.nodes(`.robot-marker[on = "${submap.id()}"]`)) {
+      marker.position(markerPosition(submap.position(), marker.data("index")));
+    }
   }
+}
+
+function toModel(node) {
+  return { x: node.x * UNITS_PER_M, y: -node.y * UNITS_PER_M };
+}
+
+function toMetres(position) {
+  return { x: Math.round((position.x / UNITS_PER_M) * 100) / 100, y: Math.round((-position.y / UNITS_PER_M) * 100) / 100 };
+}
+
+function markerPosition(centre, index) {
+  const offset = NODE_PX / 2 - 4;
+  return { x: centre.x + offset + index * (ROBOT_PX - 2), y: centre.y - offset };
 }
 
 function formatCost(cost) {
   return Number.isInteger(cost) ? String(cost) : cost.toFixed(1);
 }
 
-/** A node's label inside its circle: capitals and digits of a code such as CorridorA -> CA. */
-function shortCode(code) {
-  const initials = code.replace(/[^A-Z0-9]/g, "");
-  return (initials.length >= 2 ? initials : code).slice(0, 4);
-}
+const STYLE = [
+  {
+    selector: "node.submap",
+    style: {
+      width: NODE_PX, height: NODE_PX, "background-color": COLORS.surface, "border-color": COLORS.accent, "border-width": 2.5,
+      // Its code's initials would hide its name: the name stands under the node.
+      label: "data(name)", "text-valign": "bottom", "text-halign": "center", "text-margin-y": 3, "font-size": 10.5,
+      color: COLORS.muted, "text-background-color": "#f7f8fb", "text-background-opacity": 0.8,
+    },
+  },
+  { selector: "node.submap.route", style: { "background-color": COLORS.okSoft, "border-color": COLORS.ok } },
+  { selector: "node.submap.linking", style: { "background-color": COLORS.accentSoft, "border-style": "dashed" } },
+  { selector: "node.submap.robot", style: { "border-width": 4 } },
+  {
+    selector: "node.robot-marker",
+    style: { width: ROBOT_PX, height: ROBOT_PX, "background-color": COLORS.warn, "border-color": "#fff", "border-width": 2, label: "", events: "no" },
+  },
+  {
+    selector: "edge",
+    style: {
+      width: 3, "line-color": COLORS.edge, "curve-style": "straight", label: "data(cost)", "font-size": 11, color: COLORS.muted,
+      "text-background-color": "#f7f8fb", "text-background-opacity": 1, "text-background-padding": 2, "overlay-padding": 6,
+    },
+  },
+  { selector: "edge.selected", style: { width: 5, "line-color": COLORS.accent } },
+  { selector: "edge.route", style: { width: 6, "line-color": COLORS.ok } },
+  { selector: "edge.invalid", style: { "line-color": COLORS.danger, "line-style": "dashed", "line-dash-pattern": [8, 6] } },
+];
