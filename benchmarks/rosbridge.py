@@ -9,6 +9,9 @@ sessions) measuring each message's delay on arrival.
 It prints, per run: offered and delivered messages/s, loss, delay p50/p95/p99, and the
 CPU of the server and of the load. ``--saturate`` raises the rate step by step and reports
 the highest delivered rate whose p99 stays under ``--p99-limit`` (100 ms) without loss.
+``--seed N`` fixes the one random thing, each publisher's phase within its period;
+``--json`` prints one JSON object instead of the table (with ``--saturate``: every step
+and the best).
 """
 
 from __future__ import annotations
@@ -51,14 +54,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--cookie", help="with --url: a viewer's session Cookie header")
     parser.add_argument("--server-pid", type=int, help="with --url: the server's pid, for CPU")
     parser.add_argument("--server-env", action="append", default=[], metavar="NAME=VALUE")
+    parser.add_argument("--seed", type=int, default=0, help="the publishers' phases")
+    parser.add_argument("--json", action="store_true", help="print one JSON object")
 
 
 def run(options: dict[str, Any]) -> None:
+    random.seed(options.get("seed", 0))
     with Server.for_options(options) as server:
         if options["saturate"]:
             saturate(server, options)
         else:
-            report(asyncio.run(measure(server, options, options["rate"])))
+            report(asyncio.run(measure(server, options, options["rate"])), options)
 
 
 # ---------------------------------------------------------------- the server under test
@@ -237,6 +243,32 @@ class Result:
         ordered = sorted(self.delays)
         return 1000.0 * ordered[min(len(ordered) - 1, int(p / 100 * len(ordered)))]
 
+    def figures(self) -> dict[str, Any]:
+        """The row of the table as a JSON object (delays in ms, CPU in percent of a core)."""
+        return {
+            "robots": self.robots,
+            "rate_hz": self.rate,
+            "subscribers": self.subscribers,
+            "seconds": self.seconds,
+            "offered_per_s": round(self.offered, 1),
+            "delivered_per_s": round(self.delivered, 1),
+            "loss": round(self.loss, 6),
+            "p50_ms": _ms_or_none(self.percentile(50)),
+            "p95_ms": _ms_or_none(self.percentile(95)),
+            "p99_ms": _ms_or_none(self.percentile(99)),
+            "server_cpu_percent": _round_or_none(self.server_cpu),
+            "load_cpu_percent": round(self.load_cpu, 1),
+            "load_lagging": self.lagging,
+        }
+
+
+def _ms_or_none(ms: float) -> float | None:
+    return None if ms != ms else round(ms, 2)  # NaN (no delays) is not JSON
+
+
+def _round_or_none(value: float | None) -> float | None:
+    return None if value is None else round(value, 1)
+
 
 class Window:
     """The measured interval, in wall-clock time shared by every process on the machine."""
@@ -391,7 +423,10 @@ def line(result: Result) -> str:
     )
 
 
-def report(result: Result) -> None:
+def report(result: Result, options: dict[str, Any]) -> None:
+    if options.get("json"):
+        print(json.dumps({"seed": options.get("seed", 0), **result.figures()}), flush=True)
+        return
     print(HEADER)
     print(line(result), flush=True)
 
@@ -405,7 +440,8 @@ def attempt(server: Server, options: dict[str, Any], rate: float) -> Result:
     other work can stall either process for a moment."""
     for _ in range(2):
         result = asyncio.run(measure(server, options, rate))
-        print(line(result), flush=True)
+        if not options.get("json"):
+            print(line(result), flush=True)
         if good(result, options["p99_limit"]):
             break
     return result
@@ -413,15 +449,20 @@ def attempt(server: Server, options: dict[str, Any], rate: float) -> Result:
 
 def saturate(server: Server, options: dict[str, Any]) -> None:
     """Raise the rate by ``--step`` until p99 or loss fails twice, then print the best run."""
-    print(HEADER, flush=True)
-    rate, best = options["rate"], None
+    if not options.get("json"):
+        print(HEADER, flush=True)
+    rate, best, steps = options["rate"], None, []
     while True:
         result = attempt(server, options, rate)
+        steps.append(result.figures())
         if not good(result, options["p99_limit"]):
             break
         best = result
         rate *= options["step"]
-    if best is None:
+    if options.get("json"):
+        saturation = best.figures() if best is not None else None
+        print(json.dumps({"seed": options.get("seed", 0), "steps": steps, "best": saturation}))
+    elif best is None:
         print(f"no rate met p99 < {options['p99_limit']:.0f} ms without loss")
     else:
         print(

@@ -14,6 +14,9 @@ at quality 90 and 291 KB/s for VP8 at its default bitrate.
 
 The robot's camera and the viewers' stream client are the application's
 (``telemetry.domain.camera_feed``, ``telemetry.domain.http_stream``), shared with the tests.
+``--seed N`` draws the camera's texture and noise (7, the default, is the scene the
+figures in the README were measured on); ``--json`` prints one JSON object instead of
+the table.
 """
 
 from __future__ import annotations
@@ -59,21 +62,36 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--token", help="with --url: the token of robot b0")
     parser.add_argument("--cookie", help="with --url: a viewer's session Cookie header")
     parser.add_argument("--server-pid", type=int, help="with --url: the server's pid, for CPU")
+    parser.add_argument("--seed", type=int, default=7, help="the camera's texture and noise")
+    parser.add_argument("--json", action="store_true", help="print one JSON object")
 
 
 def run(options: dict[str, Any]) -> None:
+    seed, as_json = options.get("seed", 7), options.get("json", False)
     with _server(options) as server:
-        frames = camera_frames(options["width"], options["height"], options["camera_quality"])
-        source = sum(map(len, frames)) / len(frames) * options["rate"] / 1000
-        print(
-            f"camera: {options['width']}x{options['height']} at {options['rate']:g} Hz, "
-            f"JPEG quality {options['camera_quality']} ({source:.0f} KB/s as published); "
-            f"{options['viewers']} viewers per type, {options['duration']:g} s each",
-            flush=True,
+        frames = camera_frames(
+            options["width"], options["height"], options["camera_quality"], seed=seed
         )
-        print(HEADER, flush=True)
+        source = sum(map(len, frames)) / len(frames) * options["rate"] / 1000
+        if not as_json:
+            print(
+                f"camera: {options['width']}x{options['height']} at {options['rate']:g} Hz, "
+                f"JPEG quality {options['camera_quality']} ({source:.0f} KB/s as published); "
+                f"{options['viewers']} viewers per type, {options['duration']:g} s each",
+                flush=True,
+            )
+            print(HEADER, flush=True)
+        streams = []
         for kind in options["types"].split(","):
-            print(line(asyncio.run(measure(server, options, frames, kind))), flush=True)
+            result = asyncio.run(measure(server, options, frames, kind))
+            if as_json:
+                streams.append(figures(result))
+            else:
+                print(line(result), flush=True)
+        if as_json:
+            camera = {"width": options["width"], "height": options["height"]}
+            camera |= {"rate_hz": options["rate"], "kb_per_s": round(source, 1)}
+            print(json.dumps({"seed": seed, "camera": camera, "streams": streams}))
 
 
 def _server(options: dict[str, Any]) -> Server:
@@ -251,6 +269,24 @@ def line(result: Result) -> str:
         f"{_ms(p50):>7} {_ms(p99):>7} {_core(result.encoder_cpu):>8} {_core(result.server_cpu):>7}"
         f"   (mean {mean:.1f} frames)"
     )
+
+
+def figures(result: Result) -> dict[str, Any]:
+    """One stream type's row as a JSON object (delays in ms, CPU as a share of a core)."""
+    p50, p99 = (percentile(result.delays, p) for p in (50, 99))
+    return {
+        "type": result.kind,
+        "viewers": result.viewers,
+        "kb_per_s": round(result.kb_per_s, 1),
+        "published": result.published,
+        "frames_per_viewer_min": min(result.frames, default=0),
+        "frames_per_viewer_max": max(result.frames, default=0),
+        "frames_per_viewer_mean": round(float(np.mean(result.frames)), 1) if result.frames else 0,
+        "p50_ms": None if p50 is None else round(p50 * 1000, 1),
+        "p99_ms": None if p99 is None else round(p99 * 1000, 1),
+        "encoder_cpu": result.encoder_cpu,
+        "server_cpu": None if result.server_cpu is None else round(result.server_cpu, 3),
+    }
 
 
 def _ms(seconds: float | None) -> str:

@@ -18,10 +18,13 @@ import numpy as np
 import websockets
 
 
-def camera_frames(width: int, height: int, quality: int, count: int = 150) -> list[bytes]:
+def camera_frames(
+    width: int, height: int, quality: int, count: int = 150, seed: int = 7
+) -> list[bytes]:
     """Return ``count`` JPEGs of a camera-like scene: a textured room with a moving object
-    and sensor noise, so both codecs work as hard as on a real camera."""
-    rng = np.random.default_rng(7)
+    and sensor noise (drawn from ``seed``), so both codecs work as hard as on a real
+    camera."""
+    rng = np.random.default_rng(seed)
     ys, xs = np.mgrid[0:height, 0:width]
     room = (110 + 60 * np.sin(xs / 37.0) * np.cos(ys / 23.0)).astype(np.float32)
     texture = rng.normal(0, 5, (height, width)).astype(np.float32)
