@@ -149,7 +149,7 @@ class RosbridgeConsumer(AsyncWebsocketConsumer):  # type: ignore[misc]  # Channe
             await self.access.require("publish", name)
         conn = self._conn
         if name.endswith(_CMD_VEL_SUFFIX):
-            await self.hub.check_command(conn, name, op.msg)
+            await self.hub.teleop.check_command(conn, name, op.msg)
         self.hub.publish(conn, name, op.msg, op.latch, self._frame_size)
 
     async def on_subscribe(self, op: protocol.Subscribe) -> None:
@@ -180,42 +180,42 @@ class RosbridgeConsumer(AsyncWebsocketConsumer):  # type: ignore[misc]  # Channe
         name = await self.access.resolve(op.service)
         op.fragment_size = self._fragment_size(op.fragment_size)
         call = ServiceCall(self.hub.server_parts, self._conn, self.access, name, op.args)
-        await self.hub.call_service(call, op)
+        await self.hub.calls.call_service(call, op)
 
     async def on_service_response(self, op: protocol.ServiceResponse) -> None:
-        self.hub.service_response(self._conn, await self.access.resolve(op.service), op)
+        self.hub.calls.service_response(self._conn, await self.access.resolve(op.service), op)
 
     async def on_advertise_service(self, op: protocol.AdvertiseService) -> None:
         name = await self.access.resolve(op.service)
         await self.access.require("advertise_service", name)
-        self.hub.advertise_service(self._conn, name, op)
+        self.hub.calls.advertise_service(self._conn, name, op)
 
     async def on_unadvertise_service(self, op: protocol.UnadvertiseService) -> None:
-        self.hub.unadvertise_service(self._conn, await self.access.resolve(op.service))
+        self.hub.calls.unadvertise_service(self._conn, await self.access.resolve(op.service))
 
     # ------------------------------------------------------------ actions
 
     async def on_advertise_action(self, op: protocol.AdvertiseAction) -> None:
         name = await self.access.resolve(op.action)
         await self.access.require("advertise_service", name)
-        self.hub.advertise_action(self._conn, name, op)
+        self.hub.calls.advertise_action(self._conn, name, op)
 
     async def on_unadvertise_action(self, op: protocol.UnadvertiseAction) -> None:
-        self.hub.unadvertise_action(self._conn, await self.access.resolve(op.action))
+        self.hub.calls.unadvertise_action(self._conn, await self.access.resolve(op.action))
 
     async def on_send_action_goal(self, op: protocol.SendActionGoal) -> None:
         name = await self.access.resolve(op.action)
         op.fragment_size = self._fragment_size(op.fragment_size)
-        await self.hub.send_action_goal(self._conn, self.access, name, op)
+        await self.hub.calls.send_action_goal(self._conn, self.access, name, op)
 
     async def on_cancel_action_goal(self, op: protocol.CancelActionGoal) -> None:
-        self.hub.cancel_action_goal(self._conn, await self.access.resolve(op.action), op)
+        self.hub.calls.cancel_action_goal(self._conn, await self.access.resolve(op.action), op)
 
     async def on_action_feedback(self, op: protocol.ActionFeedback) -> None:
-        self.hub.action_feedback(self._conn, await self.access.resolve(op.action), op)
+        self.hub.calls.action_feedback(self._conn, await self.access.resolve(op.action), op)
 
     async def on_action_result(self, op: protocol.ActionResult) -> None:
-        self.hub.action_result(self._conn, await self.access.resolve(op.action), op)
+        self.hub.calls.action_result(self._conn, await self.access.resolve(op.action), op)
 
     # ------------------------------------------------------------ framing and status
 

@@ -260,7 +260,7 @@ class Relay:
             await self.hub.flush_recording(message["robots"])
             self.send(message["reply"], {"type": FLUSHED})
         else:
-            await self.hub.remote_request(message)
+            await self.hub.calls.remote_request(message)
 
     # ------------------------------------------------------------ access changes
 
@@ -271,7 +271,7 @@ class Relay:
                 async for message in access.listen():
                     if message.get("type") == "message":
                         change = AccessChange.of(json.loads(message["data"]))
-                        await self.hub.access_changed(change)
+                        await self.hub.review.access_changed(change)
             except asyncio.CancelledError:
                 raise
             except Exception:

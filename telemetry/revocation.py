@@ -135,7 +135,7 @@ def announce(change: AccessChange) -> None:
 
 
 def _apply(loop: Any, hub: Any, change: AccessChange) -> None:
-    loop.create_task(hub.access_changed(change))
+    loop.create_task(hub.review.access_changed(change))
 
 
 # ------------------------------------------------------------------ signals

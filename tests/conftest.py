@@ -23,6 +23,7 @@ from maps.domain.mapfile import load_map_upload
 from maps.models import Building, EnvironmentalTag, SubMap
 from robots.models import Robot
 from robots.services import register_robot
+from telemetry.domain.bus import OnMessage, Topic, TopicTap
 
 pytest_plugins = ["tests.fixtures_live"]
 
@@ -103,6 +104,27 @@ def make_robot(**kwargs: Any) -> tuple[Robot, str]:
     """Register a robot and return it with its token."""
     kwargs.setdefault("name", "r1")
     return register_robot(**kwargs)
+
+
+class FakeHub:
+    """The two things the mapping and upkeep runners ask of a hub: the robots connected
+    here, and taps (``hub.tap``); ``send`` is a robot publishing, ``taps`` what is tapped."""
+
+    def __init__(self, *robots: str) -> None:
+        self.here = set(robots)
+        self.taps: dict[str | None, list[TopicTap]] = {}
+
+    def robots(self) -> set[str]:
+        return set(self.here)
+
+    def tap(self, topic: str, on_message: OnMessage) -> TopicTap:
+        tap = TopicTap(self.taps, topic, on_message)
+        self.taps.setdefault(topic, []).append(tap)
+        return tap
+
+    def send(self, topic: str, msg: dict[str, Any]) -> None:
+        for tap in list(self.taps.get(topic, [])):
+            tap.on_message(Topic(topic, None), msg)
 
 
 @pytest.fixture

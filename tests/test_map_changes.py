@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import itertools
 import math
-from typing import Any
 
 import numpy as np
 import pytest
@@ -20,23 +19,10 @@ from maps.models import Building, ChangeProposal, SubMap
 from robots.agent.sim.laser import Laser, LaserSpec
 from robots.agent.sim.world import world_from_grid
 from telemetry.domain.messages import pose_stamped
-from tests.conftest import client_for
+from tests.conftest import FakeHub, client_for
 from tests.test_upkeep import RES, STORED, TRUTH
 
 CHANGES = "/api/buildings/boccioni_1/maps/Lab/changes/"
-
-
-class FakeHub:
-    def __init__(self, *robots: str) -> None:
-        self.here = set(robots)
-        self.taps: dict[str, list[Any]] = {}
-
-    def robots(self) -> set[str]:
-        return set(self.here)
-
-    def send(self, topic: str, msg: dict[str, Any]) -> None:
-        for callback in self.taps.get(topic, []):
-            callback(msg)
 
 
 @pytest.fixture

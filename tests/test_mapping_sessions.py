@@ -20,7 +20,7 @@ from maps.models import Building, MappingSession, SubMap
 from robots.agent.sim.changes import ChangeConfig, changed_demo_world, plan_changes
 from robots.models import Robot, RobotState
 from telemetry.domain.messages import pose_2d
-from tests.conftest import client_for, make_robot, make_submap
+from tests.conftest import FakeHub, client_for, make_robot, make_submap
 
 SESSIONS = "/api/mapping/sessions/"
 
@@ -97,21 +97,6 @@ def test_scans_beyond_the_queue_drop_the_oldest() -> None:
     assert len(worker.queue) == mapping_runner.QUEUE_SCANS
     assert worker.dropped == 100 - mapping_runner.QUEUE_SCANS
     assert worker.queue[0][1] == {"index": 100 - mapping_runner.QUEUE_SCANS}
-
-
-class FakeHub:
-    """The two things the runner asks of a hub."""
-
-    def __init__(self, *robots: str) -> None:
-        self.here = set(robots)
-        self.taps: dict[str, list[Any]] = {}
-
-    def send(self, topic: str, msg: dict[str, Any]) -> None:
-        for callback in self.taps.get(topic, []):
-            callback(msg)
-
-    def robots(self) -> set[str]:
-        return set(self.here)
 
 
 def tour_messages(seed: int = 0) -> list[tuple[dict[str, Any], dict[str, Any]]]:

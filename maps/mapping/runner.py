@@ -5,7 +5,8 @@ Each server process runs one ``MappingRunner`` beside its rosbridge hub. Every
 to *this* process (in the scaled mode, the robot's process does its mapping, wherever
 the session was started) and starts a ``SessionWorker`` for each new one.
 
-A worker taps the robot's ``scan`` and ``odom`` topics on the hub: the tap only appends
+A worker taps the robot's ``scan`` and ``odom`` topics on the hub (``hub.tap``, the one
+way to tap the topic bus, ``telemetry.hub``): the tap only appends
 the message to a bounded queue (``QUEUE_SCANS``; the oldest is dropped, and counted,
 when SLAM falls behind), so publishing costs the relay one dict look-up and one append.
 SLAM (``maps.domain.slam``) runs on the queue in a worker thread; every ``SAVE_EVERY``
@@ -31,6 +32,7 @@ from typing import Any, Protocol
 
 from asgiref.sync import sync_to_async
 
+from telemetry.domain.bus import OnMessage
 from telemetry.domain.messages import pose_of
 
 from ..domain.slam import Mapper, Scan, SlamParams
@@ -48,15 +50,19 @@ SAVE_EVERY = 2.0
 
 _EXECUTOR = ThreadPoolExecutor(max_workers=2, thread_name_prefix="mapping")
 
-Tap = Callable[[dict[str, Any]], None]
+
+class Tap(Protocol):
+    """A tap of the topic bus (``telemetry.domain.bus.TopicTap``)."""
+
+    def close(self) -> None: ...
 
 
 class TopicTaps(Protocol):
     """What the runner needs of the hub: the robots connected here and topic taps."""
 
-    taps: dict[str, list[Tap]]
-
     def robots(self) -> set[str]: ...
+
+    def tap(self, topic: str, on_message: OnMessage) -> Tap: ...
 
 
 class SessionWorker:
@@ -168,6 +174,7 @@ class MappingRunner:
     def __init__(self, hub: TopicTaps) -> None:
         self.hub = hub
         self.workers: dict[int, SessionWorker] = {}
+        self._taps: dict[int, list[Tap]] = {}  # by session: the taps of its worker
         self._task: asyncio.Task[None] | None = None
 
     def start(self) -> None:
@@ -189,7 +196,8 @@ class MappingRunner:
             if pk in running and worker.robot in here:
                 continue
             del self.workers[pk]
-            self._untap(worker)
+            for tap in self._taps.pop(pk, []):
+                tap.close()
             await worker.stop(save=True)
             if worker.robot not in here:
                 await sync_to_async(_interrupt)(pk)
@@ -198,28 +206,16 @@ class MappingRunner:
             if found is not None:
                 worker = SessionWorker(*found)
                 self.workers[pk] = worker
-                self._tap(worker)
+                self._taps[pk] = [
+                    self.hub.tap(f"/{worker.robot}/scan", _message_to(worker.on_scan)),
+                    self.hub.tap(f"/{worker.robot}/odom", _message_to(worker.on_odom)),
+                ]
                 worker.start()
 
-    def _tap(self, worker: SessionWorker) -> None:
-        tap(self.hub, f"/{worker.robot}/scan", worker.on_scan)
-        tap(self.hub, f"/{worker.robot}/odom", worker.on_odom)
 
-    def _untap(self, worker: SessionWorker) -> None:
-        untap(self.hub, f"/{worker.robot}/scan", worker.on_scan)
-        untap(self.hub, f"/{worker.robot}/odom", worker.on_odom)
-
-
-def tap(hub: TopicTaps, topic: str, callback: Tap) -> None:
-    hub.taps.setdefault(topic, []).append(callback)
-
-
-def untap(hub: TopicTaps, topic: str, callback: Tap) -> None:
-    callbacks = hub.taps.get(topic, [])
-    if callback in callbacks:
-        callbacks.remove(callback)
-    if not callbacks:
-        hub.taps.pop(topic, None)
+def _message_to(callback: Callable[[dict[str, Any]], None]) -> OnMessage:
+    """A tap's ``on_message`` that hands ``callback`` the message alone."""
+    return lambda _topic, msg: callback(msg)
 
 
 def _running_sessions(robots: set[str]) -> set[int]:

@@ -33,6 +33,7 @@ from typing import Any
 import numpy as np
 from django.db import transaction
 
+from telemetry.domain.bus import OnMessage, Topic
 from telemetry.domain.messages import pose_of
 
 from .. import services, versions
@@ -42,7 +43,7 @@ from ..domain.upkeep import Evidence, Proposal
 from ..domain.versions import Reason
 from ..exceptions import MappingError
 from ..models import Building, ChangeProposal, SubMap, SubMapVersion
-from .runner import TopicTaps, tap, untap
+from .runner import Tap, TopicTaps
 
 logger = logging.getLogger(__name__)
 
@@ -66,7 +67,7 @@ class _Robot:
     name: str
     pose: tuple[str, tuple[float, float, float]] | None = None
     taken: tuple[str, tuple[float, float, float]] | None = None  # where the last scan was
-    callbacks: list[tuple[str, Any]] = field(default_factory=list)
+    taps: list[Tap] = field(default_factory=list)
 
 
 @dataclass
@@ -115,27 +116,25 @@ class UpkeepRunner:
         here = self.hub.robots()
         for name in list(self.robots):
             if name not in here:
-                for topic, callback in self.robots.pop(name).callbacks:
-                    untap(self.hub, topic, callback)
+                for tap in self.robots.pop(name).taps:
+                    tap.close()
         for name in here - self.robots.keys():
             robot = self.robots[name] = _Robot(name)
-            robot.callbacks = [
-                (f"/{name}/pose", self._on_pose(robot)),
-                (f"/{name}/scan", self._on_scan(robot)),
+            robot.taps = [
+                self.hub.tap(f"/{name}/pose", self._on_pose(robot)),
+                self.hub.tap(f"/{name}/scan", self._on_scan(robot)),
             ]
-            for topic, callback in robot.callbacks:
-                tap(self.hub, topic, callback)
 
-    def _on_pose(self, robot: _Robot) -> Any:
-        def on_pose(msg: dict[str, Any]) -> None:
+    def _on_pose(self, robot: _Robot) -> OnMessage:
+        def on_pose(_topic: Topic, msg: dict[str, Any]) -> None:
             found = pose_of(msg)
             if found is not None and found.map_id and math.isfinite(found.x + found.y + found.yaw):
                 robot.pose = (found.map_id, (found.x, found.y, found.yaw))
 
         return on_pose
 
-    def _on_scan(self, robot: _Robot) -> Any:
-        def on_scan(msg: dict[str, Any]) -> None:
+    def _on_scan(self, robot: _Robot) -> OnMessage:
+        def on_scan(_topic: Topic, msg: dict[str, Any]) -> None:
             if robot.pose is None or not _moved(robot.taken, robot.pose):
                 return
             robot.taken = robot.pose

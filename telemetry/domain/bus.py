@@ -12,10 +12,23 @@ when a request arrives, and the messages it latched, at most ``limits.latched_by
 
 Fan-out encodes each message once per variant (see ``encoding``) and hands the result to
 each peer's ``deliver``, which must not block: peers queue or drop, the bus never waits.
+
+Taps are the one way for the server's own features (recording, mapping, map upkeep) to
+read messages off the bus without being a connection. ``tap(topic, on_message)`` calls
+``on_message(topic, msg)`` with every message of ``topic`` (an absolute name, or
+``EVERY_TOPIC``) that the bus fans out here: published in this process (by a connection
+or by the server), or received from another process for local subscribers. It returns a
+``TopicTap``; ``close()`` ends it. ``msg`` is shared with every subscriber: read it, never
+change it. ``on_message`` runs on the event loop for every message and must return at
+once (copy what it needs, hand heavy work to a bounded queue); an exception it raises is
+logged and the message still reaches everyone else. A tap is no subscription: it does not
+make this process join a topic's group in scaled mode (a feature that needs another
+process's messages, such as the video relay's camera feeds, subscribes as a peer).
 """
 
 from __future__ import annotations
 
+import logging
 import time
 from collections import deque
 from collections.abc import Callable, Iterator
@@ -28,6 +41,8 @@ from .encoding import Outgoing, Wire
 from .limits import ConnectionLimits, Holdings, check_room
 from .names import canonical_type
 from .protocol import Json, PublishFrame
+
+logger = logging.getLogger(__name__)
 
 
 class Peer(Protocol):
@@ -59,11 +74,32 @@ class BusListener(Protocol):
         """The topic gained its first publisher here, or lost its last one."""
 
 
-class Tap(Protocol):
-    """What sees every message the bus fans out, local or from another process (the
-    recorder): it must return at once and never raise."""
+EVERY_TOPIC = None
+"""``tap(EVERY_TOPIC, on_message)`` sees the messages of every topic (the recorder)."""
 
-    def offered(self, topic: Topic, msg: dict[str, Json]) -> None: ...
+# on_message(topic, msg): one message of a tapped topic (see the module's docstring)
+OnMessage = Callable[["Topic", dict[str, Json]], None]
+
+
+class TopicTap:
+    """One tap of the bus (``TopicBus.tap``): ``close`` ends it; closing again does nothing."""
+
+    __slots__ = ("_taps", "on_message", "topic")
+
+    def __init__(
+        self, taps: dict[str | None, list[TopicTap]], topic: str | None, on_message: OnMessage
+    ) -> None:
+        self._taps = taps
+        self.topic = topic
+        self.on_message = on_message
+
+    def close(self) -> None:
+        listed = self._taps.get(self.topic)
+        if listed is None or self not in listed:
+            return
+        listed.remove(self)
+        if not listed:
+            del self._taps[self.topic]
 
 
 @dataclass(slots=True, frozen=True)
@@ -225,9 +261,7 @@ class TopicBus:
         self.type_hint = type_hint
         self.latch_hint = latch_hint
         self.listener: BusListener | None = None
-        # the one seam recording taps: every message published here or received from
-        # another process for local subscribers (``publish``, ``receive_remote``)
-        self.tap: Tap | None = None
+        self._taps: dict[str | None, list[TopicTap]] = {}  # by topic; None: every topic
         self._topics: dict[str, Topic] = {}
         self._peer_topics: dict[str, set[str]] = {}
         # per peer key: subscription requests and advertisements it holds
@@ -327,8 +361,8 @@ class TopicBus:
             self._latched.take(peer.key, name, size)
         out = Outgoing(PublishFrame(op="publish", topic=name, msg=msg))
         self.fan_out(topic, out)
-        if self.tap is not None:
-            self.tap.offered(topic, msg)
+        if self._taps:
+            self._offer_taps(topic, msg)
         if self.listener is not None:
             self.listener.published(topic, msg)
         return out
@@ -350,8 +384,24 @@ class TopicBus:
             return
         topic.latched = topic.latched or latched
         self.fan_out(topic, Outgoing(PublishFrame(op="publish", topic=name, msg=msg)))
-        if self.tap is not None:
-            self.tap.offered(topic, msg)
+        if self._taps:
+            self._offer_taps(topic, msg)
+
+    def tap(self, topic: str | None, on_message: OnMessage) -> TopicTap:
+        """Call ``on_message(topic, msg)`` with every message of ``topic`` (``EVERY_TOPIC``:
+        of all) fanned out here, until the tap returned is closed (see the module's
+        docstring)."""
+        tap = TopicTap(self._taps, topic, on_message)
+        self._taps.setdefault(topic, []).append(tap)
+        return tap
+
+    def _offer_taps(self, topic: Topic, msg: dict[str, Json]) -> None:
+        for key in (EVERY_TOPIC, topic.name):
+            for tap in tuple(self._taps.get(key, ())):  # a tap may close itself meanwhile
+                try:
+                    tap.on_message(topic, msg)
+                except Exception:
+                    logger.exception("a tap of %s failed", topic.name)
 
     def subscribe(
         self,

@@ -1,16 +1,16 @@
 """The recorder of one server process: it taps the topic bus and writes MCAP off the loop.
 
-The tap (``Recorder.offered``, set as ``TopicBus.tap``) runs on the relay loop for every
-message the bus fans out, local or from another process, and does three dictionary
-look-ups and one append: is the topic a robot's, is that robot connected to this process
-(so in scaled mode each robot is recorded once, by the process it is connected to), does
-its plan record this topic (and is a camera frame due). The message goes into that
-robot's bounded queue; when the queue is full the message is counted in ``dropped`` and
-left, so the relay never waits. One writer thread drains the queues, serialises to ROS 1,
-writes the robot's rotating files, refreshes the plans from the database and applies
-each building's retention. Events come two ways: those this process's event log derives
-through ``Recorder.event`` at once, the others (another process's, a request's) from the
-event log every ``events_seconds``.
+The tap (``Recorder.offered``, given to ``hub.tap(EVERY_TOPIC, ...)``) runs on the relay
+loop for every message the bus fans out, local or from another process, and does three
+dictionary look-ups and one append: is the topic a robot's, is that robot connected to
+this process (so in scaled mode each robot is recorded once, by the process it is
+connected to), does its plan record this topic (and is a camera frame due). The message
+goes into that robot's bounded queue; when the queue is full the message is counted in
+``dropped`` and left, so the relay never waits. One writer thread drains the queues,
+serialises to ROS 1, writes the robot's rotating files, refreshes the plans from the
+database and applies each building's retention. Events come two ways: those this
+process's event log derives through ``Recorder.event`` at once, the others (another
+process's, a request's) from the event log every ``events_seconds``.
 """
 
 from __future__ import annotations

@@ -33,7 +33,8 @@ from telemetry.domain.video import (
     camera_topic_candidates,
 )
 from telemetry.exceptions import InvalidName
-from telemetry.hub import Hub, fleet_type
+from telemetry.fleet_feed import fleet_type
+from telemetry.hub import Hub
 
 # The rosbridge server's own identity rules, so a robot or a person is the same principal
 # over HTTP as over its WebSocket (their scope-based entry point checks a WebSocket origin).

@@ -90,7 +90,7 @@ async def image_body(
     readiness = readiness_for(scope)
     watcher = principal or Principal(label="", robot=None, buildings=frozenset())
     try:
-        with relay.hub.watching(watcher, camera.robot, camera.robot_pk) as ended:
+        with relay.hub.review.watching(watcher, camera.robot, camera.robot_pk) as ended:
             async with relay.watch(camera.topic, params, ticket) as pipeline:
                 assert isinstance(pipeline, ImagePipeline)
                 yield multipart.preamble()
@@ -137,7 +137,7 @@ async def webm_body(
     readiness = readiness_for(scope)
     watcher = principal or Principal(label="", robot=None, buildings=frozenset())
     try:
-        with relay.hub.watching(watcher, camera.robot, camera.robot_pk) as ended:
+        with relay.hub.review.watching(watcher, camera.robot, camera.robot_pk) as ended:
             async with relay.watch(camera.topic, params, ticket) as pipeline:
                 assert isinstance(pipeline, Vp8Pipeline)
                 # An empty write sends the response headers now (daphne sends them with

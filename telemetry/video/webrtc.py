@@ -217,7 +217,7 @@ class WhepSessions:
         self.sessions[session.id] = session
         try:
             ended = session.resources.enter_context(
-                self.relay.hub.watching(principal, camera.robot, camera.robot_pk)
+                self.relay.hub.review.watching(principal, camera.robot, camera.robot_pk)
             )
             self._end_when(session, ended)
             pipeline = await session.resources.enter_async_context(

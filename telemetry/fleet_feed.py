@@ -1,0 +1,81 @@
+"""The fleet feed: what the robots connected to this process publish about themselves,
+taken in as fleet state (pose and Map ID, ``robots.fleet``), events (what the event log
+observes) and mission progress (navigation status); and which robots this process
+serves, told to the other processes."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+from robots.fleet import FleetTracker
+from telemetry.cross_process import CrossProcess
+from telemetry.domain import names
+from telemetry.domain.messages import pose_of, string_of
+from telemetry.domain.protocol import Json
+from telemetry.events import OBSERVED, EventLog
+from telemetry.missions import MissionRunner
+
+
+def fleet_type(name: str) -> str | None:
+    """Return the type of a fleet topic (``/r1/pose`` and the like), None for others."""
+    parts = name.split("/", 2)
+    return names.ROBOT_TOPIC_TYPES.get(parts[2]) if len(parts) == 3 else None
+
+
+def fleet_latched(name: str) -> bool:
+    parts = name.split("/", 2)
+    return len(parts) == 3 and parts[2] in names.LATCHED_TOPICS
+
+
+class FleetFeed:
+    """The topics of the robots connected here that the server reads, by topic name."""
+
+    def __init__(
+        self,
+        tracker: FleetTracker,
+        events: EventLog,
+        missions: MissionRunner,
+        relay: Callable[[], CrossProcess],
+    ) -> None:
+        self.tracker = tracker
+        self._events = events
+        self._missions = missions
+        self._relay = relay
+        self._topics: dict[str, tuple[int, str]] = {}  # topic -> (robot's pk, kind)
+
+    def joined(self, robot: str, robot_pk: int) -> None:
+        """A connection of ``robot`` opened here."""
+        for kind in {names.MAP_ID, *OBSERVED}:
+            self._topics[names.robot_topic(robot, kind)] = (robot_pk, kind)
+        self.tracker.connected(robot_pk)
+        self._events.connected(robot)
+        self._missions.ensure_running()
+        self._relay().put("robots", robot, "1")
+
+    def left(self, robot: str, robot_pk: int, still_here: bool) -> None:
+        """A connection of ``robot`` closed; ``still_here`` if another one is still open."""
+        self.tracker.disconnected(robot_pk)
+        if still_here:
+            return
+        self._events.disconnected(robot)
+        for kind in {names.MAP_ID, *OBSERVED}:
+            self._topics.pop(names.robot_topic(robot, kind), None)
+        self._relay().remove("robots", robot)
+
+    def published(self, name: str, msg: dict[str, Json]) -> None:
+        """Take in ``msg``, published here on ``name``, if it is a connected robot's topic
+        the server reads."""
+        tracked = self._topics.get(name)
+        if tracked is None:
+            return
+        robot_pk, kind = tracked
+        if kind == names.POSE:
+            pose = pose_of(msg)
+            if pose is not None:
+                self.tracker.pose(robot_pk, pose)
+        elif kind == names.MAP_ID and (map_id := string_of(msg)) is not None:
+            self.tracker.map_id(robot_pk, map_id)
+        if kind in OBSERVED:
+            self._events.observe(names.first_segment(name), kind, msg)
+        if kind == names.NAV_STATUS:
+            self._missions.status(names.first_segment(name), msg)
