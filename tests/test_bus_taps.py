@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from telemetry.domain.bus import EVERY_TOPIC, SubscribeParams, Topic, TopicBus
+from telemetry.domain.bus import EVERY_TOPIC, SubscribeParams, Topic, TopicBus, TopicTap
 
 
 class Peer:
@@ -102,7 +102,7 @@ def test_a_failing_tap_is_logged_and_the_message_still_reaches_everyone(caplog: 
 def test_a_tap_may_close_itself_while_it_is_called() -> None:
     bus, robot = make_bus(), Peer("robot")
     seen: list[Any] = []
-    taps = []
+    taps: list[TopicTap] = []
 
     def once(_topic: Topic, msg: Any) -> None:
         seen.append(msg)
