@@ -19,6 +19,10 @@ every answer given is counted.
 
 Times are one query of one image on this process's one thread (the server answers one
 query per worker thread), and one keyframe's ingestion (features, points, words).
+Keyframes on the wire: the agent's request body (JPEG, depth as ROS's
+``compressedDepth`` PNG, camera, pose) beside the same body with the depth as a raw
+``sensor_msgs/Image`` (the form robots sent before), and the time to read the image and
+depth back out of it.
 
 Run: ``python manage.py bench relocalise --seed 1 --json``; ``--table3`` runs the first
 paper's Table 3 instead (``benchmarks/wakeup_table.py``).
@@ -39,12 +43,17 @@ import cv2
 import numpy as np
 
 from maps.domain.demo_building import DemoBuilding, DemoSubMap, demo_building
-from maps.domain.keyframes import FeatureExtractor, Intrinsics, Mount
+from maps.domain.keyframes import Depth, FeatureExtractor, Image, Intrinsics, Mount
 from maps.domain.relocalisation import Answer, KeyframeIndex, QueryFrame, relocalise
+from maps.domain.visual_input import depth_image as depth_of_image
+from maps.domain.visual_input import grey_image
 from maps.domain.vocabulary import default_vocabulary
 from maps.exceptions import KeyframeError
+from robots.agent.perception import CameraModel
 from robots.agent.sim.camera import Camera
 from robots.agent.sim.world import World, demo_world
+from robots.agent.visual import keyframe_document
+from telemetry.domain.messages import depth_image
 
 CLEARANCE = 0.3
 KEYFRAME_POSE_ERROR = (0.02, math.radians(0.5))
@@ -53,6 +62,7 @@ TURN = math.radians(60.0)
 MAX_VIEWS = 6
 OTHER_BUILDING = "other_1"
 CHI2_99 = 11.34
+PIXEL_LIMIT = 640 * 480
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -90,6 +100,9 @@ class Result:
     query_ms: list[float] = field(default_factory=list)
     ingest_ms: list[float] = field(default_factory=list)
     stored_bytes: list[int] = field(default_factory=list)
+    wire_bytes: list[int] = field(default_factory=list)
+    wire_bytes_raw_depth: list[int] = field(default_factory=list)
+    wire_read_ms: list[float] = field(default_factory=list)
     confident_wrong: int = 0
     outside_ellipse: int = 0
     wrong_trials: int = 0
@@ -119,9 +132,10 @@ class Result:
             "ingest_ms": statistics.fmean(self.ingest_ms) if self.ingest_ms else 0.0,
             "ingest_p95_ms": _percentile(self.ingest_ms, 95),
             "keyframes": self.keyframes,
-            "bytes_per_keyframe": round(statistics.fmean(self.stored_bytes))
-            if self.stored_bytes
-            else 0,
+            "bytes_per_keyframe": _mean_bytes(self.stored_bytes),
+            "wire_bytes_per_keyframe": _mean_bytes(self.wire_bytes),
+            "wire_bytes_per_keyframe_raw_depth": _mean_bytes(self.wire_bytes_raw_depth),
+            "wire_read_ms": statistics.fmean(self.wire_read_ms) if self.wire_read_ms else 0.0,
         }
 
 
@@ -153,6 +167,7 @@ def survey(
         image, depth = camera.capture(pose)
         assert depth is not None
         believed = _perturbed(pose, rng)
+        _wire(image, depth, believed, result)
         started = time.thread_time()
         try:
             keyframe = extractor.keyframe(image, depth, believed)
@@ -163,6 +178,20 @@ def survey(
         index.add(len(index), _submap_of(building, pose[:2]), keyframe)
     result.keyframes = len(index)
     return index
+
+
+def _wire(image: Image, depth: Depth, pose: tuple[float, float, float], result: Result) -> None:
+    """What the keyframe costs on the wire: the agent's request body (depth as
+    ``compressedDepth``) against the same with a raw ``sensor_msgs/Image`` depth, and the
+    server's time to read the image and depth out of it."""
+    document = keyframe_document(CameraModel(), pose, image, depth)
+    result.wire_bytes.append(len(json.dumps(document)))
+    raw = {**document, "depth": depth_image("camera", depth, 0.0)}
+    result.wire_bytes_raw_depth.append(len(json.dumps(raw)))
+    started = time.thread_time()
+    grey = grey_image(document["image"], PIXEL_LIMIT)
+    depth_of_image(document["depth"], grey.shape, PIXEL_LIMIT)
+    result.wire_read_ms.append(1000 * (time.thread_time() - started))
 
 
 def wake_up(
@@ -286,6 +315,10 @@ def _submap_of(building: DemoBuilding, point: tuple[float, float]) -> str:
 def _holds(building: DemoBuilding, code: str, point: tuple[float, float]) -> bool:
     submap = next((s for s in building.submaps if s.code == code), None)
     return submap is not None and _window_holds(submap, point)
+
+
+def _mean_bytes(sizes: list[int]) -> int:
+    return round(statistics.fmean(sizes)) if sizes else 0
 
 
 def _rate(part: int, whole: int) -> float:
