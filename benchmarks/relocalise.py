@@ -24,6 +24,9 @@ Keyframes on the wire: the agent's request body (JPEG, depth as ROS's
 ``sensor_msgs/Image`` (the form robots sent before), and the time to read the image and
 depth back out of it.
 
+``--solver opencv`` hypothesises poses with OpenCV's free 6-DoF ``solvePnPRansac``
+instead of the level camera's RANSAC (the rest alike), to compare the two.
+
 Run: ``python manage.py bench relocalise --seed 1 --json``; ``--table3`` runs the first
 paper's Table 3 instead (``benchmarks/wakeup_table.py``).
 """
@@ -44,7 +47,7 @@ import numpy as np
 
 from maps.domain.demo_building import DemoBuilding, DemoSubMap, demo_building
 from maps.domain.keyframes import Depth, FeatureExtractor, Image, Intrinsics, Mount
-from maps.domain.relocalisation import Answer, KeyframeIndex, QueryFrame, relocalise
+from maps.domain.relocalisation import Answer, KeyframeIndex, Params, QueryFrame, relocalise
 from maps.domain.visual_input import depth_image as depth_of_image
 from maps.domain.visual_input import grey_image
 from maps.domain.vocabulary import default_vocabulary
@@ -71,6 +74,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--keyframes", type=int, default=1000, help="keyframes surveyed")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     parser.add_argument(
+        "--solver", choices=("level", "opencv"), default="level",
+        help="pose hypotheses: the level camera's RANSAC, or OpenCV's solvePnPRansac",
+    )  # fmt: skip
+    parser.add_argument(
         "--table3", action="store_true",
         help="the paper's Table 3 instead: tag, visual, random and global starts compared",
     )  # fmt: skip
@@ -83,13 +90,15 @@ def run(options: dict[str, Any]) -> None:
         table = run_table(options["seed"], options["trials"], options["keyframes"])
         print(json.dumps(table) if options["json"] else format_table(table))
         return
-    result = measure(options["seed"], options["trials"], options["keyframes"])
+    params = Params(solver=options["solver"])
+    result = measure(options["seed"], options["trials"], options["keyframes"], params)
     print(json.dumps(result.summary()) if options["json"] else report(result))
 
 
 @dataclass
 class Result:
     seed: int
+    solver: str = "level"
     keyframes: int = 0
     trials: int = 0
     successes: int = 0
@@ -113,6 +122,7 @@ class Result:
         position = [e[0] for e in self.errors]
         return {
             "seed": self.seed,
+            "solver": self.solver,
             "trials": self.trials,
             "success_rate": _rate(self.successes, self.trials),
             "submap_rate": _rate(self.right_submap, self.answered),
@@ -139,18 +149,19 @@ class Result:
         }
 
 
-def measure(seed: int, trials: int, keyframes: int) -> Result:
+def measure(seed: int, trials: int, keyframes: int, params: Params | None = None) -> Result:
     cv2.setNumThreads(1)  # one core: times are this thread's CPU time
+    params = params or Params()
     building = demo_building()
     world = demo_world(seed=seed)
-    result = Result(seed)
+    result = Result(seed, params.solver)
     index = survey(building, world, keyframes, seed, result)
     rng = np.random.default_rng([seed, 2])
     other = Camera(demo_world(seed=seed, building_code=OTHER_BUILDING), seed=seed + 7)
     camera = Camera(world, seed=seed + 3)
     for pose in _free_poses(world, rng, trials):
-        wake_up(index, camera, building, pose, result)
-        wrong_building(index, other, pose, result)
+        wake_up(index, camera, building, pose, result, params)
+        wrong_building(index, other, pose, result, params)
     return result
 
 
@@ -200,6 +211,7 @@ def wake_up(
     building: DemoBuilding,
     pose: tuple[float, float, float],
     result: Result,
+    params: Params,
 ) -> None:
     """One wake-up: ask with one view, then turn and ask with more, until answered."""
     extractor = FeatureExtractor(default_vocabulary())
@@ -212,7 +224,7 @@ def wake_up(
         frames.append(_query(extractor, camera, (pose[0], pose[1], heading)))
         headings.append(heading)
         started = time.thread_time()
-        answer = relocalise(index, frames[-1:], Intrinsics(), Mount())
+        answer = relocalise(index, frames[-1:], Intrinsics(), Mount(), params=params)
         result.query_ms.append(1000 * (time.thread_time() - started))
         if answer.localised:
             break
@@ -235,13 +247,17 @@ def wake_up(
 
 
 def wrong_building(
-    index: KeyframeIndex, camera: Camera, pose: tuple[float, float, float], result: Result
+    index: KeyframeIndex,
+    camera: Camera,
+    pose: tuple[float, float, float],
+    result: Result,
+    params: Params,
 ) -> None:
     """Six views of the same place in another building, each asked alone."""
     extractor = FeatureExtractor(default_vocabulary())
     for view in range(MAX_VIEWS):
         frame = _query(extractor, camera, (pose[0], pose[1], pose[2] + view * TURN))
-        answer = relocalise(index, [frame], Intrinsics(), Mount())
+        answer = relocalise(index, [frame], Intrinsics(), Mount(), params=params)
         result.wrong_trials += 1
         if answer.localised:
             result.wrong_answers += 1
