@@ -78,6 +78,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="pose hypotheses: the level camera's RANSAC, or OpenCV's solvePnPRansac",
     )  # fmt: skip
     parser.add_argument(
+        "--workers", type=int, default=1, help="processes running --table3's trials",
+    )  # fmt: skip
+    parser.add_argument(
         "--table3", action="store_true",
         help="the paper's Table 3 instead: tag, visual, random and global starts compared",
     )  # fmt: skip
@@ -87,7 +90,9 @@ def run(options: dict[str, Any]) -> None:
     if options["table3"]:
         from benchmarks.wakeup_table import format_table, run_table
 
-        table = run_table(options["seed"], options["trials"], options["keyframes"])
+        table = run_table(
+            options["seed"], options["trials"], options["keyframes"], options["workers"]
+        )
         print(json.dumps(table) if options["json"] else format_table(table))
         return
     params = Params(solver=options["solver"])
