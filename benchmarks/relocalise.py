@@ -19,6 +19,13 @@ every answer given is counted.
 
 Times are one query of one image on this process's one thread (the server answers one
 query per worker thread), and one keyframe's ingestion (features, points, words).
+Keyframes on the wire: the agent's request body (JPEG, depth as ROS's
+``compressedDepth`` PNG, camera, pose) beside the same body with the depth as a raw
+``sensor_msgs/Image`` (the form robots sent before), and the time to read the image and
+depth back out of it.
+
+``--solver opencv`` hypothesises poses with OpenCV's free 6-DoF ``solvePnPRansac``
+instead of the level camera's RANSAC (the rest alike), to compare the two.
 
 Run: ``python manage.py bench relocalise --seed 1 --json``; ``--table3`` runs the first
 paper's Table 3 instead (``benchmarks/wakeup_table.py``).
@@ -39,12 +46,17 @@ import cv2
 import numpy as np
 
 from maps.domain.demo_building import DemoBuilding, DemoSubMap, demo_building
-from maps.domain.keyframes import FeatureExtractor, Intrinsics, Mount
-from maps.domain.relocalisation import Answer, KeyframeIndex, QueryFrame, relocalise
+from maps.domain.keyframes import Depth, FeatureExtractor, Image, Intrinsics, Mount
+from maps.domain.relocalisation import Answer, KeyframeIndex, Params, QueryFrame, relocalise
+from maps.domain.visual_input import depth_image as depth_of_image
+from maps.domain.visual_input import grey_image
 from maps.domain.vocabulary import default_vocabulary
 from maps.exceptions import KeyframeError
+from robots.agent.perception import CameraModel
 from robots.agent.sim.camera import Camera
 from robots.agent.sim.world import World, demo_world
+from robots.agent.visual import keyframe_document
+from telemetry.domain.messages import depth_image
 
 CLEARANCE = 0.3
 KEYFRAME_POSE_ERROR = (0.02, math.radians(0.5))
@@ -53,6 +65,7 @@ TURN = math.radians(60.0)
 MAX_VIEWS = 6
 OTHER_BUILDING = "other_1"
 CHI2_99 = 11.34
+PIXEL_LIMIT = 640 * 480
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -60,6 +73,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--trials", type=int, default=50, help="wake-ups")
     parser.add_argument("--keyframes", type=int, default=1000, help="keyframes surveyed")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
+    parser.add_argument(
+        "--solver", choices=("level", "opencv"), default="level",
+        help="pose hypotheses: the level camera's RANSAC, or OpenCV's solvePnPRansac",
+    )  # fmt: skip
+    parser.add_argument(
+        "--workers", type=int, default=1, help="processes running --table3's trials",
+    )  # fmt: skip
     parser.add_argument(
         "--table3", action="store_true",
         help="the paper's Table 3 instead: tag, visual, random and global starts compared",
@@ -70,16 +90,20 @@ def run(options: dict[str, Any]) -> None:
     if options["table3"]:
         from benchmarks.wakeup_table import format_table, run_table
 
-        table = run_table(options["seed"], options["trials"], options["keyframes"])
+        table = run_table(
+            options["seed"], options["trials"], options["keyframes"], options["workers"]
+        )
         print(json.dumps(table) if options["json"] else format_table(table))
         return
-    result = measure(options["seed"], options["trials"], options["keyframes"])
+    params = Params(solver=options["solver"])
+    result = measure(options["seed"], options["trials"], options["keyframes"], params)
     print(json.dumps(result.summary()) if options["json"] else report(result))
 
 
 @dataclass
 class Result:
     seed: int
+    solver: str = "level"
     keyframes: int = 0
     trials: int = 0
     successes: int = 0
@@ -90,6 +114,9 @@ class Result:
     query_ms: list[float] = field(default_factory=list)
     ingest_ms: list[float] = field(default_factory=list)
     stored_bytes: list[int] = field(default_factory=list)
+    wire_bytes: list[int] = field(default_factory=list)
+    wire_bytes_raw_depth: list[int] = field(default_factory=list)
+    wire_read_ms: list[float] = field(default_factory=list)
     confident_wrong: int = 0
     outside_ellipse: int = 0
     wrong_trials: int = 0
@@ -100,6 +127,7 @@ class Result:
         position = [e[0] for e in self.errors]
         return {
             "seed": self.seed,
+            "solver": self.solver,
             "trials": self.trials,
             "success_rate": _rate(self.successes, self.trials),
             "submap_rate": _rate(self.right_submap, self.answered),
@@ -119,24 +147,26 @@ class Result:
             "ingest_ms": statistics.fmean(self.ingest_ms) if self.ingest_ms else 0.0,
             "ingest_p95_ms": _percentile(self.ingest_ms, 95),
             "keyframes": self.keyframes,
-            "bytes_per_keyframe": round(statistics.fmean(self.stored_bytes))
-            if self.stored_bytes
-            else 0,
+            "bytes_per_keyframe": _mean_bytes(self.stored_bytes),
+            "wire_bytes_per_keyframe": _mean_bytes(self.wire_bytes),
+            "wire_bytes_per_keyframe_raw_depth": _mean_bytes(self.wire_bytes_raw_depth),
+            "wire_read_ms": statistics.fmean(self.wire_read_ms) if self.wire_read_ms else 0.0,
         }
 
 
-def measure(seed: int, trials: int, keyframes: int) -> Result:
+def measure(seed: int, trials: int, keyframes: int, params: Params | None = None) -> Result:
     cv2.setNumThreads(1)  # one core: times are this thread's CPU time
+    params = params or Params()
     building = demo_building()
     world = demo_world(seed=seed)
-    result = Result(seed)
+    result = Result(seed, params.solver)
     index = survey(building, world, keyframes, seed, result)
     rng = np.random.default_rng([seed, 2])
     other = Camera(demo_world(seed=seed, building_code=OTHER_BUILDING), seed=seed + 7)
     camera = Camera(world, seed=seed + 3)
     for pose in _free_poses(world, rng, trials):
-        wake_up(index, camera, building, pose, result)
-        wrong_building(index, other, pose, result)
+        wake_up(index, camera, building, pose, result, params)
+        wrong_building(index, other, pose, result, params)
     return result
 
 
@@ -153,6 +183,7 @@ def survey(
         image, depth = camera.capture(pose)
         assert depth is not None
         believed = _perturbed(pose, rng)
+        _wire(image, depth, believed, result)
         started = time.thread_time()
         try:
             keyframe = extractor.keyframe(image, depth, believed)
@@ -165,12 +196,27 @@ def survey(
     return index
 
 
+def _wire(image: Image, depth: Depth, pose: tuple[float, float, float], result: Result) -> None:
+    """What the keyframe costs on the wire: the agent's request body (depth as
+    ``compressedDepth``) against the same with a raw ``sensor_msgs/Image`` depth, and the
+    server's time to read the image and depth out of it."""
+    document = keyframe_document(CameraModel(), pose, image, depth)
+    result.wire_bytes.append(len(json.dumps(document)))
+    raw = {**document, "depth": depth_image("camera", depth, 0.0)}
+    result.wire_bytes_raw_depth.append(len(json.dumps(raw)))
+    started = time.thread_time()
+    grey = grey_image(document["image"], PIXEL_LIMIT)
+    depth_of_image(document["depth"], grey.shape, PIXEL_LIMIT)
+    result.wire_read_ms.append(1000 * (time.thread_time() - started))
+
+
 def wake_up(
     index: KeyframeIndex,
     camera: Camera,
     building: DemoBuilding,
     pose: tuple[float, float, float],
     result: Result,
+    params: Params,
 ) -> None:
     """One wake-up: ask with one view, then turn and ask with more, until answered."""
     extractor = FeatureExtractor(default_vocabulary())
@@ -183,7 +229,7 @@ def wake_up(
         frames.append(_query(extractor, camera, (pose[0], pose[1], heading)))
         headings.append(heading)
         started = time.thread_time()
-        answer = relocalise(index, frames[-1:], Intrinsics(), Mount())
+        answer = relocalise(index, frames[-1:], Intrinsics(), Mount(), params=params)
         result.query_ms.append(1000 * (time.thread_time() - started))
         if answer.localised:
             break
@@ -206,13 +252,17 @@ def wake_up(
 
 
 def wrong_building(
-    index: KeyframeIndex, camera: Camera, pose: tuple[float, float, float], result: Result
+    index: KeyframeIndex,
+    camera: Camera,
+    pose: tuple[float, float, float],
+    result: Result,
+    params: Params,
 ) -> None:
     """Six views of the same place in another building, each asked alone."""
     extractor = FeatureExtractor(default_vocabulary())
     for view in range(MAX_VIEWS):
         frame = _query(extractor, camera, (pose[0], pose[1], pose[2] + view * TURN))
-        answer = relocalise(index, [frame], Intrinsics(), Mount())
+        answer = relocalise(index, [frame], Intrinsics(), Mount(), params=params)
         result.wrong_trials += 1
         if answer.localised:
             result.wrong_answers += 1
@@ -286,6 +336,10 @@ def _submap_of(building: DemoBuilding, point: tuple[float, float]) -> str:
 def _holds(building: DemoBuilding, code: str, point: tuple[float, float]) -> bool:
     submap = next((s for s in building.submaps if s.code == code), None)
     return submap is not None and _window_holds(submap, point)
+
+
+def _mean_bytes(sizes: list[int]) -> int:
+    return round(statistics.fmean(sizes)) if sizes else 0
 
 
 def _rate(part: int, whole: int) -> float:

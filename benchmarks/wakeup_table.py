@@ -25,6 +25,7 @@ median time to the first such pose.
 from __future__ import annotations
 
 import math
+import multiprocessing
 import statistics
 from dataclasses import dataclass, field
 from typing import Any
@@ -89,16 +90,38 @@ class _Start:
     ready: bool = False
 
 
-def run_table(seed: int, trials: int, keyframes: int) -> dict[str, Any]:
-    """Every trial, then the table's figures as one JSON-ready object."""
+_SHARED: tuple[DemoBuilding, World, KeyframeIndex] | None = None
+"""The building, world and surveyed keyframes the trials share (forked workers inherit
+them rather than receive a copy)."""
+
+
+def run_table(seed: int, trials: int, keyframes: int, workers: int = 1) -> dict[str, Any]:
+    """Every trial (on ``workers`` forked processes: each trial has its own seed, so the
+    figures do not depend on how many), then the table's figures as one JSON-ready object."""
+    global _SHARED
     building, world = demo_building(), demo_world(seed=seed)
     index = survey(building, world, keyframes, seed, Result(seed))
     rng = np.random.default_rng([seed, 3])
+    jobs = [
+        (pose, seed * 1000 + trial) for trial, pose in enumerate(_free_poses(world, rng, trials))
+    ]
+    _SHARED = (building, world, index)
+    if workers > 1:
+        with multiprocessing.get_context("fork").Pool(workers) as pool:
+            results = pool.starmap(_trial, jobs)
+    else:
+        results = [_trial(*job) for job in jobs]
     outcomes: dict[str, list[Outcome]] = {name: [] for name in STARTS}
-    for trial, pose in enumerate(_free_poses(world, rng, trials)):
-        for name, outcome in wake_up(building, world, index, pose, seed * 1000 + trial).items():
+    for result in results:
+        for name, outcome in result.items():
             outcomes[name].append(outcome)
     return summary(outcomes, trials)
+
+
+def _trial(pose: Pose, seed: int) -> dict[str, Outcome]:
+    assert _SHARED is not None
+    building, world, index = _SHARED
+    return wake_up(building, world, index, pose, seed)
 
 
 def wake_up(
@@ -217,10 +240,12 @@ def _record(starts: dict[str, _Start], truth: Pose, seconds: float) -> None:
 def summary(outcomes: dict[str, list[Outcome]], trials: int) -> dict[str, Any]:
     table: dict[str, Any] = {"trials": trials, "starts": {}}
     for name, records in outcomes.items():
-        posed = [r for r in records if r.errors]
-        row: dict[str, Any] = {"localised_trials": len(posed)}
+        row: dict[str, Any] = {"localised_trials": sum(1 for r in records if r.errors)}
         for moment in CHECKPOINTS:
+            # A start that had no pose yet at a checkpoint counts only from the next one.
+            posed = [r for r in records if moment in r.errors]
             tag = f"{moment:g}s"
+            row[f"trials_{tag}"] = len(posed)
             row[f"mean_x_{tag}"] = _mean([r.errors[moment][0] for r in posed])
             row[f"mean_y_{tag}"] = _mean([r.errors[moment][1] for r in posed])
             for axis, label in enumerate(("x", "y", "yaw")):
@@ -228,8 +253,10 @@ def summary(outcomes: dict[str, list[Outcome]], trials: int) -> dict[str, Any]:
         end = max(CHECKPOINTS)
         good = [
             r
-            for r in posed
-            if math.hypot(*r.errors[end][:2]) <= SUCCESS[0] and r.errors[end][2] <= SUCCESS[1]
+            for r in records
+            if end in r.errors
+            and math.hypot(*r.errors[end][:2]) <= SUCCESS[0]
+            and r.errors[end][2] <= SUCCESS[1]
         ]
         row["success_rate_60s"] = len(good) / trials if trials else 0.0
         times = [r.first_good for r in records if r.first_good is not None]

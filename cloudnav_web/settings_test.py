@@ -8,6 +8,7 @@ name carries the test run's process id, so two runs in one checkout never share 
 from __future__ import annotations
 
 import os
+from pathlib import Path
 
 from .settings import *  # noqa: F403
 from .settings import ALLOWED_HOSTS, BASE_DIR, DATABASES, env_bool
@@ -30,7 +31,10 @@ if not env_bool("CLOUDNAV_LIVE_SERVER", False):
     REDIS_URL = ""
     CHANNEL_LAYERS = {"default": {"BACKEND": "channels.layers.InMemoryChannelLayer"}}
 
-# Keyframe files of test runs go apart from the demo's (a live server inherits the path).
-CLOUDNAV_KEYFRAME_DIR = BASE_DIR / "var" / "test-keyframes"
+# Keyframe files of test runs go apart from the demo's (a live server inherits the path,
+# unless a test gives its servers a directory of their own).
+CLOUDNAV_KEYFRAME_DIR = Path(
+    os.environ.get("CLOUDNAV_KEYFRAME_DIR", str(BASE_DIR / "var" / "test-keyframes"))
+)
 # Servers under test record only when a test gives them a directory of its own.
 CLOUDNAV_RECORDING = bool(os.environ.get("CLOUDNAV_RECORDING_DIR"))

@@ -19,6 +19,7 @@ from robots.agent.supervisor import BundleCache, MapsSupervisor, SubMap
 from robots.agent.visual import LOST_SPREAD, VisualMap
 from robots.domain.params import RobotConfig
 from robots.domain.se2 import Pose
+from telemetry.domain.messages import depth_of
 
 IMAGE = np.zeros((480, 640), np.uint8)
 DEPTH = np.full((480, 640), 2.0, np.float32)
@@ -48,7 +49,11 @@ async def test_keyframes_go_out_every_30_cm_or_15_degrees_with_image_depth_and_p
     body = json.loads(request.content)
     assert body["pose"] == {"x": 1.0, "y": 2.0, "yaw": 0.0}
     assert body["image"]["format"] == "jpeg"
-    assert body["depth"]["encoding"] == "16UC1"
+    assert body["depth"]["format"] == "16UC1; compressedDepth png"
+    depth = depth_of(body["depth"], 640 * 480)
+    assert depth is not None
+    assert np.array_equal(depth, DEPTH)
+    assert len(request.content) < 20_000  # the raw 16UC1 image alone is 614 kB of base64
     assert body["camera_info"]["K"][0] == 525.0
     assert visual.sent == 1
 

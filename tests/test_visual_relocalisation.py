@@ -115,6 +115,24 @@ def test_held_out_views_are_placed_within_10_cm_and_2_degrees(
         assert 0 < answer.covariance[0, 0] < 0.05
 
 
+def test_opencvs_solver_the_bench_compares_places_held_out_views_too(
+    index: KeyframeIndex, extractor: FeatureExtractor
+) -> None:
+    """``bench relocalise --solver opencv``: poses hypothesised by solvePnPRansac, then
+    refined and checked alike (it misses the view facing the corridor's wall)."""
+    camera = Camera(demo_world(seed=11), seed=3)
+    params = Params(solver="opencv")
+    placed = 0
+    for pose in HELD_OUT:
+        frame = query(extractor, camera, pose)
+        answer = relocalise(index, [frame], Intrinsics(), Mount(), params=params)
+        if answer.localised:
+            placed += 1
+            assert math.hypot(answer.pose[0] - pose[0], answer.pose[1] - pose[1]) < 0.10
+            assert abs(math.remainder(answer.pose[2] - pose[2], math.tau)) < math.radians(2)
+    assert placed >= len(HELD_OUT) - 1
+
+
 def test_the_claimed_covariance_covers_the_true_error(
     index: KeyframeIndex, extractor: FeatureExtractor
 ) -> None:

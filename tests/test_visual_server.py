@@ -19,7 +19,12 @@ from maps.visual.worker import ingest_queue
 from robots.agent.hardware import encode_jpeg
 from robots.agent.sim.camera import Camera
 from robots.agent.sim.world import demo_world
-from telemetry.domain.messages import CompressedImage, compressed_image, depth_image
+from telemetry.domain.messages import (
+    CompressedImage,
+    compressed_depth,
+    compressed_image,
+    depth_image,
+)
 from tests.conftest import client_for, make_building, make_robot, make_user
 
 pytestmark = pytest.mark.django_db(transaction=True)
@@ -57,11 +62,12 @@ def camera() -> Camera:
 
 
 def keyframe_body(camera: Camera, pose: tuple[float, float, float]) -> dict[str, Any]:
+    """A keyframe as robots send it: JPEG, depth as ROS's compressedDepth, pose."""
     image, depth = camera.capture(pose)
     assert depth is not None
     return {
         "image": compressed_image("camera", encode_jpeg(image, 90), 1.0),
-        "depth": depth_image("camera", depth, 1.0),
+        "depth": compressed_depth("camera", depth, 1.0),
         "pose": {"x": pose[0], "y": pose[1], "yaw": pose[2]},
     }
 
@@ -83,6 +89,16 @@ def test_a_robots_keyframes_are_stored_in_the_database_and_on_disk(
     assert all((keyframe_dir / k.path).stat().st_size == k.size for k in stored)
     assert all(k.robot == "scout" and k.points >= 20 for k in stored)
     assert {k.submap.code for k in stored} == {"CorridorA"}
+
+
+def test_a_keyframe_whose_depth_is_a_raw_image_is_stored_too(token: str, camera: Camera) -> None:
+    pose = (5.0, 23.2, 0.0)
+    _, depth = camera.capture(pose)
+    assert depth is not None
+    body = {**keyframe_body(camera, pose), "depth": depth_image("camera", depth, 1.0)}
+    assert client_for(token).post(URL, body, format="json").status_code == 202
+    ingest_queue().drain()
+    assert Keyframe.objects.count() == 1
 
 
 def test_a_near_duplicate_keyframe_is_dropped(token: str, camera: Camera) -> None:
@@ -171,6 +187,17 @@ def jpeg_of(pixels: np.ndarray) -> CompressedImage:
         (
             lambda b: {**b, "depth": depth_image("camera", np.ones((240, 320), np.float32), 1.0)},
             "does not match",
+        ),
+        (
+            lambda b: {
+                **b,
+                "depth": compressed_depth("camera", np.ones((240, 320), np.float32), 1.0),
+            },
+            "does not match",
+        ),
+        (
+            lambda b: {**b, "depth": {**b["depth"], "data": b["depth"]["data"][:4000]}},
+            "compressedDepth",
         ),
         (lambda b: {**b, "pose": {"x": 500.0, "y": 3.0, "yaw": 0.0}}, "not on the free floor"),
         (lambda b: {**b, "pose": {"x": "NaN", "y": 3.0, "yaw": 0.0}}, "finite"),

@@ -19,10 +19,9 @@ import httpx
 import pytest
 import websockets
 
-from robots.agent.hardware import encode_jpeg
 from robots.agent.sim.camera import Camera
 from robots.agent.sim.world import demo_world
-from telemetry.domain.messages import compressed_image, depth_image
+from robots.agent.visual import keyframe_document
 from tests.fixtures_live import LiveServer, agent_process
 from tests.test_end_to_end import Operator, position_error, tail
 
@@ -47,11 +46,7 @@ def send_survey(server: LiveServer, token: str) -> None:
         for pose in SURVEY:
             image, depth = camera.capture(pose)
             assert depth is not None
-            body = {
-                "image": compressed_image("camera", encode_jpeg(image, 90), 0.0),
-                "depth": depth_image("camera", depth, 0.0),
-                "pose": {"x": pose[0], "y": pose[1], "yaw": pose[2]},
-            }
+            body = keyframe_document(camera.model, pose, image, depth)
             while (answer := client.post(url, json=body)).status_code == 503:
                 time.sleep(0.2)  # the queue is full: the worker catches up
             assert answer.status_code == 202, answer.text

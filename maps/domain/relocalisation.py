@@ -76,6 +76,10 @@ class Params:
     rival_chi2: float = 11.34
     """Squared Mahalanobis distance (chi-square, 3 DoF, 99 %) past which a pose lies
     outside a covariance."""
+    solver: str = "level"
+    """How the pose is hypothesised: ``level`` (``_planar_ransac``) or ``opencv``
+    (``_pnp_ransac``: OpenCV's free 6-DoF ``solvePnPRansac``), refined and checked alike;
+    ``bench relocalise --solver`` compares them (docs/design.md)."""
 
 
 @dataclass(frozen=True)
@@ -244,7 +248,10 @@ def _solve(
     if distinct < params.min_matches:
         return Answer(False, f"too few feature matches ({distinct})", code, inliers=0)
     rng = np.random.default_rng(distinct)  # the same query answers the same
-    hypotheses = _planar_ransac(pixels, points, intrinsics, mount, params, rng)
+    if params.solver == "opencv":
+        hypotheses = _pnp_ransac(pixels, points, intrinsics, mount, params)
+    else:
+        hypotheses = _planar_ransac(pixels, points, intrinsics, mount, params, rng)
     if hypotheses is None:
         return Answer(False, f"no pose explains the {distinct} matches", code)
     poses, support = hypotheses
@@ -300,6 +307,31 @@ def _planar_ransac(
     if support.max() < params.min_inliers:
         return None
     return poses, support
+
+
+def _pnp_ransac(
+    pixels: NDArray[np.float64],
+    points: NDArray[np.float64],
+    intrinsics: Intrinsics,
+    mount: Mount,
+    params: Params,
+) -> tuple[NDArray[np.float64], NDArray[np.intp]] | None:
+    """OpenCV's ``solvePnPRansac`` (free 6 DoF, its default minimal solver and
+    refinement) as the one hypothesis: its camera put on the floor plan as a robot pose
+    (heading from the optical axis), with its inlier count as support; None when it
+    finds no pose or fewer than ``min_inliers`` inliers."""
+    ok, rvec, tvec, inliers = cv2.solvePnPRansac(
+        points, pixels, intrinsics.matrix(), None, iterationsCount=params.iterations,
+        reprojectionError=params.reprojection, confidence=0.999,
+    )  # fmt: skip
+    if not ok or inliers is None or len(inliers) < params.min_inliers:
+        return None
+    rotation, _ = cv2.Rodrigues(rvec)
+    centre = -rotation.T @ np.asarray(tvec).ravel()
+    yaw = math.atan2(float(rotation[2, 1]), float(rotation[2, 0]))
+    x = float(centre[0]) - mount.forward * math.cos(yaw)
+    y = float(centre[1]) - mount.forward * math.sin(yaw)
+    return np.array([[x, y, yaw]]), np.array([len(inliers)], np.intp)
 
 
 def _with_rivals(

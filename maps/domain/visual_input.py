@@ -1,8 +1,8 @@
 """Reading what robots send the visual map: images, depth, camera parameters and poses,
-as rosbridge JSON (``sensor_msgs/CompressedImage``, ``sensor_msgs/Image``,
-``sensor_msgs/CameraInfo``). Every reader raises KeyframeError with a sentence for the
-sender; nothing is decoded past the pixel limit (the size is read from the header
-first).
+as rosbridge JSON (``sensor_msgs/CompressedImage``; depth as ROS's ``compressedDepth``
+or a raw ``sensor_msgs/Image``; ``sensor_msgs/CameraInfo``). Every reader raises
+KeyframeError with a sentence for the sender; nothing is decoded past the pixel limit
+(the size is read from the header first).
 
 Nothing here imports Django.
 """
@@ -66,15 +66,19 @@ def _size(data: bytes, field: str) -> tuple[int, int]:
 
 
 def depth_image(msg: Any, shape: tuple[int, ...], max_pixels: int) -> Depth:
-    """Metres of a ``sensor_msgs/Image`` depth (``16UC1`` mm or ``32FC1`` m) registered
-    to an image of ``shape``; raises unless it is one and matches that size."""
+    """Metres of a depth image registered to an image of ``shape``: a
+    ``sensor_msgs/CompressedImage`` of ROS's ``compressedDepth`` transport (``16UC1;
+    compressedDepth png``, what robots send) or a raw ``sensor_msgs/Image`` (``16UC1`` mm
+    or ``32FC1`` m); raises unless it is one and matches that size."""
     if not isinstance(msg, Mapping):
-        raise KeyframeError("depth: a sensor_msgs/Image is required")
+        raise KeyframeError("depth: a sensor_msgs/CompressedImage or Image is required")
     depth = depth_of(msg, max_pixels)
     if depth is None:
         raise KeyframeError(
-            "depth: a 16UC1 (millimetres) or 32FC1 (metres) sensor_msgs/Image whose data "
-            f"fills height x step, at most {max_pixels} pixels, is required"
+            "depth: a compressedDepth sensor_msgs/CompressedImage ('16UC1; compressedDepth "
+            "png' or '32FC1; compressedDepth png') or a 16UC1 (millimetres) or 32FC1 "
+            "(metres) sensor_msgs/Image whose data fills the image, at most "
+            f"{max_pixels} pixels, is required"
         )
     if depth.shape != shape[:2]:
         raise KeyframeError(

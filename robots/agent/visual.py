@@ -5,7 +5,8 @@ Keyframes: while the robot is localised in a sub-map and its pose is trustworthy
 filter's spread within ``TRUSTED_SPREAD``, or no filter: odometry since a tag reset),
 every frame taken with depth that stands ``KEYFRAME_DISTANCE`` or ``KEYFRAME_TURN`` away
 from the last keyframe sent in that sub-map goes to the cloud
-(``POST /api/buildings/{b}/maps/{m}/keyframes``: JPEG, 16UC1 depth, pose). One request
+(``POST /api/buildings/{b}/maps/{m}/keyframes``: JPEG, depth as ROS's
+``compressedDepth`` PNG, pose). One request
 is in flight at a time; a frame that finds one under way is skipped, and so is a
 keyframe the server refuses (a full queue answers 503: the next one will do).
 
@@ -31,7 +32,7 @@ from robots.agent.hardware import encode_jpeg
 from robots.agent.perception import CameraModel
 from robots.agent.relocalise import PoseEstimate
 from robots.domain.se2 import Pose
-from telemetry.domain.messages import camera_info, compressed_image, depth_image
+from telemetry.domain.messages import camera_info, compressed_depth, compressed_image
 
 logger = logging.getLogger(__name__)
 
@@ -90,13 +91,7 @@ class VisualMap:
         self.busy = True
         self._last_keyframe[map_id] = pose
         building, _, code = map_id.partition("/")
-        body = {
-            "image": compressed_image("camera", encode_jpeg(image, JPEG_QUALITY), 0.0),
-            "depth": depth_image("camera", depth, 0.0),
-            "camera_info": self._camera_info(),
-            "mount": {"forward": self.model.mount_x, "height": self.model.mount_height},
-            "pose": {"x": pose[0], "y": pose[1], "yaw": pose[2]},
-        }
+        body = keyframe_document(self.model, pose, image, depth)
         try:
             response = await self.http.post(
                 f"/api/buildings/{building}/maps/{code}/keyframes", json=body
@@ -128,8 +123,8 @@ class VisualMap:
         self.asked += 1
         body: dict[str, Any] = {
             "images": [compressed_image("camera", encode_jpeg(image, JPEG_QUALITY), 0.0)],
-            "camera_info": self._camera_info(),
-            "mount": {"forward": self.model.mount_x, "height": self.model.mount_height},
+            "camera_info": camera_info_of(self.model),
+            "mount": mount_of(self.model),
         }
         if building:
             body["building"] = building
@@ -142,9 +137,29 @@ class VisualMap:
             self.busy = False
         return _placement(response)
 
-    def _camera_info(self) -> Any:
-        m = self.model
-        return camera_info("camera", m.width, m.height, m.fx, m.fy, m.cx, m.cy, 0.0)
+
+def keyframe_document(
+    model: CameraModel, pose: Pose, image: NDArray[np.uint8], depth: NDArray[np.float32]
+) -> dict[str, Any]:
+    """The body of a keyframe request: the image as JPEG, the depth as ROS's
+    ``compressedDepth`` (a 16-bit PNG: a few kB where the raw ``sensor_msgs/Image`` is
+    about 800 kB of JSON), the camera and the pose."""
+    return {
+        "image": compressed_image("camera", encode_jpeg(image, JPEG_QUALITY), 0.0),
+        "depth": compressed_depth("camera", depth, 0.0),
+        "camera_info": camera_info_of(model),
+        "mount": mount_of(model),
+        "pose": {"x": pose[0], "y": pose[1], "yaw": pose[2]},
+    }
+
+
+def camera_info_of(model: CameraModel) -> Any:
+    m = model
+    return camera_info("camera", m.width, m.height, m.fx, m.fy, m.cx, m.cy, 0.0)
+
+
+def mount_of(model: CameraModel) -> dict[str, float]:
+    return {"forward": model.mount_x, "height": model.mount_height}
 
 
 def _placement(response: httpx.Response) -> Placement | None:

@@ -16,12 +16,14 @@ from __future__ import annotations
 
 import base64
 import math
+import struct
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from enum import IntEnum
 from itertools import pairwise
 from typing import Any, NotRequired, TypedDict
 
+import cv2
 import numpy as np
 from numpy.typing import NDArray
 
@@ -481,14 +483,30 @@ def compressed_image(frame_id: str, jpeg: bytes, stamp: Stamp) -> CompressedImag
 
 DEPTH_ENCODING = "16UC1"
 MAX_DEPTH_MM = 65535
+COMPRESSED_DEPTH_FORMAT = "16UC1; compressedDepth png"
+"""``CompressedImage.format`` of depth as ROS's ``compressed_depth_image_transport``
+publishes it (the ``camera/depth/image/compressedDepth`` topic): a 12-byte header, then
+a 16-bit grey PNG of millimetres."""
+COMPRESSED_DEPTH_HEADER = struct.Struct("<iff")
+"""The header before the PNG: ``compressionFormat`` (0: inverse depth) and the two
+``depthParam`` quantisation factors (used by 32FC1 depth only; zero for 16UC1)."""
+PNG_LEVEL = 6
+"""zlib level of the depth PNG. A rendered 640x480 depth image: level 1 5.6 kB in 4 ms,
+6 3.5 kB in 7 ms, 9 3.1 kB in 12 ms; the raw ``Image`` is 819 kB of JSON."""
+
+
+def _millimetres(depth_m: NDArray[np.floating[Any]]) -> NDArray[np.uint16]:
+    """Depth in metres as millimetres, 0 where there is no reading (not finite, not
+    positive, or past 65.535 m)."""
+    millimetres = np.rint(np.nan_to_num(depth_m, nan=0.0, posinf=0.0, neginf=0.0) * 1000.0)
+    millimetres[(millimetres <= 0) | (millimetres > MAX_DEPTH_MM)] = 0
+    return np.ascontiguousarray(millimetres, dtype="<u2")
 
 
 def depth_image(frame_id: str, depth_m: NDArray[np.floating[Any]], stamp: Stamp) -> Image:
     """``sensor_msgs/Image`` of a depth image in metres: ``16UC1`` millimetres, 0 where
-    there is no reading (not finite, not positive, or past 65.535 m)."""
-    millimetres = np.rint(np.nan_to_num(depth_m, nan=0.0, posinf=0.0, neginf=0.0) * 1000.0)
-    millimetres[(millimetres <= 0) | (millimetres > MAX_DEPTH_MM)] = 0
-    data = np.ascontiguousarray(millimetres, dtype="<u2")
+    there is no reading."""
+    data = _millimetres(depth_m)
     height, width = data.shape
     return {
         "header": header(frame_id, stamp),
@@ -498,6 +516,23 @@ def depth_image(frame_id: str, depth_m: NDArray[np.floating[Any]], stamp: Stamp)
         "is_bigendian": 0,
         "step": 2 * width,
         "data": base64.b64encode(data.tobytes()).decode("ascii"),
+    }
+
+
+def compressed_depth(
+    frame_id: str, depth_m: NDArray[np.floating[Any]], stamp: Stamp
+) -> CompressedImage:
+    """``sensor_msgs/CompressedImage`` of a depth image in metres, as ROS's
+    ``compressedDepth`` transport writes 16UC1 depth (``COMPRESSED_DEPTH_FORMAT``):
+    lossless, millimetres, 0 where there is no reading."""
+    ok, png = cv2.imencode(".png", _millimetres(depth_m), [cv2.IMWRITE_PNG_COMPRESSION, PNG_LEVEL])
+    if not ok:
+        raise ValueError("the depth image could not be written as PNG")
+    data = COMPRESSED_DEPTH_HEADER.pack(0, 0.0, 0.0) + png.tobytes()
+    return {
+        "header": header(frame_id, stamp),
+        "format": COMPRESSED_DEPTH_FORMAT,
+        "data": base64.b64encode(data).decode("ascii"),
     }
 
 
@@ -522,9 +557,13 @@ def camera_info(
 
 
 def depth_of(msg: Message, max_pixels: int) -> NDArray[np.float32] | None:
-    """Metres (float32, ``nan`` where there is no reading) of a ``16UC1`` (millimetres) or
-    ``32FC1`` (metres) ``sensor_msgs/Image``; None for anything else, for more than
-    ``max_pixels`` pixels, or for data that does not fill ``height`` x ``step``."""
+    """Metres (float32, ``nan`` where there is no reading) of a depth message: a
+    ``sensor_msgs/Image`` (``16UC1`` millimetres or ``32FC1`` metres) or a
+    ``sensor_msgs/CompressedImage`` of ROS's ``compressedDepth`` transport (a message
+    with a ``format``). None for anything else, for more than ``max_pixels`` pixels, or
+    for data that does not fill the image."""
+    if "format" in msg:
+        return _compressed_depth_of(msg, max_pixels)
     try:
         height, width, step = int(msg["height"]), int(msg["width"]), int(msg["step"])
         encoding, data = str(msg["encoding"]), base64.b64decode(msg["data"], validate=True)
@@ -539,9 +578,51 @@ def depth_of(msg: Message, max_pixels: int) -> NDArray[np.float32] | None:
     kind = "u2" if size == 2 else "f4"
     rows = np.frombuffer(data, np.uint8).reshape(height, step)[:, : width * size]
     values = rows.copy().view((">" if big else "<") + kind).reshape(height, width)
-    metres = values.astype(np.float32) / (1000.0 if size == 2 else 1.0)
-    metres[~np.isfinite(metres) | (metres <= 0)] = np.nan
-    return metres
+    return _metres(values.astype(np.float32) / (1000.0 if size == 2 else 1.0))
+
+
+def _metres(depth: NDArray[np.float32]) -> NDArray[np.float32]:
+    depth[~np.isfinite(depth) | (depth <= 0)] = np.nan
+    return depth
+
+
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+def _compressed_depth_of(msg: Message, max_pixels: int) -> NDArray[np.float32] | None:
+    """Metres of a ``compressedDepth`` message: ``16UC1`` (PNG of millimetres) or
+    ``32FC1`` (PNG of quantised inverse depth, ``depthParam`` A / (value - B) metres).
+    The PNG's size is read from its header before anything is inflated."""
+    try:
+        encoding, _, transport = str(msg["format"]).partition(";")
+        data = base64.b64decode(msg["data"], validate=True)
+    except (KeyError, TypeError, ValueError):
+        return None
+    encoding, codec = encoding.strip(), transport.split()
+    # "compressedDepth" alone is the older transport's spelling of the same PNG form.
+    if encoding not in {"16UC1", "32FC1"} or codec not in (
+        ["compressedDepth"],
+        ["compressedDepth", "png"],
+    ):
+        return None
+    if len(data) < COMPRESSED_DEPTH_HEADER.size + 26:
+        return None
+    _, quant_a, quant_b = COMPRESSED_DEPTH_HEADER.unpack_from(data)
+    png = data[COMPRESSED_DEPTH_HEADER.size :]
+    width, height = struct.unpack_from(">II", png, 16)
+    header_ok = png.startswith(PNG_SIGNATURE) and png[12:16] == b"IHDR"
+    grey16 = png[24] == 16 and png[25] == 0  # bit depth, colour type
+    if not (header_ok and grey16 and 0 < width * height <= max_pixels):
+        return None
+    values = cv2.imdecode(np.frombuffer(png, np.uint8), cv2.IMREAD_UNCHANGED)
+    if values is None or values.dtype != np.uint16 or values.shape != (height, width):
+        return None
+    if encoding == "16UC1":
+        return _metres(values.astype(np.float32) / 1000.0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inverse = values.astype(np.float32)
+        depth = np.where(values > 0, np.float32(quant_a) / (inverse - np.float32(quant_b)), np.nan)
+    return _metres(depth.astype(np.float32))
 
 
 def yaw_of(q: Mapping[str, Any]) -> float:
