@@ -18,8 +18,8 @@ given the true pose (this measures local planning, not localisation). A trial su
 when every robot arrives within ``TIME_LIMIT`` simulated seconds. A collision is a
 contact: a robot's footprint touching a person or another robot, or its bumper stopping
 it at a wall. ``min_clearance_m`` is the smallest gap seen between a robot's footprint
-and a person or another robot; ``cycle_*_ms`` the CPU time (this thread's) of each
-control cycle of the driver, global replanning included.
+and a person or another robot; ``cycle_*_ms`` the process's CPU time (BLAS threads
+included) of each control cycle of the driver, global replanning included.
 
 ``python manage.py bench navigation --seed 1 --planner teb --json`` prints one JSON
 object; without ``--json``, a table.
@@ -216,11 +216,11 @@ def _step(run: RobotRun, submap: SubMap, seconds: float, crowd: Crowd) -> None:
         return
     ranges = hardware.scan().astype(np.float64)
     obstacles = LocalObstacles.from_scan(ranges, hardware.scan_angles)
-    started = time.thread_time()
+    started = time.process_time()
     drive = run.driver.drive(
         run.goal, submap, after, hardware.reported_velocity, obstacles, seconds, hardware.odom_pose
     )
-    run.cycles_ms.append(1000 * (time.thread_time() - started))
+    run.cycles_ms.append(1000 * (time.process_time() - started))
     hardware.command(*(drive.command or STOP))  # the agent's Driver always commands
     if drive.state is DriveState.ARRIVED:
         run.arrived_at = seconds

@@ -14,12 +14,15 @@ Each control cycle:
    to the time the band passes it, ``robots.agent.tracking``), velocity and acceleration
    limits, the differential-drive (non-holonomic) kinematics, driving forwards, and the
    total time. That is a sparse nonlinear least-squares problem (each term depends on
-   at most three neighbouring poses and two intervals), solved by SciPy's
-   ``least_squares`` (trust-region reflective) with the Jacobian's sparsity given, so
-   that finite differences need one evaluation per group of independent columns (about
-   ten) rather than per variable, and the intervals kept positive by bounds. This
-   replaces the g2o graph optimiser of the original: the same Levenberg-Marquardt-like
-   step on the same sparse structure, from a well-kept library with no build step.
+   at most three neighbouring poses and two intervals), solved as the original's g2o
+   solves it: Levenberg-Marquardt steps on the exact Jacobian (written term by term),
+   warm-started from the last cycle's band. A band has about 70 variables, so each
+   step's damped normal equations are a small dense solve (NumPy's LAPACK, BLAS kept on
+   one thread). SciPy's ``least_squares`` was the first choice, but its general
+   machinery (``trf`` with LSMR, or MINPACK's ``lm``) cost about 1 ms per iteration
+   here, so six iterations a cycle were all it could afford, and a band that had not
+   converged drove at about 0.2 m/s; the loop below adds about 0.1 ms to each
+   evaluation of the residuals and Jacobian.
    Obstacle times are fixed at the start of each cycle, as the original does.
 4. The optimised band is checked against the hard constraint over its first
    ``feasibility_time`` seconds: clearance of at least the body's radius from every
@@ -39,12 +42,12 @@ car-like kinematics.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.optimize import least_squares
+from threadpoolctl import ThreadpoolController
 
 from robots.agent.tracking import ObstacleTracker, SeenObstacles
 from robots.domain.params import RobotConfig, TebConfig
@@ -55,11 +58,13 @@ Command = tuple[float, float]
 
 OBSTACLE_REACH = 1.0
 """Metres from the band beyond which laser returns are left out of its optimisation."""
-LSMR_ITERATIONS = 12
-"""Iterations of the inner least-squares solver per step: an approximate step is enough
-when the band is warm-started each cycle, and it bounds the cycle's time."""
 MIN_DT = 0.02
 """Seconds: the least time interval between two poses of a band."""
+BLAS = ThreadpoolController()
+"""NumPy's linear algebra libraries. A band's matrices are small (about 200 by 70):
+BLAS threads cost more to wake and wait for than they save (a normal-equations product
+took 0.53 ms of CPU on two threads against 0.03 ms on one, on the 2-core machine), so
+the planner runs them on one thread."""
 
 
 @dataclass
@@ -173,11 +178,11 @@ class _Problem:
     (to be reached at rest).
 
     Variables ``x``: the inner poses' ``(x, y, yaw)`` then the ``n`` intervals (as
-    ``pack`` writes them). Rows of
-    the residuals and of the Jacobian (both exact, computed together): kinematics,
-    driving backwards, linear and angular speed beyond the limits (``n`` each), linear
-    and angular acceleration beyond the limits (``n + 1`` each), time (``n``), clearance
-    and inflation (one per probe), via-points (x and y each).
+    ``pack`` writes them). Rows of the residuals and of the Jacobian (both exact,
+    computed together by ``_Terms``): kinematics, driving backwards, linear and angular
+    speed beyond the limits (``n`` each), linear and angular acceleration beyond the
+    limits (``n + 1`` each), time (``n``), clearance and inflation (one per probe),
+    via-points (x and y each).
     """
 
     def __init__(
@@ -195,8 +200,8 @@ class _Problem:
         self.obstacles, self.vias, self.via_poses = obstacles, vias, via_poses
         self.config, self.final = config, final
         self.inner = int(obstacles.shape[0]) // 2  # probes: inner poses and midpoints
-        self._at: Floats | None = None
-        self._cached: tuple[Floats, Floats] = (np.zeros(0), np.zeros((0, 0)))
+        self.layout = _Layout(self.inner + 1)
+        self.flat_index: NDArray[np.intp] | None = None  # see _Terms._jacobian
 
     def pack(self, band: Band) -> Floats:
         """The variables of ``band``: its inner poses, then each interval as the log of
@@ -210,18 +215,17 @@ class _Problem:
         return poses, MIN_DT + np.exp(x[3 * m :])
 
     def residuals(self, x: Floats) -> Floats:
-        return self._evaluate(x)[0]
+        return self.evaluate(x)[0]
 
     def jacobian(self, x: Floats) -> Floats:
-        return self._evaluate(x)[1]
+        return self.evaluate(x)[1]
 
-    def _evaluate(self, x: Floats) -> tuple[Floats, Floats]:
-        if self._at is None or not np.array_equal(self._at, x):
-            residuals, jacobian = _Terms(self, x).stacked()
-            m = self.inner
-            jacobian[:, 3 * m :] *= np.exp(x[3 * m :])  # d(dt)/d(variable)
-            self._at, self._cached = x.copy(), (residuals, jacobian)
-        return self._cached
+    def evaluate(self, x: Floats) -> tuple[Floats, Floats]:
+        """The residuals at ``x`` and their Jacobian with respect to ``x``."""
+        residuals, jacobian = _Terms(self, x).stacked()
+        m = self.inner
+        jacobian[:, 3 * m :] *= np.exp(x[3 * m :])  # d(dt)/d(variable)
+        return residuals, jacobian
 
 
 def _probes(inner: int) -> tuple[NDArray[np.intp], NDArray[np.intp], Floats]:
@@ -234,15 +238,41 @@ def _probes(inner: int) -> tuple[NDArray[np.intp], NDArray[np.intp], Floats]:
     return first, second, np.concatenate([np.ones(inner), np.full(inner + 1, 0.5)])
 
 
+class _Layout:
+    """Columns of the Jacobian of a band of ``n`` intervals while it is written: every
+    pose's ``(x, y, yaw)`` (the fixed start and goal included, dropped at the end), then
+    each interval's time."""
+
+    def __init__(self, n: int) -> None:
+        self.n = n
+        self.width = 3 * (n + 1) + n
+        i = np.arange(n)
+        # Per interval: its two poses' components, then its own time.
+        self.interval = np.column_stack(
+            [3 * i, 3 * i + 1, 3 * i + 2, 3 * i + 3, 3 * i + 4, 3 * i + 5, 3 * (n + 1) + i]
+        )
+        self.variables = np.r_[3 : 3 * n, 3 * (n + 1) : self.width]
+
+    def pose(self, index: NDArray[np.intp]) -> NDArray[np.intp]:
+        """The ``(x, y)`` columns of each pose of ``index``: ``(len(index), 2)``."""
+        return np.column_stack([3 * index, 3 * index + 1])
+
+    def time(self, interval: NDArray[np.intp]) -> NDArray[np.intp]:
+        return 3 * (self.n + 1) + interval
+
+
 class _Terms:
-    """The residuals and Jacobian of one ``_Problem`` at one ``x``, built term by term."""
+    """The residuals and Jacobian of one ``_Problem`` at one ``x``, written term by term
+    as entries (row, column, value) of a dense matrix built once at the end."""
 
     def __init__(self, problem: _Problem, x: Floats) -> None:
         self.problem, self.teb, self.body = problem, problem.config.teb, problem.config.body
+        self.layout = problem.layout
         self.poses, self.dts = problem.unpack(x)
-        self.m, self.n = problem.inner, problem.inner + 1
-        self.rows: list[Floats] = []
-        self.jacobians: list[Floats] = []
+        self.n = problem.inner + 1
+        self.values: list[Floats] = []
+        self.entries: list[tuple[NDArray[np.intp], NDArray[np.intp], Floats]] = []
+        self.count = 0  # rows written so far
         delta = np.diff(self.poses[:, :2], axis=0)
         self.dx, self.dy = delta[:, 0], delta[:, 1]
         self.dist = np.maximum(np.hypot(self.dx, self.dy), 1e-9)
@@ -251,6 +281,7 @@ class _Terms:
         self.sign = np.where(self.forward >= 0, 1.0, -1.0)
         self.linear = self.sign * self.dist / self.dts
         self.angular = wrap(np.diff(self.poses[:, 2])) / self.dts
+        self.speed_gradients = self._speed_gradients()
 
     def stacked(self) -> tuple[Floats, Floats]:
         teb, body = self.teb, self.body
@@ -262,61 +293,56 @@ class _Terms:
         keep_off = body.radius + teb.min_obstacle_dist
         self._clearance([(teb.weight_obstacle, keep_off), (teb.weight_inflation, teb.inflation)])
         self._vias(teb.weight_viapoint)
-        return np.concatenate(self.rows), np.vstack(self.jacobians)
+        return np.concatenate(self.values), self._jacobian()
 
     # --- bookkeeping ---
 
-    def _block(self, count: int) -> Floats:
-        return np.zeros((count, 3 * self.m + self.n))
-
-    def _add(self, weight: float, values: Floats, jacobian: Floats) -> None:
-        root = math.sqrt(weight)
-        self.rows.append(root * values)
-        self.jacobians.append(root * jacobian)
-
-    def _put(
+    def _add(
         self,
-        jac: Floats,
-        rows: NDArray[np.intp],
-        pose: NDArray[np.intp],
+        weight: float,
         values: Floats,
-        part: int = 0,
+        entries: Sequence[tuple[NDArray[np.intp], NDArray[np.intp], Floats]],
     ) -> None:
-        """Add ``values`` (one row of k per entry of ``rows``) at ``rows`` to the columns
-        of components ``part`` to ``part + k - 1`` (0 x, 1 y, 2 yaw) of each ``pose``
-        (0..n; the fixed start and goal have none)."""
-        free = (pose > 0) & (pose < self.n)
-        columns = 3 * (pose[free] - 1)[:, None] + part + np.arange(values.shape[1])
-        jac[rows[free][:, None], columns] += values[free]
+        """Rows ``values`` (times the root of ``weight``) and their derivatives: per
+        entry, each row's (a row index within ``values``) columns and values, ``(k, w)``."""
+        root = math.sqrt(weight)
+        self.values.append(root * values)
+        for rows, columns, derivatives in entries:
+            self.entries.append((self.count + rows, columns, root * derivatives))
+        self.count += len(values)
 
-    def _put_dt(
-        self, jac: Floats, rows: NDArray[np.intp], interval: NDArray[np.intp], values: Floats
-    ) -> None:
-        valid = (interval >= 0) & (interval < self.n)
-        jac[rows[valid], 3 * self.m + interval[valid]] += values[valid]
+    def _jacobian(self) -> Floats:
+        """The entries as a dense matrix; where they go depends on the band's size
+        only, so it is worked out once per problem."""
+        problem, width = self.problem, self.layout.width
+        if problem.flat_index is None:
+            problem.flat_index = np.concatenate(
+                [(rows[:, None] * width + columns).ravel() for rows, columns, _ in self.entries]
+            )
+        values = np.concatenate([v.ravel() for _, _, v in self.entries])
+        flat = np.bincount(problem.flat_index, values, self.count * width)
+        return flat.reshape(self.count, width)[:, self.layout.variables]
 
-    def _segment_derivative(
-        self,
-        jac: Floats,
-        rows: NDArray[np.intp],
-        segment: NDArray[np.intp],
-        scale: Floats,
-        which: str,
-    ) -> None:
-        """Add ``scale`` times the derivative of segment ``segment``'s linear or angular
-        velocity (``which``) to ``rows``."""
-        i = segment
-        if which == "linear":
-            factor = scale * self.sign[i] / (self.dist[i] * self.dts[i])
-            step = factor[:, None] * np.column_stack([self.dx[i], self.dy[i]])
-            self._put(jac, rows, i, -step)
-            self._put(jac, rows, i + 1, step)
-            self._put_dt(jac, rows, i, -scale * self.linear[i] / self.dts[i])
-        else:
-            turn = (scale / self.dts[i])[:, None]
-            self._put(jac, rows, i, -turn, part=2)
-            self._put(jac, rows, i + 1, turn, part=2)
-            self._put_dt(jac, rows, i, -scale * self.angular[i] / self.dts[i])
+    def _speed_gradients(self) -> tuple[Floats, Floats]:
+        """Per interval, the derivatives of its linear and of its angular velocity with
+        respect to its ``_Layout.interval`` columns, ``(n, 7)`` each."""
+        zeros = np.zeros(self.n)
+        step = self.sign / (self.dist * self.dts)
+        ux, uy = step * self.dx, step * self.dy
+        linear = np.column_stack([-ux, -uy, zeros, ux, uy, zeros, -self.linear / self.dts])
+        turn = 1.0 / self.dts
+        angular = np.column_stack(
+            [zeros, zeros, -turn, zeros, zeros, turn, -self.angular / self.dts]
+        )
+        return linear, angular
+
+    def _speed_entry(
+        self, rows: NDArray[np.intp], interval: NDArray[np.intp], scale: Floats, part: int
+    ) -> tuple[NDArray[np.intp], NDArray[np.intp], Floats]:
+        """``scale`` times the derivative of interval ``interval``'s linear (``part`` 0)
+        or angular (1) velocity, in ``rows``."""
+        gradient = self.speed_gradients[part][interval]
+        return rows, self.layout.interval[interval], scale[:, None] * gradient
 
     # --- the objectives ---
 
@@ -324,31 +350,32 @@ class _Terms:
         """Non-holonomic: both headings make the same angle with the step between them."""
         c, s, i = self.c, self.s, np.arange(self.n)
         cc, ss = c[:-1] + c[1:], s[:-1] + s[1:]
-        values = cc * self.dy - ss * self.dx
-        jac = self._block(self.n)
-        self._put(jac, i, i, np.column_stack([ss, -cc, -s[:-1] * self.dy - c[:-1] * self.dx]))
-        self._put(jac, i, i + 1, np.column_stack([-ss, cc, -s[1:] * self.dy - c[1:] * self.dx]))
-        self._add(weight, values, jac)
+        gradient = np.column_stack(
+            [
+                ss,
+                -cc,
+                -s[:-1] * self.dy - c[:-1] * self.dx,
+                -ss,
+                cc,
+                -s[1:] * self.dy - c[1:] * self.dx,
+            ]
+        )
+        self._add(weight, cc * self.dy - ss * self.dx, [(i, self.layout.interval[:, :6], gradient)])
 
     def _backwards(self, weight: float) -> None:
         i, active = np.arange(self.n), (self.forward < 0).astype(np.float64)
         c, s = self.c[:-1], self.s[:-1]
-        jac = self._block(self.n)
-        heading = np.column_stack([c, s, self.dx * s - self.dy * c])
-        self._put(jac, i, i, active[:, None] * heading)
-        self._put(jac, i, i + 1, -active[:, None] * heading[:, :2])
-        self._add(weight, np.maximum(-self.forward, 0.0), jac)
+        gradient = active[:, None] * np.column_stack([c, s, self.dx * s - self.dy * c, -c, -s])
+        self._add(
+            weight, np.maximum(-self.forward, 0.0), [(i, self.layout.interval[:, :5], gradient)]
+        )
 
     def _speed_limits(self, weight: float, max_linear: float, max_angular: float) -> None:
         i = np.arange(self.n)
-        for which, speed, limit in (
-            ("linear", self.linear, max_linear),
-            ("angular", self.angular, max_angular),
-        ):
+        for part, speed, limit in ((0, self.linear, max_linear), (1, self.angular, max_angular)):
             excess = np.abs(speed) - limit
-            jac = self._block(self.n)
-            self._segment_derivative(jac, i, i, np.where(excess > 0, np.sign(speed), 0.0), which)
-            self._add(weight, np.maximum(excess, 0.0), jac)
+            scale = np.where(excess > 0, np.sign(speed), 0.0)
+            self._add(weight, np.maximum(excess, 0.0), [self._speed_entry(i, i, scale, part)])
 
     def _acceleration_limits(self, weight: float, max_linear: float, max_angular: float) -> None:
         """Between the start velocity and the first interval, each two intervals, and
@@ -356,6 +383,11 @@ class _Terms:
         n, dts, final = self.n, self.dts, self.problem.final
         spans = np.concatenate([[dts[0]], (dts[:-1] + dts[1:]) / 2, [dts[-1]]])
         k = np.arange(n + 1)
+        # d(span)/d(dt): row 0 on interval 0, inner rows half on either side, the last
+        # row on the last interval.
+        span_rows = np.concatenate([[0], k[1:-1], k[1:-1], [n]])
+        span_intervals = np.concatenate([[0], k[1:-1] - 1, k[1:-1], [n - 1]])
+        span_share = np.concatenate([[1.0], np.full(2 * (n - 1), 0.5), [1.0]])
         for part, speed, limit in ((0, self.linear, max_linear), (1, self.angular, max_angular)):
             end = 0.0 if final else speed[-1]
             v = np.concatenate([[self.problem.velocity[part]], speed, [end]])
@@ -364,29 +396,24 @@ class _Terms:
             scale = (excess > 0) * np.sign(accel) / spans
             if not final:
                 scale[-1] = 0.0  # the last interval's velocity to itself: no term
-            jac = self._block(n + 1)
-            which = "linear" if part == 0 else "angular"
-            self._segment_derivative(jac, k[:-1], k[:-1], scale[:-1], which)
-            self._segment_derivative(jac, k[1:], k[1:] - 1, -scale[1:], which)
-            # The span's own derivative: each row's a/span times d(span)/d(dt).
-            factor = -scale * accel
-            self._put_dt(jac, k[:1], k[:1], factor[:1])
-            self._put_dt(jac, k[1:-1], k[1:-1] - 1, 0.5 * factor[1:-1])
-            self._put_dt(jac, k[1:-1], k[1:-1], 0.5 * factor[1:-1])
-            self._put_dt(jac, k[-1:], k[-1:] - 1, factor[-1:])
-            self._add(weight, np.maximum(excess, 0.0), jac)
+            spanning = (-scale * accel)[span_rows] * span_share
+            entries = [
+                self._speed_entry(k[:-1], k[:-1], scale[:-1], part),
+                self._speed_entry(k[1:], k[1:] - 1, -scale[1:], part),
+                (span_rows, self.layout.time(span_intervals)[:, None], spanning[:, None]),
+            ]
+            self._add(weight, np.maximum(excess, 0.0), entries)
 
     def _time(self, weight: float) -> None:
         i = np.arange(self.n)
-        jac = self._block(self.n)
-        self._put_dt(jac, i, i, np.ones(self.n))
-        self._add(weight, self.dts.copy(), jac)
+        entry = (i, self.layout.time(i)[:, None], np.ones((self.n, 1)))
+        self._add(weight, self.dts.copy(), [entry])
 
     def _clearance(self, hinges: list[tuple[float, float]]) -> None:
         """Per probe (each inner pose, then each interval's midpoint, so that no obstacle
         slips between two poses), how far inside each of ``hinges`` (weight, distance)
         the nearest return predicted for its time lies."""
-        first, second, share = _probes(self.m)
+        first, second, share = _probes(self.n - 1)
         probes = (
             share[:, None] * self.poses[first, :2] + (1 - share)[:, None] * self.poses[second, :2]
         )
@@ -400,22 +427,19 @@ class _Terms:
             closest = np.argmin(squared, axis=1)
             distance = np.sqrt(squared[rows, closest])
             away = gap[rows, closest] / np.maximum(distance, 1e-9)[:, None]
+        columns = np.hstack([self.layout.pose(first), self.layout.pose(second)])
         for weight, reach in hinges:
             active = (distance < reach).astype(np.float64)
-            jac = self._block(count)
-            for pose, part in ((first, share), (second, 1 - share)):
-                self._put(jac, rows, pose, -(active * part)[:, None] * away)
-            self._add(weight, np.maximum(reach - distance, 0.0), jac)
+            pushed = -active[:, None] * away
+            gradient = np.hstack([share[:, None] * pushed, (1 - share)[:, None] * pushed])
+            self._add(weight, np.maximum(reach - distance, 0.0), [(rows, columns, gradient)])
 
     def _vias(self, weight: float) -> None:
-        pulled = self.problem.via_poses
+        pulled = self.problem.via_poses + 1
         count = len(pulled)
-        values = (self.poses[1:-1][pulled, :2] - self.problem.vias).ravel()
-        jac = self._block(2 * count)
-        rows = np.arange(2 * count)
-        self._put(jac, rows[0::2], pulled + 1, np.ones((count, 1)))
-        self._put(jac, rows[1::2], pulled + 1, np.ones((count, 1)), part=1)
-        self._add(weight, values, jac)
+        values = (self.poses[pulled, :2] - self.problem.vias).ravel()
+        columns = self.layout.pose(pulled).reshape(-1, 1)
+        self._add(weight, values, [(np.arange(2 * count), columns, np.ones((2 * count, 1)))])
 
 
 # --- the controller ----------------------------------------------------------------------
@@ -458,6 +482,20 @@ class TimedElasticBand:
         whose heading is ``goal_yaw``; ``final`` when it is the target itself) from
         ``velocity``, around the laser returns ``points`` (robot frame) seen at
         ``seconds`` with the odometry at ``odom``."""
+        with BLAS.limit(limits=1, user_api="blas"):
+            return self._choose(path, goal_yaw, final, velocity, points, odom, seconds, speed_cap)
+
+    def _choose(
+        self,
+        path: Floats,
+        goal_yaw: float,
+        final: bool,
+        velocity: Command,
+        points: Floats,
+        odom: Pose,
+        seconds: float,
+        speed_cap: float,
+    ) -> TebChoice:
         seen = self.tracker.update(points, odom, seconds)
         solved = [
             self._optimised(self._warm_band(path, goal_yaw, odom), path, velocity, seen, final)
@@ -511,21 +549,12 @@ class TimedElasticBand:
         if len(band.poses) < 3:
             return band, 0.0
         problem = _problem(band, path, velocity, seen, final, self.config)
-        x0 = problem.pack(band)
-        result = least_squares(
-            problem.residuals,
-            x0,
-            jac=problem.jacobian,
-            method="trf",
-            tr_solver="lsmr",
-            tr_options={"maxiter": LSMR_ITERATIONS},
-            max_nfev=self.config.teb.iterations,
-            xtol=1e-4,
-            ftol=1e-4,
+        x, cost = levenberg_marquardt(
+            problem.evaluate, problem.pack(band), self.config.teb.iterations
         )
-        poses, dts = problem.unpack(result.x)
+        poses, dts = problem.unpack(x)
         poses[:, 2] = wrap(poses[:, 2])
-        return Band(poses, dts.copy()), float(result.cost)
+        return Band(poses, dts.copy()), cost
 
     def _command(self, band: Band, velocity: Command, speed_cap: float) -> Command:
         """The first interval's velocity, within what one period can reach."""
@@ -543,6 +572,41 @@ class TimedElasticBand:
         )
         v = _clamp(v, -body.max_linear, min(body.max_linear, speed_cap))
         return v, _clamp(w, -body.max_angular, body.max_angular)
+
+
+def levenberg_marquardt(
+    evaluate: Callable[[Floats], tuple[Floats, Floats]],
+    x: Floats,
+    evaluations: int,
+    tolerance: float = 1e-4,
+) -> tuple[Floats, float]:
+    """``x`` moved to lower half the sum of squares of the residuals ``evaluate``
+    returns (with their Jacobian), and that cost, after at most ``evaluations``
+    evaluations or once a step gains less than ``tolerance`` of the cost.
+
+    Levenberg-Marquardt with Nielsen's damping update, as g2o runs it for the original
+    planner: each step solves the damped normal equations (small and dense here)."""
+    residuals, jacobian = evaluate(x)
+    cost = 0.5 * float(residuals @ residuals)
+    hessian, gradient = jacobian.T @ jacobian, jacobian.T @ residuals
+    damping, growth = 1e-3 * float(hessian.diagonal().max()), 2.0
+    identity = np.eye(len(x))
+    for _ in range(evaluations - 1):
+        step = np.linalg.solve(hessian + damping * identity, -gradient)
+        trial_residuals, trial_jacobian = evaluate(x + step)
+        trial_cost = 0.5 * float(trial_residuals @ trial_residuals)
+        predicted = -float(gradient @ step + 0.5 * step @ hessian @ step)
+        gain = (cost - trial_cost) / predicted if predicted > 0 else -1.0
+        if gain <= 0:
+            damping, growth = damping * growth, growth * 2
+            continue
+        x, converged = x + step, cost - trial_cost < tolerance * cost
+        cost, jacobian = trial_cost, trial_jacobian
+        hessian, gradient = jacobian.T @ jacobian, jacobian.T @ trial_residuals
+        damping, growth = damping * max(1 / 3, 1 - (2 * gain - 1) ** 3), 2.0
+        if converged:
+            break
+    return x, cost
 
 
 def _problem(
