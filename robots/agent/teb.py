@@ -58,6 +58,8 @@ Command = tuple[float, float]
 
 OBSTACLE_REACH = 1.0
 """Metres from the band beyond which laser returns are left out of its optimisation."""
+OBSTACLES_PER_PROBE = 6
+"""Returns each clearance probe of the band is optimised against (its nearest ones)."""
 MIN_DT = 0.02
 """Seconds: the least time interval between two poses of a band."""
 BLAS = ThreadpoolController()
@@ -623,7 +625,8 @@ def _problem(
     first, second, share = _probes(len(inner))
     times = share * band.times[first] + (1 - share) * band.times[second]
     near = _near_band(seen, band.poses)
-    predicted = near.at(times) if len(near.points) else np.zeros((len(times), 0, 2))
+    probes = share[:, None] * band.poses[first, :2] + (1 - share)[:, None] * band.poses[second, :2]
+    predicted = _nearest_each(near.at(times), probes) if len(near.points) else near.at(times)
     vias = _resampled(path, config.teb.via_spacing)[1:-1]
     if len(near.points) and len(vias):
         gap = np.hypot(*(vias[:, None, :] - near.points[None, :, :]).transpose(2, 0, 1)).min(axis=1)
@@ -636,6 +639,17 @@ def _problem(
         nearest = np.zeros(0, np.intp)
     start, goal = band.poses[0].copy(), band.poses[-1].copy()
     return _Problem(start, goal, velocity, predicted, vias, nearest, config, final)
+
+
+def _nearest_each(predicted: Floats, probes: Floats) -> Floats:
+    """Of ``predicted`` ``(probes, k, 2)``, the ``OBSTACLES_PER_PROBE`` nearest each
+    probe's place at the start (the original planner also ties each pose to its nearest
+    obstacles once per optimisation); the hard-constraint check still sees them all."""
+    if predicted.shape[1] <= OBSTACLES_PER_PROBE:
+        return predicted
+    squared = ((predicted - probes[:, None, :]) ** 2).sum(axis=2)
+    nearest = np.argpartition(squared, OBSTACLES_PER_PROBE - 1, axis=1)[:, :OBSTACLES_PER_PROBE]
+    return np.take_along_axis(predicted, nearest[:, :, None], axis=1)
 
 
 def _near_band(seen: SeenObstacles, poses: Floats) -> SeenObstacles:
