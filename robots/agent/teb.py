@@ -241,19 +241,29 @@ def _probes(inner: int) -> tuple[NDArray[np.intp], NDArray[np.intp], Floats]:
 
 
 class _Layout:
-    """Columns of the Jacobian of a band of ``n`` intervals while it is written: every
-    pose's ``(x, y, yaw)`` (the fixed start and goal included, dropped at the end), then
-    each interval's time."""
+    """Where the rows of a band of ``n`` intervals put their derivatives, worked out once
+    per problem: the Jacobian's columns while it is written are every pose's
+    ``(x, y, yaw)`` (the fixed start and goal included, dropped at the end), then each
+    interval's time."""
 
     def __init__(self, n: int) -> None:
         self.n = n
         self.width = 3 * (n + 1) + n
-        i = np.arange(n)
+        self.intervals = i = np.arange(n)
         # Per interval: its two poses' components, then its own time.
         self.interval = np.column_stack(
             [3 * i, 3 * i + 1, 3 * i + 2, 3 * i + 3, 3 * i + 4, 3 * i + 5, 3 * (n + 1) + i]
         )
+        self.times = self.time(i)[:, None]
         self.variables = np.r_[3 : 3 * n, 3 * (n + 1) : self.width]
+        self.first, self.second, self.share = _probes(n - 1)
+        self.probe_columns = np.hstack([self.pose(self.first), self.pose(self.second)])
+        # Acceleration rows 0..n: d(span)/d(dt) of row 0 on interval 0, of inner rows half
+        # on either side, of the last row on the last interval.
+        self.accelerations = k = np.arange(n + 1)
+        self.span_rows = np.concatenate([[0], k[1:-1], k[1:-1], [n]])
+        self.span_times = self.time(np.concatenate([[0], k[1:-1] - 1, k[1:-1], [n - 1]]))[:, None]
+        self.span_share = np.concatenate([[1.0], np.full(2 * (n - 1), 0.5), [1.0]])
 
     def pose(self, index: NDArray[np.intp]) -> NDArray[np.intp]:
         """The ``(x, y)`` columns of each pose of ``index``: ``(len(index), 2)``."""
@@ -350,7 +360,7 @@ class _Terms:
 
     def _kinematics(self, weight: float) -> None:
         """Non-holonomic: both headings make the same angle with the step between them."""
-        c, s, i = self.c, self.s, np.arange(self.n)
+        c, s, i = self.c, self.s, self.layout.intervals
         cc, ss = c[:-1] + c[1:], s[:-1] + s[1:]
         gradient = np.column_stack(
             [
@@ -365,7 +375,7 @@ class _Terms:
         self._add(weight, cc * self.dy - ss * self.dx, [(i, self.layout.interval[:, :6], gradient)])
 
     def _backwards(self, weight: float) -> None:
-        i, active = np.arange(self.n), (self.forward < 0).astype(np.float64)
+        i, active = self.layout.intervals, (self.forward < 0).astype(np.float64)
         c, s = self.c[:-1], self.s[:-1]
         gradient = active[:, None] * np.column_stack([c, s, self.dx * s - self.dy * c, -c, -s])
         self._add(
@@ -373,7 +383,7 @@ class _Terms:
         )
 
     def _speed_limits(self, weight: float, max_linear: float, max_angular: float) -> None:
-        i = np.arange(self.n)
+        i = self.layout.intervals
         for part, speed, limit in ((0, self.linear, max_linear), (1, self.angular, max_angular)):
             excess = np.abs(speed) - limit
             scale = np.where(excess > 0, np.sign(speed), 0.0)
@@ -382,14 +392,9 @@ class _Terms:
     def _acceleration_limits(self, weight: float, max_linear: float, max_angular: float) -> None:
         """Between the start velocity and the first interval, each two intervals, and
         (for the final goal) the last interval and rest."""
-        n, dts, final = self.n, self.dts, self.problem.final
+        dts, final, layout = self.dts, self.problem.final, self.layout
         spans = np.concatenate([[dts[0]], (dts[:-1] + dts[1:]) / 2, [dts[-1]]])
-        k = np.arange(n + 1)
-        # d(span)/d(dt): row 0 on interval 0, inner rows half on either side, the last
-        # row on the last interval.
-        span_rows = np.concatenate([[0], k[1:-1], k[1:-1], [n]])
-        span_intervals = np.concatenate([[0], k[1:-1] - 1, k[1:-1], [n - 1]])
-        span_share = np.concatenate([[1.0], np.full(2 * (n - 1), 0.5), [1.0]])
+        k = layout.accelerations
         for part, speed, limit in ((0, self.linear, max_linear), (1, self.angular, max_angular)):
             end = 0.0 if final else speed[-1]
             v = np.concatenate([[self.problem.velocity[part]], speed, [end]])
@@ -398,28 +403,26 @@ class _Terms:
             scale = (excess > 0) * np.sign(accel) / spans
             if not final:
                 scale[-1] = 0.0  # the last interval's velocity to itself: no term
-            spanning = (-scale * accel)[span_rows] * span_share
+            spanning = (-scale * accel)[layout.span_rows] * layout.span_share
             entries = [
                 self._speed_entry(k[:-1], k[:-1], scale[:-1], part),
                 self._speed_entry(k[1:], k[1:] - 1, -scale[1:], part),
-                (span_rows, self.layout.time(span_intervals)[:, None], spanning[:, None]),
+                (layout.span_rows, layout.span_times, spanning[:, None]),
             ]
             self._add(weight, np.maximum(excess, 0.0), entries)
 
     def _time(self, weight: float) -> None:
-        i = np.arange(self.n)
-        entry = (i, self.layout.time(i)[:, None], np.ones((self.n, 1)))
+        entry = (self.layout.intervals, self.layout.times, np.ones((self.n, 1)))
         self._add(weight, self.dts.copy(), [entry])
 
     def _clearance(self, hinges: list[tuple[float, float]]) -> None:
         """Per probe (each inner pose, then each interval's midpoint, so that no obstacle
         slips between two poses), how far inside each of ``hinges`` (weight, distance)
         the nearest return predicted for its time lies."""
-        first, second, share = _probes(self.n - 1)
-        probes = (
-            share[:, None] * self.poses[first, :2] + (1 - share)[:, None] * self.poses[second, :2]
-        )
-        obstacles, count = self.problem.obstacles, len(first)
+        layout = self.layout
+        share = layout.share[:, None]
+        probes = share * self.poses[layout.first, :2] + (1 - share) * self.poses[layout.second, :2]
+        obstacles, count = self.problem.obstacles, len(share)
         rows = np.arange(count)
         if obstacles.shape[1] == 0:
             distance, away = np.full(count, np.inf), np.zeros((count, 2))
@@ -429,12 +432,11 @@ class _Terms:
             closest = np.argmin(squared, axis=1)
             distance = np.sqrt(squared[rows, closest])
             away = gap[rows, closest] / np.maximum(distance, 1e-9)[:, None]
-        columns = np.hstack([self.layout.pose(first), self.layout.pose(second)])
         for weight, reach in hinges:
-            active = (distance < reach).astype(np.float64)
-            pushed = -active[:, None] * away
-            gradient = np.hstack([share[:, None] * pushed, (1 - share)[:, None] * pushed])
-            self._add(weight, np.maximum(reach - distance, 0.0), [(rows, columns, gradient)])
+            pushed = (distance < reach)[:, None] * -away
+            gradient = np.hstack([share * pushed, (1 - share) * pushed])
+            entry = (rows, layout.probe_columns, gradient)
+            self._add(weight, np.maximum(reach - distance, 0.0), [entry])
 
     def _vias(self, weight: float) -> None:
         pulled = self.problem.via_poses + 1
@@ -499,16 +501,21 @@ class TimedElasticBand:
         speed_cap: float,
     ) -> TebChoice:
         seen = self.tracker.update(points, odom, seconds)
-        solved = [
-            self._optimised(self._warm_band(path, goal_yaw, odom), path, velocity, seen, final)
-        ]
+        fresh = band_from_path(path, goal_yaw, self.config)
+        warm = self._warm_band(fresh, path, goal_yaw, odom)
+        iterations = self.config.teb.iterations
+        solved = [self._optimised(warm, path, velocity, seen, final, iterations)]
         if not feasible(solved[0][0], seen, self.config, math.inf):
             # Something in the band's way: replan it, from the path and swerving either
             # way round the first thing it meets (two homotopy classes of the original's
-            # many), and keep the best: feasible now, clear all along, cheapest.
-            fresh = band_from_path(path, goal_yaw, self.config)
-            tries = [fresh, *(_swerved(fresh, seen, side, self.config) for side in (1.0, -1.0))]
-            solved += [self._optimised(start, path, velocity, seen, final) for start in tries]
+            # many), and keep the best: feasible now, clear all along, cheapest. Each
+            # try has half the evaluations: the one kept goes on from there next cycle.
+            swerves = [_swerved(fresh, seen, side, self.config) for side in (1.0, -1.0)]
+            tries = swerves if warm is fresh else [fresh, *swerves]
+            evaluations = max(2, iterations // 2)
+            solved += [
+                self._optimised(start, path, velocity, seen, final, evaluations) for start in tries
+            ]
         ranked = sorted(solved, key=lambda found: self._rank(found, seen))
         band = ranked[0][0]
         if not feasible(band, seen, self.config) or _walled_in(solved, seen, self.config):
@@ -522,11 +529,10 @@ class TimedElasticBand:
         now = feasible(band, seen, self.config)
         return not now, not feasible(band, seen, self.config, math.inf), cost
 
-    def _warm_band(self, path: Floats, goal_yaw: float, odom: Pose) -> Band:
+    def _warm_band(self, fresh: Band, path: Floats, goal_yaw: float, odom: Pose) -> Band:
         """Last cycle's band in the robot's frame from its nearest pose on, with the
-        robot as its start and the path's end as its goal; a fresh one when there is
-        none or the goal has moved."""
-        fresh = band_from_path(path, goal_yaw, self.config)
+        robot as its start and the path's end as its goal; ``fresh`` (the band from the
+        path) when there is none or the goal has moved."""
         if self.band is None:
             return fresh
         band = self.band.moved(odom)
@@ -544,16 +550,21 @@ class TimedElasticBand:
         return Band(poses, np.maximum(dts, MIN_DT))
 
     def _optimised(
-        self, band: Band, path: Floats, velocity: Command, seen: SeenObstacles, final: bool
+        self,
+        band: Band,
+        path: Floats,
+        velocity: Command,
+        seen: SeenObstacles,
+        final: bool,
+        evaluations: int,
     ) -> tuple[Band, float]:
-        """The band resized and optimised, and its cost (half the sum of squares)."""
+        """The band resized and optimised with at most ``evaluations`` evaluations, and
+        its cost (half the sum of squares)."""
         band = resized(band, self.config.teb)
         if len(band.poses) < 3:
             return band, 0.0
         problem = _problem(band, path, velocity, seen, final, self.config)
-        x, cost = levenberg_marquardt(
-            problem.evaluate, problem.pack(band), self.config.teb.iterations
-        )
+        x, cost = levenberg_marquardt(problem.evaluate, problem.pack(band), evaluations)
         poses, dts = problem.unpack(x)
         poses[:, 2] = wrap(poses[:, 2])
         return Band(poses, dts.copy()), cost
