@@ -60,6 +60,9 @@ OBSTACLE_REACH = 1.0
 """Metres from the band beyond which laser returns are left out of its optimisation."""
 OBSTACLES_PER_PROBE = 6
 """Returns each clearance probe of the band is optimised against (its nearest ones)."""
+RETRY_AFTER = 0.5
+"""Seconds between tries of other bands while the band runs into something beyond its
+hard constraint's horizon (one that fails it tries them at once)."""
 MIN_DT = 0.02
 """Seconds: the least time interval between two poses of a band."""
 BLAS = ThreadpoolController()
@@ -467,6 +470,7 @@ class TimedElasticBand:
         self.config = config
         self.tracker = ObstacleTracker()
         self.band: Band | None = None  # the last band, odometry frame
+        self._retried_at = -math.inf  # when other bands were last tried
 
     def reset(self) -> None:
         self.band = None
@@ -504,30 +508,38 @@ class TimedElasticBand:
         fresh = band_from_path(path, goal_yaw, self.config)
         warm = self._warm_band(fresh, path, goal_yaw, odom)
         iterations = self.config.teb.iterations
-        solved = [self._optimised(warm, path, velocity, seen, final, iterations)]
-        if not feasible(solved[0][0], seen, self.config, math.inf):
+        tried = [self._tried(warm, path, velocity, seen, final, iterations)]
+        if tried[0].contact < math.inf and (
+            not tried[0].feasible or seconds - self._retried_at >= RETRY_AFTER
+        ):
             # Something in the band's way: replan it, from the path and swerving either
             # way round the first thing it meets (two homotopy classes of the original's
             # many), and keep the best: feasible now, clear all along, cheapest. Each
             # try has half the evaluations: the one kept goes on from there next cycle.
+            self._retried_at = seconds
             swerves = [_swerved(fresh, seen, side, self.config) for side in (1.0, -1.0)]
-            tries = swerves if warm is fresh else [fresh, *swerves]
+            starts = swerves if warm is fresh else [fresh, *swerves]
             evaluations = max(2, iterations // 2)
-            solved += [
-                self._optimised(start, path, velocity, seen, final, evaluations) for start in tries
-            ]
-        ranked = sorted(solved, key=lambda found: self._rank(found, seen))
-        band = ranked[0][0]
-        if not feasible(band, seen, self.config) or _walled_in(solved, seen, self.config):
+            tried += [self._tried(b, path, velocity, seen, final, evaluations) for b in starts]
+        best = min(tried, key=lambda t: (not t.feasible, t.contact < math.inf, t.cost))
+        if not best.feasible or _walled_in(tried, seen, self.config):
             self.band = None
-            return TebChoice((0.0, 0.0), True, band)
-        self.band = band.moved(inverse(odom))
-        return TebChoice(self._command(band, velocity, speed_cap), False, band)
+            return TebChoice((0.0, 0.0), True, best.band)
+        self.band = best.band.moved(inverse(odom))
+        return TebChoice(self._command(best.band, velocity, speed_cap), False, best.band)
 
-    def _rank(self, found: tuple[Band, float], seen: SeenObstacles) -> tuple[bool, bool, float]:
-        band, cost = found
-        now = feasible(band, seen, self.config)
-        return not now, not feasible(band, seen, self.config, math.inf), cost
+    def _tried(
+        self,
+        band: Band,
+        path: Floats,
+        velocity: Command,
+        seen: SeenObstacles,
+        final: bool,
+        evaluations: int,
+    ) -> _Tried:
+        optimised, cost = self._optimised(band, path, velocity, seen, final, evaluations)
+        contact = contact_time(optimised, seen, self.config)
+        return _Tried(optimised, cost, contact, feasible_until(optimised, self.config) < contact)
 
     def _warm_band(self, fresh: Band, path: Floats, goal_yaw: float, odom: Pose) -> Band:
         """Last cycle's band in the robot's frame from its nearest pose on, with the
@@ -664,13 +676,21 @@ def _nearest_each(predicted: Floats, probes: Floats) -> Floats:
 
 
 def _near_band(seen: SeenObstacles, poses: Floats) -> SeenObstacles:
-    """The returns within ``OBSTACLE_REACH`` of the band (where movers will be, too)."""
+    """The returns within ``OBSTACLE_REACH`` of the band now or in 2 s (where movers
+    will be); those outside the band's box widened by that reach are dropped first."""
     if len(seen.points) == 0:
         return seen
-    where = np.concatenate([seen.points, seen.at(2.0)])
-    gap = np.hypot(*(where[:, None, :] - poses[None, :, :2]).transpose(2, 0, 1)).min(axis=1)
-    keep = (gap[: len(seen.points)] < OBSTACLE_REACH) | (gap[len(seen.points) :] < OBSTACLE_REACH)
-    return SeenObstacles(seen.points[keep], seen.velocities[keep])
+    low = poses[:, :2].min(axis=0) - OBSTACLE_REACH
+    high = poses[:, :2].max(axis=0) + OBSTACLE_REACH
+    now, later = seen.points, seen.at(2.0)
+    boxed = np.all((now > low) & (now < high), axis=1) | np.all(
+        (later > low) & (later < high), axis=1
+    )
+    near = SeenObstacles(now[boxed], seen.velocities[boxed])
+    where = np.stack([near.points, later[boxed]])  # (2, k, 2)
+    squared = ((where[:, :, None, :] - poses[None, None, :, :2]) ** 2).sum(axis=3)
+    keep = (squared.min(axis=2) < OBSTACLE_REACH**2).any(axis=0)
+    return SeenObstacles(near.points[keep], near.velocities[keep])
 
 
 SWERVE = 0.6
@@ -697,34 +717,45 @@ def _swerved(band: Band, seen: SeenObstacles, side: float, config: RobotConfig) 
     return Band(poses, _least_times(poses, config))
 
 
-def feasible(
-    band: Band, seen: SeenObstacles, config: RobotConfig, within: float | None = None
-) -> bool:
-    """Whether the band's first ``within`` seconds (``feasibility_time`` by default), at
-    its poses and midway between them, keep the body's radius from every return
-    predicted for that time (TEB's ``isTrajectoryFeasible``; speeds are no hard
-    constraint: the command is clamped to the limits)."""
-    if len(seen.points) == 0:
-        return True
-    times = band.times
-    ahead = times <= (config.teb.feasibility_time if within is None else within)
-    ahead[: min(2, len(ahead))] = True
-    last = int(ahead.sum())
-    xy, when = band.poses[:last, :2], times[:last]
-    xy = np.concatenate([xy[1:], (xy[:-1] + xy[1:]) / 2])
-    when = np.concatenate([when[1:], (when[:-1] + when[1:]) / 2])
-    gap = np.hypot(*(seen.at(when) - xy[:, None, :]).transpose(2, 0, 1)).min(axis=1)
-    return bool((gap >= config.body.radius).all())
+@dataclass(frozen=True)
+class _Tried:
+    """An optimised band, its cost, when it first comes within the body's radius of
+    something (``inf``: never), and whether that is beyond its hard-constraint check."""
+
+    band: Band
+    cost: float
+    contact: float
+    feasible: bool
 
 
-def _walled_in(solved: list[tuple[Band, float]], seen: SeenObstacles, config: RobotConfig) -> bool:
+def contact_time(band: Band, seen: SeenObstacles, config: RobotConfig) -> float:
+    """Seconds into the band of its first pose or midpoint between poses nearer than
+    the body's radius to a return predicted for that time; ``inf`` when none is."""
+    if len(seen.points) == 0 or len(band.poses) < 2:
+        return math.inf
+    xy, times = band.poses[:, :2], band.times
+    probes = np.concatenate([xy[1:], (xy[:-1] + xy[1:]) / 2])
+    when = np.concatenate([times[1:], (times[:-1] + times[1:]) / 2])
+    gap = ((seen.at(when) - probes[:, None, :]) ** 2).sum(axis=2).min(axis=1)
+    touching = when[gap < config.body.radius**2]
+    return float(touching.min()) if len(touching) else math.inf
+
+
+def feasible_until(band: Band, config: RobotConfig) -> float:
+    """Seconds of ``band`` its hard constraint covers: ``feasibility_time``, and at least
+    its first interval (TEB's ``isTrajectoryFeasible``; speeds are no hard constraint:
+    the command is clamped to the limits)."""
+    return max(config.teb.feasibility_time, float(band.times[min(1, len(band.dts))]))
+
+
+def _walled_in(tried: list[_Tried], seen: SeenObstacles, config: RobotConfig) -> bool:
     """Whether every band tried runs into something that stands still: no band gets
     through, however long it waits, so the global path must change."""
-    if len(solved) < 2:
+    if len(tried) < 2:
         return False  # the warm band was clear all along
     still = ~np.any(seen.velocities != 0, axis=1)
     standing = SeenObstacles(seen.points[still], seen.velocities[still])
-    return not any(feasible(band, standing, config, math.inf) for band, _ in solved)
+    return all(contact_time(t.band, standing, config) < math.inf for t in tried)
 
 
 def _clamp(value: float, low: float, high: float) -> float:
