@@ -335,7 +335,9 @@ class _Terms:
                 [(rows[:, None] * width + columns).ravel() for rows, columns, _ in self.entries]
             )
         values = np.concatenate([v.ravel() for _, _, v in self.entries])
-        flat = np.bincount(problem.flat_index, values, self.count * width)
+        flat = np.bincount(problem.flat_index, values, self.count * width).astype(
+            np.float64, copy=False
+        )
         return flat.reshape(self.count, width)[:, self.layout.variables]
 
     def _speed_gradients(self) -> tuple[Floats, Floats]:

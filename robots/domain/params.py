@@ -157,7 +157,8 @@ class TebConfig:
     feasibility_time: float = 1.2
     """s of the optimised band checked against collisions and speed limits."""
     iterations: int = 6
-    """Evaluations of the Jacobian's worth of optimisation per control cycle (max_nfev)."""
+    """Evaluations of residuals and Jacobian (Levenberg-Marquardt steps) per control cycle
+    for the band kept from the last cycle; each alternative band tried gets half."""
     weight_viapoint: float = 1.0
     weight_obstacle: float = 50.0
     weight_inflation: float = 0.5
