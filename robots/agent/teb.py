@@ -178,7 +178,8 @@ def _velocities(poses: Floats, dts: Floats) -> tuple[Floats, Floats]:
 
 class _Problem:
     """One cycle's optimisation: the fixed start and goal, the start velocity, the
-    obstacles predicted at each probe's time (``(probes, k, 2)``, see ``_probes``), the
+    obstacles predicted at each probe's time (``(probes, k, 2)``, see ``_probes``) with
+    the extra room each asks for (``margins``, ``(probes, k)``: movers'), the
     via-points and the inner pose each pulls, and whether the goal is the target itself
     (to be reached at rest).
 
@@ -196,13 +197,15 @@ class _Problem:
         goal: Floats,
         velocity: Command,
         obstacles: Floats,
+        margins: Floats,
         vias: Floats,
         via_poses: NDArray[np.intp],
         config: RobotConfig,
         final: bool,
     ) -> None:
         self.start, self.goal, self.velocity = start, goal, velocity
-        self.obstacles, self.vias, self.via_poses = obstacles, vias, via_poses
+        self.obstacles, self.margins = obstacles, margins
+        self.vias, self.via_poses = vias, via_poses
         self.config, self.final = config, final
         self.inner = int(obstacles.shape[0]) // 2  # probes: inner poses and midpoints
         self.layout = _Layout(self.inner + 1)
@@ -423,7 +426,7 @@ class _Terms:
     def _clearance(self, hinges: list[tuple[float, float]]) -> None:
         """Per probe (each inner pose, then each interval's midpoint, so that no obstacle
         slips between two poses), how far inside each of ``hinges`` (weight, distance)
-        the nearest return predicted for its time lies."""
+        the nearest return predicted for its time lies (a mover's margin nearer)."""
         layout = self.layout
         share = layout.share[:, None]
         probes = share * self.poses[layout.first, :2] + (1 - share) * self.poses[layout.second, :2]
@@ -433,10 +436,11 @@ class _Terms:
             distance, away = np.full(count, np.inf), np.zeros((count, 2))
         else:
             gap = probes[:, None, :] - obstacles
-            squared = (gap**2).sum(axis=2)
-            closest = np.argmin(squared, axis=1)
-            distance = np.sqrt(squared[rows, closest])
-            away = gap[rows, closest] / np.maximum(distance, 1e-9)[:, None]
+            reach = np.sqrt((gap**2).sum(axis=2))
+            closest = np.argmin(reach - self.problem.margins, axis=1)
+            away = gap[rows, closest] / np.maximum(reach[rows, closest], 1e-9)[:, None]
+            # A mover is kept its margin farther off: as if it were that much nearer.
+            distance = reach[rows, closest] - self.problem.margins[rows, closest]
         for weight, reach in hinges:
             pushed = (distance < reach)[:, None] * -away
             gradient = np.hstack([share * pushed, (1 - share) * pushed])
@@ -651,7 +655,9 @@ def _problem(
     times = share * band.times[first] + (1 - share) * band.times[second]
     near = _near_band(seen, band.poses)
     probes = share[:, None] * band.poses[first, :2] + (1 - share)[:, None] * band.poses[second, :2]
-    predicted = _nearest_each(near.at(times), probes) if len(near.points) else near.at(times)
+    moving = np.any(near.velocities != 0, axis=1)
+    predicted, moving = _nearest_each(near.at(times), moving, probes)
+    margins = np.where(moving, config.teb.dynamic_obstacle_dist, 0.0)
     vias = _resampled(path, config.teb.via_spacing)[1:-1]
     if len(near.points) and len(vias):
         gap = np.hypot(*(vias[:, None, :] - near.points[None, :, :]).transpose(2, 0, 1)).min(axis=1)
@@ -663,18 +669,21 @@ def _problem(
     else:
         nearest = np.zeros(0, np.intp)
     start, goal = band.poses[0].copy(), band.poses[-1].copy()
-    return _Problem(start, goal, velocity, predicted, vias, nearest, config, final)
+    return _Problem(start, goal, velocity, predicted, margins, vias, nearest, config, final)
 
 
-def _nearest_each(predicted: Floats, probes: Floats) -> Floats:
+def _nearest_each(
+    predicted: Floats, moving: NDArray[np.bool_], probes: Floats
+) -> tuple[Floats, NDArray[np.bool_]]:
     """Of ``predicted`` ``(probes, k, 2)``, the ``OBSTACLES_PER_PROBE`` nearest each
     probe's place at the start (the original planner also ties each pose to its nearest
-    obstacles once per optimisation); the hard-constraint check still sees them all."""
+    obstacles once per optimisation), and whether each of those ``moving``; the
+    hard-constraint check still sees them all."""
     if predicted.shape[1] <= OBSTACLES_PER_PROBE:
-        return predicted
+        return predicted, np.broadcast_to(moving, predicted.shape[:2])
     squared = ((predicted - probes[:, None, :]) ** 2).sum(axis=2)
     nearest = np.argpartition(squared, OBSTACLES_PER_PROBE - 1, axis=1)[:, :OBSTACLES_PER_PROBE]
-    return np.take_along_axis(predicted, nearest[:, :, None], axis=1)
+    return np.take_along_axis(predicted, nearest[:, :, None], axis=1), moving[nearest]
 
 
 def _near_band(seen: SeenObstacles, poses: Floats) -> SeenObstacles:

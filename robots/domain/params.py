@@ -152,6 +152,9 @@ class TebConfig:
     """m between the via-points taken from the global path."""
     min_obstacle_dist: float = 0.08
     """m of clearance beyond the body's radius the band keeps from what the laser sees."""
+    dynamic_obstacle_dist: float = 0.15
+    """m of clearance the band keeps from returns that move, beyond ``min_obstacle_dist``
+    (people may turn; their prediction is only at constant velocity)."""
     inflation: float = 0.6
     """m from a return within which the band pays a little to keep away."""
     feasibility_time: float = 1.2
