@@ -1,7 +1,11 @@
-"""Who may do what: roles come from Django groups, scope from building membership.
+"""Who may do what: a person's role is per building, held by their membership of it.
 
-A user's role is the strongest of their groups ``admin``, ``operator`` and ``viewer``
-(superusers are admins everywhere); it applies to the buildings they are members of.
+A person's groups ``admin``, ``operator`` and ``viewer`` say whether they use CloudNav
+at all and what they may do outside any building (the admin group creates buildings and
+registers robots): their global role is the strongest of those groups. In a building
+they are a member of, their role is the membership's (``Membership.role``; an empty one
+is their global role), so one person may be an operator in one building and a viewer in
+another. Superusers are admins everywhere. A person with no group has no role anywhere.
 A robot sees exactly the buildings it is registered for, and edits nothing.
 """
 
@@ -23,6 +27,12 @@ class Role(IntEnum):
 
 
 GROUP_ROLES = {"admin": Role.ADMIN, "operator": Role.OPERATOR, "viewer": Role.VIEWER}
+ROLE_NAMES = {role: name for name, role in GROUP_ROLES.items()}
+
+
+def role_named(name: str) -> Role:
+    """The role a membership's ``role`` names; NONE for an empty or unknown name."""
+    return GROUP_ROLES.get(name, Role.NONE)
 
 
 def robot_of(principal: Any) -> Any:
@@ -67,7 +77,11 @@ def role_in(principal: Any, building: Building) -> Role:
     role = global_role(principal)
     if role is Role.NONE or principal.is_superuser:
         return role
-    return role if building.members.filter(pk=principal.pk).exists() else Role.NONE
+    membership = building.memberships.filter(user=principal.pk).values_list("role", flat=True)
+    held = membership.first()
+    if held is None:
+        return Role.NONE
+    return role_named(held) if held else role
 
 
 def may_create_buildings(principal: Any) -> bool:

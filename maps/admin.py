@@ -2,13 +2,19 @@ from __future__ import annotations
 
 from django.contrib import admin
 
-from .models import Building, EnvironmentalTag, SubMap, TopologyEdge
+from .models import Building, EnvironmentalTag, Membership, SubMap, TopologyEdge
+
+
+class MembershipInline(admin.TabularInline[Membership, Building]):
+    model = Membership
+    extra = 1
+    autocomplete_fields = ["user"]
 
 
 @admin.register(Building)
 class BuildingAdmin(admin.ModelAdmin[Building]):
     list_display = ["code", "name", "zip_code"]
-    filter_horizontal = ["members"]
+    inlines = [MembershipInline]
 
 
 @admin.register(SubMap)

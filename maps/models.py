@@ -22,7 +22,9 @@ class Building(models.Model):
     zip_code = models.CharField(max_length=20, blank=True)
     address = models.CharField(max_length=300, blank=True)
     marker_dictionary = models.CharField(max_length=40, default="DICT_APRILTAG_36h11")
-    members = models.ManyToManyField(settings.AUTH_USER_MODEL, blank=True, related_name="buildings")
+    members = models.ManyToManyField(
+        settings.AUTH_USER_MODEL, blank=True, related_name="buildings", through="Membership"
+    )
     created = models.DateTimeField(auto_now_add=True)
 
     class Meta:
@@ -30,6 +32,26 @@ class Building(models.Model):
 
     def __str__(self) -> str:
         return self.code
+
+
+class Membership(models.Model):
+    """A person's membership of a building and their role there.
+
+    An empty role (a membership added without one, by the Django admin or a script) is
+    the role of the person's group."""
+
+    ROLES = [("admin", "admin"), ("operator", "operator"), ("viewer", "viewer")]
+
+    building = models.ForeignKey(Building, models.CASCADE, related_name="memberships")
+    user = models.ForeignKey(settings.AUTH_USER_MODEL, models.CASCADE, related_name="memberships")
+    role = models.CharField(max_length=10, choices=ROLES, blank=True, default="")
+
+    class Meta:
+        db_table = "maps_building_members"  # the table of the plain many-to-many it replaced
+        unique_together = [("building", "user")]
+
+    def __str__(self) -> str:
+        return f"{self.user} in {self.building} ({self.role or 'group role'})"
 
 
 class MapFile(models.Model):

@@ -11,13 +11,13 @@ from django.urls import reverse
 from rest_framework import serializers
 
 from . import services
-from .access import buildings_for
+from .access import ROLE_NAMES, buildings_for, global_role, role_named
 from .domain import tagart
 from .domain.mapfile import LoadedMap, load_map_archive, load_map_upload
 from .domain.tagart import marker_id_limit
 from .domain.versions import map_ref
 from .exceptions import TagPayloadError
-from .models import Building, EnvironmentalTag, SubMap, SubMapVersion
+from .models import Building, EnvironmentalTag, Membership, SubMap, SubMapVersion
 
 
 def _requester(field: serializers.Field[Any, Any, Any, Any]) -> Any:
@@ -59,6 +59,38 @@ class BuildingSerializer(serializers.ModelSerializer[Building]):
         except TagPayloadError as exc:
             raise serializers.ValidationError(str(exc)) from None
         return value
+
+
+class MembershipSerializer(serializers.ModelSerializer[Membership]):
+    """A member of a building and their role there (the role of their group when the
+    membership names none, and when ``role`` is left out on adding them)."""
+
+    username = KnownUser(source="user", slug_field="username")
+    role = serializers.ChoiceField(choices=["admin", "operator", "viewer"], required=False)
+
+    class Meta:
+        model = Membership
+        fields = ["username", "role"]
+
+    def get_fields(self) -> dict[str, Any]:
+        fields = super().get_fields()
+        if isinstance(self.instance, Membership):
+            fields["username"].read_only = True  # a membership changes role, not person
+        return fields
+
+    def to_representation(self, instance: Membership) -> dict[str, Any]:
+        role = role_named(instance.role) or global_role(instance.user)
+        return {"username": instance.user.username, "role": ROLE_NAMES.get(role, "")}
+
+    def validate(self, attrs: dict[str, Any]) -> dict[str, Any]:
+        building = self.context.get("building")
+        user = attrs.get("user")
+        taken = building is not None and building.memberships.filter(user=user).exists()
+        if user is not None and taken:
+            raise serializers.ValidationError({"username": ["Already a member of this building."]})
+        if user is not None and "role" not in attrs:
+            attrs["role"] = ROLE_NAMES.get(global_role(user), "viewer")
+        return attrs
 
 
 class SubMapSerializer(serializers.ModelSerializer[SubMap]):

@@ -21,14 +21,23 @@ from rest_framework.views import APIView
 from cloudnav_web.heavy import heavy_response
 
 from . import services, versions
-from .access import Role, buildings_for, global_role, may_create_buildings, robot_of, role_in
+from .access import (
+    Role,
+    buildings_for,
+    global_role,
+    may_create_buildings,
+    robot_of,
+    role_in,
+    role_named,
+)
 from .domain.mapfile import export_map, map_yaml_text, occupancy_grid_json
 from .domain.tagart import print_memory, render_tag_pdf, render_tag_png
 from .domain.topology import Coverage, Edge
-from .models import Building, EnvironmentalTag, MapFile, SubMap
+from .models import Building, EnvironmentalTag, MapFile, Membership, SubMap
 from .serializers import (
     BuildingSerializer,
     CoverageSerializer,
+    MembershipSerializer,
     RouteSerializer,
     SubMapSerializer,
     SubMapUpdateSerializer,
@@ -78,7 +87,7 @@ class BuildingList(generics.ListCreateAPIView[Building]):
         if not may_create_buildings(self.request.user):
             raise PermissionDenied("Only admins create buildings.")
         building = serializer.save()
-        building.members.add(self.request.user)
+        building.members.add(self.request.user, through_defaults={"role": "admin"})
 
 
 class BuildingDetail(generics.RetrieveUpdateDestroyAPIView[Building]):
@@ -89,6 +98,77 @@ class BuildingDetail(generics.RetrieveUpdateDestroyAPIView[Building]):
     def get_object(self) -> Building:
         need = Role.VIEWER if self.request.method == "GET" else Role.ADMIN
         return building_for(self.request, self.kwargs["building"], need)
+
+
+# Members and their roles
+
+
+class MemberList(generics.ListCreateAPIView[Membership]):
+    """A building's members and their roles; its admins add members (POST {username, role})."""
+
+    serializer_class = MembershipSerializer
+    pagination_class = None
+
+    def get_queryset(self) -> QuerySet[Membership]:
+        need = Role.VIEWER if self.request.method == "GET" else Role.ADMIN
+        building = building_for(self.request, self.kwargs["building"], need)
+        return building.memberships.select_related("user").order_by("user__username")
+
+    def get_serializer_context(self) -> dict[str, Any]:
+        context = super().get_serializer_context()
+        if self.request.method == "POST":
+            context["building"] = building_for(self.request, self.kwargs["building"], Role.ADMIN)
+        return context
+
+    def perform_create(self, serializer: Any) -> None:
+        serializer.save(building=serializer.context["building"])
+
+
+class MemberDetail(generics.RetrieveUpdateDestroyAPIView[Membership]):
+    """One member of a building: its admins change their role (PATCH {role}) or remove them.
+
+    A change that would leave the building without an admin member is refused (400)."""
+
+    serializer_class = MembershipSerializer
+    http_method_names = ["get", "patch", "delete", "head", "options"]
+
+    def get_object(self) -> Membership:
+        need = Role.VIEWER if self.request.method == "GET" else Role.ADMIN
+        building = building_for(self.request, self.kwargs["building"], need)
+        member = building.memberships.select_related("user")
+        found = member.filter(user__username=self.kwargs["username"]).first()
+        if found is None:
+            raise NotFound("No such member of this building.")
+        return found
+
+    def get_serializer_context(self) -> dict[str, Any]:
+        context = super().get_serializer_context()
+        context["building"] = None
+        return context
+
+    def perform_update(self, serializer: Any) -> None:
+        if "role" not in serializer.validated_data:
+            raise ValidationError({"role": ["This field is required."]})
+        role = role_named(serializer.validated_data["role"])
+        _keep_an_admin(serializer.instance, role, "role")
+        serializer.save()
+
+    def perform_destroy(self, instance: Membership) -> None:
+        _keep_an_admin(instance, Role.NONE, "username")
+        instance.delete()
+
+
+def _effective_role(membership: Membership) -> Role:
+    return role_named(membership.role) or global_role(membership.user)
+
+
+def _keep_an_admin(membership: Membership, new: Role, field: str) -> None:
+    """Refuse to take the last admin role of a building away (no one could then manage it)."""
+    if new >= Role.ADMIN or _effective_role(membership) < Role.ADMIN:
+        return
+    others = membership.building.memberships.exclude(pk=membership.pk).select_related("user")
+    if not any(_effective_role(other) >= Role.ADMIN for other in others):
+        raise ValidationError({field: ["The building would have no admin left."]})
 
 
 # Sub-maps

@@ -1,10 +1,11 @@
 """Access changes, announced after they commit and applied to open connections and streams.
 
 What a connection was admitted with can change while it is open: a robot's token is
-rotated, a robot is renamed, relinked or deleted, a person loses a membership or a role,
-is deleted or signs out. Django signals turn each into an ``AccessChange``, announced once
-the transaction commits (``transaction.on_commit``): in scaled mode to every server
-process over the channel layer (group ``ACCESS_GROUP``), else to the hubs of this process.
+rotated, a robot is renamed, relinked or deleted, a person loses a membership or a group,
+has their role in a building changed, is deleted or signs out. Django signals turn each
+into an ``AccessChange``, announced once the transaction commits
+(``transaction.on_commit``): in scaled mode to every server process over the channel
+layer (group ``ACCESS_GROUP``), else to the hubs of this process.
 Each process then re-reads the robots named (one query, never per message), updates its
 ``Registry``, closes the rosbridge connections and video streams that depended on what
 was revoked (``revoked``), and takes every other connection's decisions again
@@ -24,9 +25,9 @@ from django.conf import settings
 from django.contrib.auth import get_user_model
 from django.contrib.auth.signals import user_logged_out
 from django.db import transaction
-from django.db.models.signals import m2m_changed, post_delete, post_save, pre_delete
+from django.db.models.signals import m2m_changed, post_delete, post_save, pre_delete, pre_save
 
-from maps.models import Building
+from maps.models import Building, Membership
 from robots.models import Robot
 from telemetry.domain.rules import Owner, Principal
 
@@ -181,6 +182,25 @@ def _members(instance: Any, action: str, reverse: bool, pk_set: Any, **kwargs: A
     announce_on_commit(AccessChange(users=users))
 
 
+def _membership_saving(instance: Membership, **kwargs: Any) -> None:
+    """Remember the role a membership had before this save."""
+    if instance.pk is not None:
+        held = Membership.objects.filter(pk=instance.pk).values_list("role", flat=True).first()
+        instance._cloudnav_role_was = held
+
+
+def _membership_saved(instance: Membership, created: bool, **kwargs: Any) -> None:
+    """A person's role in a building changed: their connections close and reconnect with
+    what the new role allows (a demoted operator loses teleop at once)."""
+    was = getattr(instance, "_cloudnav_role_was", None)
+    if not created and was is not None and was != instance.role:
+        announce_on_commit(AccessChange(users={instance.user_id}))
+
+
+def _membership_deleted(instance: Membership, **kwargs: Any) -> None:
+    announce_on_commit(AccessChange(users={instance.user_id}))
+
+
 def _groups(instance: Any, action: str, reverse: bool, **kwargs: Any) -> None:
     """A role taken away (a group removed from a user, or users from a group)."""
     if action not in ("post_remove", "post_clear"):
@@ -224,6 +244,11 @@ def connect_signals() -> None:
         _robot_buildings, sender=Robot.buildings.through, dispatch_uid=f"{uid}-robot-buildings"
     )
     m2m_changed.connect(_members, sender=Building.members.through, dispatch_uid=f"{uid}-members")
+    pre_save.connect(_membership_saving, sender=Membership, dispatch_uid=f"{uid}-membership-was")
+    post_save.connect(_membership_saved, sender=Membership, dispatch_uid=f"{uid}-membership")
+    post_delete.connect(
+        _membership_deleted, sender=Membership, dispatch_uid=f"{uid}-membership-deleted"
+    )
     m2m_changed.connect(_groups, sender=User.groups.through, dispatch_uid=f"{uid}-groups")
     pre_delete.connect(_building_deleted, sender=Building, dispatch_uid=f"{uid}-building")
     post_save.connect(_user_saved, sender=User, dispatch_uid=f"{uid}-user-saved")

@@ -1,45 +1,61 @@
-// A building's members, for its admins: who may use the building (their role comes from
-// their group and applies to every building they are a member of); add one by username,
-// remove one. The whole list is saved with PATCH /api/buildings/{b}/ {members}.
+// A building's members and their roles here, for its admins: add one by username with a
+// role, change a member's role, remove one. A role holds in this building only (one person
+// may operate one building and only view another). GET/POST /api/buildings/{b}/members/,
+// PATCH/DELETE /api/buildings/{b}/members/{username}/.
 
 import { ApiError, api } from "./api.js";
 import { el } from "./page.js";
 
 const $ = (id) => document.getElementById(id);
+const ROLES = ["admin", "operator", "viewer"];
 
 export class MembersPanel {
   constructor(building) {
-    this.url = `/api/buildings/${encodeURIComponent(building)}/`;
-    this.members = [];
+    this.url = `/api/buildings/${encodeURIComponent(building)}/members/`;
     $("member-form").addEventListener("submit", (event) => {
       event.preventDefault();
-      const name = $("member-name").value.trim();
-      if (name && !this.members.includes(name)) this.#save([...this.members, name]).then(() => { $("member-name").value = ""; }, () => {});
+      const username = $("member-name").value.trim();
+      if (!username) return;
+      this.#change(() => api.post(this.url, { username, role: $("member-role").value }))
+        .then(() => { $("member-name").value = ""; }, () => {});
     });
   }
 
   async load() {
-    this.#show((await api.get(this.url)).members);
+    this.#show(await api.get(this.url));
   }
 
-  async #save(members) {
+  #member(name) {
+    return `${this.url}${encodeURIComponent(name)}/`;
+  }
+
+  async #change(call) {
     try {
-      this.#show((await api.patch(this.url, { members })).members);
+      await call();
       $("member-error").hidden = true;
     } catch (error) {
       $("member-error").hidden = false;
       $("member-error").textContent = error instanceof ApiError ? error.messages.join(" ") : error.message;
       throw error;
+    } finally {
+      await this.load().catch(() => {});
     }
   }
 
   #show(members) {
-    this.members = [...members].sort();
-    $("member-rows").replaceChildren(...this.members.map((name) => el("tr", { dataset: { member: name } },
-      el("td", {}, el("strong", {}, name)),
-      el("td", { class: "num" }, el("button", {
-        class: "btn small", type: "button", dataset: { action: "remove" },
-        onclick: () => this.#save(this.members.filter((other) => other !== name)).catch(() => {}),
-      }, "Remove")))));
+    $("member-rows").replaceChildren(...members.map(({ username, role }) => {
+      const choice = el("select", {
+        dataset: { action: "role" }, "aria-label": `Role of ${username}`,
+        onchange: () => this.#change(() => api.patch(this.#member(username), { role: choice.value })).catch(() => {}),
+      }, ...ROLES.map((name) => el("option", { value: name }, name)));
+      choice.value = role;
+      return el("tr", { dataset: { member: username, role } },
+        el("td", {}, el("strong", {}, username)),
+        el("td", {}, choice),
+        el("td", { class: "num" }, el("button", {
+          class: "btn small", type: "button", dataset: { action: "remove" },
+          onclick: () => this.#change(() => api.delete(this.#member(username))).catch(() => {}),
+        }, "Remove")));
+    }));
   }
 }

@@ -109,7 +109,7 @@ class Command(BaseCommand):
             password = os.environ.get("CLOUDNAV_DEMO_PASSWORD", f"{name}-demo")
             user = User.objects.create_user(name, password=password, is_staff=name == "admin")
             user.groups.add(Group.objects.get_or_create(name=name)[0])
-            building.members.add(user)
+            building.members.add(user, through_defaults={"role": name})
             passwords[name] = password
         return passwords
 
