@@ -1,5 +1,5 @@
 """Administration in the app: robots (register with the token shown once, assign buildings,
-rotate, revoke), buildings (create) and their members; styled 403 and 404 pages; at
+rotate, revoke), buildings (create) and their members and roles; styled 403 and 404 pages; at
 desktop and phone sizes in a real browser."""
 
 from __future__ import annotations
@@ -7,9 +7,12 @@ from __future__ import annotations
 import re
 
 import pytest
+from django.contrib.auth.models import User
 from playwright.sync_api import BrowserContext, expect
 
-from tests.browser_support import BUILDING, Demo, open_as, screenshot
+from maps.models import Building, Membership
+from robots.services import register_robot
+from tests.browser_support import BUILDING, ROBOT, Demo, open_as, screenshot
 
 pytest_plugins = ["tests.browser_support"]
 pytestmark = [pytest.mark.browser, pytest.mark.django_db(transaction=True)]
@@ -116,3 +119,47 @@ def test_an_admin_adds_and_removes_a_member_of_a_building(
     expect(page.locator("#member-name")).to_have_value("")
     page.reload()
     expect(rows).to_have_count(3)
+
+
+@pytest.fixture
+def annex(demo: Demo) -> Building:
+    """A second building, annex_1, with robot_9; the demo's admin and operator are members
+    in the role of their group (made before Chromium starts: the database is then sync)."""
+    annex = Building.objects.create(code="annex_1", name="Annex")
+    for name in ("admin", "operator"):
+        Membership.objects.create(building=annex, user=User.objects.get(username=name))
+    register_robot("robot_9", [annex], "in the annex")
+    return annex
+
+
+def test_an_operator_of_one_building_only_views_another_after_an_admin_changes_the_role(
+    annex: Building, sized: BrowserContext, demo: Demo
+) -> None:
+    page = open_as(sized, demo, "admin", "/buildings/annex_1/")
+    operator = page.locator("tr[data-member=operator]")
+    expect(operator.locator("select[data-action=role]")).to_have_value("operator")  # the group's
+    operator.locator("select[data-action=role]").select_option("viewer")
+    expect(operator).to_have_attribute("data-role", "viewer")
+    page.locator("tr[data-member=admin] select[data-action=role]").select_option("viewer")
+    expect(page.locator("#member-error")).to_contain_text("no admin left")
+    expect(page.locator("tr[data-member=admin]")).to_have_attribute("data-role", "admin")
+    screenshot(page, f"building-roles-{page.viewport_size['width']}")  # type: ignore[index]
+    page.reload()
+    expect(operator.locator("select[data-action=role]")).to_have_value("viewer")
+
+    # The operator drives robot_0 in the demo building and only watches robot_9 here.
+    size = page.viewport_size
+    second = page.context.browser.new_context(viewport=size)  # type: ignore[union-attr, arg-type]
+    mine = open_as(second, demo, "operator", f"/robots/{ROBOT}/")
+    expect(mine.locator("#conn-state")).to_contain_text("Live")
+    mine.click("#lock-acquire")
+    expect(mine.locator("#lock-state")).to_have_text("You are driving")
+    mine.goto(demo.url("/robots/robot_9/"))
+    expect(mine.locator("#conn-state")).to_contain_text("Live")
+    expect(mine.locator("h1")).to_contain_text("robot_9")
+    expect(mine.locator("#teleop-card")).to_have_count(0)
+    expect(mine.locator("#lock-acquire")).to_have_count(0)
+    screenshot(mine, f"robot-viewed-not-driven-{page.viewport_size['width']}")  # type: ignore[index]
+    mine.goto(demo.url("/buildings/"))
+    expect(mine.locator(".building-card", has_text="Annex")).to_contain_text("viewer")
+    mine.context.close()
