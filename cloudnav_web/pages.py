@@ -15,7 +15,7 @@ from django.core.exceptions import PermissionDenied
 from django.http import Http404, HttpRequest, HttpResponse
 from django.shortcuts import render
 
-from maps.access import Role, buildings_for, global_role, role_in
+from maps.access import Role, buildings_for, buildings_where, global_role, role_in
 from maps.models import Building, SubMap
 from robots.models import Robot
 
@@ -103,7 +103,8 @@ def robots(request: HttpRequest) -> HttpResponse:
     role = global_role(request.user)
     if role < Role.ADMIN:
         raise PermissionDenied("Only admins administer robots.")
-    codes = list(buildings_for(request.user).order_by("code").values_list("code", flat=True))
+    administered = buildings_where(request.user, Role.ADMIN).order_by("code")
+    codes = list(administered.values_list("code", flat=True))
     context = page_context(request, role, page="robots", config={"buildings": codes})
     return render(request, "pages/robots.html", context)
 

@@ -14,7 +14,7 @@ from __future__ import annotations
 from enum import IntEnum
 from typing import Any
 
-from django.db.models import QuerySet
+from django.db.models import Q, QuerySet
 
 from .models import Building
 
@@ -66,6 +66,20 @@ def buildings_for(principal: Any) -> QuerySet[Building]:
     if principal.is_superuser:
         return Building.objects.all()
     return Building.objects.filter(members=principal)
+
+
+def buildings_where(principal: Any, need: Role) -> QuerySet[Building]:
+    """Return the buildings where ``principal`` holds at least ``need`` (one query)."""
+    visible = buildings_for(principal)
+    if need <= Role.VIEWER or principal.is_superuser:
+        return visible
+    if robot_of(principal) is not None:
+        return Building.objects.none()
+    named = [name for name, role in GROUP_ROLES.items() if role >= need]
+    held = Q(memberships__role__in=named)
+    if global_role(principal) >= need:
+        held |= Q(memberships__role="")  # the group's role
+    return Building.objects.filter(held, memberships__user=principal)
 
 
 def role_in(principal: Any, building: Building) -> Role:

@@ -115,7 +115,7 @@ class MemberList(generics.ListCreateAPIView[Membership]):
         return building.memberships.select_related("user").order_by("user__username")
 
     def get_serializer_context(self) -> dict[str, Any]:
-        context = super().get_serializer_context()
+        context = {**super().get_serializer_context()}
         if self.request.method == "POST":
             context["building"] = building_for(self.request, self.kwargs["building"], Role.ADMIN)
         return context
@@ -140,11 +140,6 @@ class MemberDetail(generics.RetrieveUpdateDestroyAPIView[Membership]):
         if found is None:
             raise NotFound("No such member of this building.")
         return found
-
-    def get_serializer_context(self) -> dict[str, Any]:
-        context = super().get_serializer_context()
-        context["building"] = None
-        return context
 
     def perform_update(self, serializer: Any) -> None:
         if "role" not in serializer.validated_data:

@@ -12,7 +12,7 @@ from typing import Any
 from django.db.models import QuerySet
 from rest_framework import serializers
 
-from maps.access import Role, buildings_for, global_role
+from maps.access import Role, buildings_for, buildings_where, global_role
 from maps.models import Building
 
 from .models import Robot
@@ -22,7 +22,7 @@ def administered(user: Any) -> QuerySet[Building]:
     """The buildings ``user`` administers (all of them for a superuser)."""
     if user is None or global_role(user) < Role.ADMIN:
         return Building.objects.none()
-    return buildings_for(user)
+    return buildings_where(user, Role.ADMIN)
 
 
 class AdministeredBuilding(serializers.SlugRelatedField[Building]):

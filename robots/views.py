@@ -13,7 +13,7 @@ from rest_framework.response import Response
 from rest_framework.views import APIView
 from typing_extensions import override
 
-from maps.access import Role, buildings_for, global_role
+from maps.access import Role, buildings_where, global_role
 
 from . import services
 from .models import Robot
@@ -32,7 +32,7 @@ def administers_all(user: Any, robot: Robot) -> bool:
     """True if ``user`` administers every building ``robot`` is registered for."""
     if user.is_superuser:
         return True
-    return not robot.buildings.exclude(pk__in=buildings_for(user)).exists()
+    return not robot.buildings.exclude(pk__in=buildings_where(user, Role.ADMIN)).exists()
 
 
 def require_whole_robot(user: Any, robot: Robot, what: str) -> None:
@@ -49,7 +49,7 @@ def robots_for(user: Any) -> QuerySet[Robot]:
     """Robots registered for at least one building the admin administers (all, for superusers)."""
     if user.is_superuser:
         return Robot.objects.all()
-    return Robot.objects.filter(buildings__in=buildings_for(user)).distinct()
+    return Robot.objects.filter(buildings__in=buildings_where(user, Role.ADMIN)).distinct()
 
 
 class RobotList(generics.ListCreateAPIView[Robot]):

@@ -182,7 +182,7 @@ def _members(instance: Any, action: str, reverse: bool, pk_set: Any, **kwargs: A
     announce_on_commit(AccessChange(users=users))
 
 
-def _membership_saving(instance: Membership, **kwargs: Any) -> None:
+def _membership_saving(instance: Any, **kwargs: Any) -> None:
     """Remember the role a membership had before this save."""
     if instance.pk is not None:
         held = Membership.objects.filter(pk=instance.pk).values_list("role", flat=True).first()

@@ -149,7 +149,7 @@ def test_an_operator_of_one_building_only_views_another_after_an_admin_changes_t
 
     # The operator drives robot_0 in the demo building and only watches robot_9 here.
     size = page.viewport_size
-    second = page.context.browser.new_context(viewport=size)  # type: ignore[union-attr, arg-type]
+    second = page.context.browser.new_context(viewport=size)  # type: ignore[union-attr]
     mine = open_as(second, demo, "operator", f"/robots/{ROBOT}/")
     expect(mine.locator("#conn-state")).to_contain_text("Live")
     mine.click("#lock-acquire")

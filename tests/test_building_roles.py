@@ -225,3 +225,17 @@ async def test_a_promotion_takes_effect_on_reconnecting(
     assert (await lock(driver, "r2"))["values"]["success"] is True
     await driver.send(op="publish", topic="/r2/cmd_vel", msg=GO)
     assert (await robot.receive())["msg"] == GO
+
+
+@pytest.mark.django_db
+def test_an_admin_links_robots_only_to_buildings_they_administer(admin: User) -> None:
+    mine = make_building(code="mine_1")
+    Membership.objects.create(building=mine, user=admin, role="admin")
+    viewed = make_building(code="viewed_1")
+    Membership.objects.create(building=viewed, user=admin, role="viewer")
+    api = client_for(admin)
+    refused = api.post("/api/robots/", {"name": "r7", "buildings": ["viewed_1"]}, format="json")
+    assert refused.status_code == 400
+    assert "buildings" in refused.json()
+    made = api.post("/api/robots/", {"name": "r7", "buildings": ["mine_1"]}, format="json")
+    assert made.status_code == 201, made.content
