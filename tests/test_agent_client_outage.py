@@ -14,16 +14,18 @@ import itertools
 import json
 import math
 import random
+import socket
 import time
 from collections.abc import AsyncIterator
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 import pytest
 import websockets
 
 from robots.agent.client import Backoff, RosbridgeClient
+from robots.agent.hardware import compressed_image_message
 from robots.agent.whereabouts import Localisation, Whereabouts
 from telemetry.cloud import TELEOP_LOCK
 from telemetry.domain.messages import (
@@ -45,6 +47,9 @@ SLACK = 0.5
 DEADLINE = 30.0
 RATES = {"pose": 10.0, "odom": 10.0, "scan": 5.0}  # the robot's defaults (RobotConfig)
 MAP_ID = "boccioni_1/CorridorA@v1"
+# A camera frame as incompressible as a JPEG, for a stream that fills a stalled link.
+FRAME = random.Random(1).randbytes(50_000)
+KEEPALIVE = 1.0
 SCAN = {
     "angle_min": -math.pi, "angle_max": math.pi, "angle_increment": math.tau / 360,
     "time_increment": 0.0, "scan_time": 0.2, "range_min": 0.1, "range_max": 10.0,
@@ -67,16 +72,28 @@ class Link:
 
     async def open(self) -> str:
         """Start relaying; return the rosbridge URL through the link."""
-        self._listener = await asyncio.start_server(self._accept, "127.0.0.1", 0)
-        port = self._listener.sockets[0].getsockname()[1]
+        listening = socket.socket()
+        # Little room in flight, as on a radio link (loopback would hold megabytes).
+        listening.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 2**14)
+        listening.bind(("127.0.0.1", 0))
+        self._listener = await asyncio.start_server(self._accept, sock=listening)
+        port = listening.getsockname()[1]
         return f"ws://127.0.0.1:{port}/rosbridge"
 
-    def go_down(self) -> None:
+    def go_down(self, *, silently: bool = False) -> None:
+        """Cut the link: the relayed connections are reset, or with ``silently`` left
+        open but carrying nothing, as when a radio link goes (reset on return: by then
+        both ends have given them up)."""
         self.cut = True
         for writer in self._relayed:
-            writer.transport.abort()
+            if silently:
+                cast(asyncio.Transport, writer.transport).pause_reading()
+            else:
+                writer.transport.abort()
 
     def come_back(self) -> None:
+        for writer in self._relayed:
+            writer.transport.abort()
         self.cut = False
 
     async def close(self) -> None:
@@ -146,12 +163,13 @@ class Robot:
     whether or not the cloud is there."""
 
     client: RosbridgeClient
-    published: dict[str, int] = field(default_factory=dict)
+    rates: dict[str, float] = field(default_factory=lambda: dict(RATES))
     dropped: int = 0
+    slowest: float = 0.0  # seconds, the longest a publication kept the robot waiting
     commands: list[dict[str, Any]] = field(default_factory=list)
 
     def declare(self) -> None:
-        for topic in RATES:
+        for topic in self.rates:
             self.client.advertise(topic, ROBOT_TOPIC_TYPES[topic])
         for latched in ("map_id", "localisation"):
             self.client.advertise(latched, ROBOT_TOPIC_TYPES[latched], latch=True)
@@ -161,13 +179,14 @@ class Robot:
 
     async def run(self) -> None:
         loop = asyncio.get_running_loop()
-        next_at = {topic: loop.time() for topic in RATES}
+        next_at = {topic: loop.time() for topic in self.rates}
         while True:
             topic = min(next_at, key=next_at.__getitem__)
             await asyncio.sleep(max(0.0, next_at[topic] - loop.time()))
-            next_at[topic] += 1 / RATES[topic]
+            next_at[topic] += 1 / self.rates[topic]
+            started = loop.time()
             sent = await self.client.publish(topic, message(topic, time.time()))
-            self.published[topic] = self.published.get(topic, 0) + 1
+            self.slowest = max(self.slowest, loop.time() - started)
             self.dropped += not sent
 
 
@@ -186,7 +205,9 @@ def message(topic: str, stamp: float) -> Any:
             velocity=(0.0, 0.0),
             velocity_covariance=still,
         )
-    return laser_scan("base_laser", [1.0] * 360, stamp, **SCAN)
+    if topic == "scan":
+        return laser_scan("base_laser", [1.0] * 360, stamp, **SCAN)
+    return compressed_image_message(FRAME, stamp)
 
 
 @pytest.fixture
@@ -225,15 +246,17 @@ def largest_count_in_a_second(times: list[float]) -> int:
     return max((sum(t <= at < t + 1.0 for at in times) for t in times), default=0)
 
 
-async def test_after_an_outage_it_reconnects_with_backoff_and_sends_only_fresh_messages(
-    daphne_server: LiveServer, link: Link, token: str, handshake: dict[str, str]
-) -> None:
-    client = RosbridgeClient(await link.open(), token, backoff=BACKOFF, seed=SEED)
-    robot = Robot(client)
+@contextlib.asynccontextmanager
+async def watched_robot(
+    link: Link, server: LiveServer, handshake: dict[str, str], robot: Robot
+) -> AsyncIterator[Operator]:
+    """Run ``robot`` through ``link`` with an operator watching its pose and latched
+    topics; yield the operator once poses flow."""
+    client = robot.client
     robot.declare()
     async with (
-        websockets.connect(daphne_server.rosbridge_url(), additional_headers=handshake) as ws,
-        running(client.run()) as _,
+        websockets.connect(server.rosbridge_url(), additional_headers=handshake) as ws,
+        running(client.run()),
     ):
         operator = Operator(ws)
         async with running(operator.listen()):
@@ -246,28 +269,53 @@ async def test_after_an_outage_it_reconnects_with_backoff_and_sends_only_fresh_m
             await client.publish("localisation", dict(place.status()))
             async with running(robot.run()):
                 await until(lambda: len(operator.on("/r1/pose")) >= 5, "poses", DEADLINE)
+                yield operator
 
-                went_down = time.time()
-                down_at = asyncio.get_running_loop().time()
-                link.go_down()
-                await until(lambda: len(link.attempts) >= ATTEMPTS_WHILE_DOWN, "retries", DEADLINE)
-                dropped_while_down = robot.dropped
-                link.come_back()
-                await until(lambda: client.connections == 2, "the reconnection", DEADLINE)
-                back = time.time()
-                await until(
-                    lambda: any(h.at >= back + 2.0 for h in operator.on("/r1/pose")),
-                    "two seconds of poses after the reconnection",
-                    DEADLINE,
-                )
-            lock = {"robot": "r1", "action": "acquire"}
-            await operator.send(op="call_service", id="lock", service=TELEOP_LOCK, args=lock)
-            await until(lambda: "lock" in operator.replies, "the teleop lock", DEADLINE)
-            await operator.send(op="publish", topic="/r1/cmd_vel", msg=twist_2d(0.1, 0.0))
-            await operator.send(op="call_service", id="cancel", service=f"/r1/{CANCEL_GOAL}")
-            await until(
-                lambda: bool(robot.commands) and "cancel" in operator.replies, "commands", DEADLINE
-            )
+
+async def back_for_two_seconds(link: Link, client: RosbridgeClient, operator: Operator) -> float:
+    """Restore ``link``; return the wall clock when the client reconnected, once two
+    seconds of poses have followed."""
+    link.come_back()
+    await until(lambda: client.connections == 2, "the reconnection", DEADLINE)
+    back = time.time()
+    await until(
+        lambda: any(h.at >= back + 2.0 for h in operator.on("/r1/pose")),
+        "two seconds of poses after the reconnection",
+        DEADLINE,
+    )
+    return back
+
+
+def assert_only_fresh_poses(operator: Operator, went_down: float, back: float) -> None:
+    """What was published while the cloud was away never reached it; poses came again
+    at the robot's rate, no burst of queued ones."""
+    after = operator.on("/r1/pose", since=went_down)
+    assert min(stamp_of(heard.msg) for heard in after) >= back - SLACK
+    assert largest_count_in_a_second([heard.at for heard in after]) <= RATES["pose"] + 3
+    assert len(operator.on("/r1/pose", since=back + 0.5)) >= 10
+
+
+async def test_after_an_outage_it_reconnects_with_backoff_and_sends_only_fresh_messages(
+    daphne_server: LiveServer, link: Link, token: str, handshake: dict[str, str]
+) -> None:
+    client = RosbridgeClient(await link.open(), token, backoff=BACKOFF, seed=SEED)
+    robot = Robot(client)
+    async with watched_robot(link, daphne_server, handshake, robot) as operator:
+        went_down = time.time()
+        down_at = asyncio.get_running_loop().time()
+        link.go_down()
+        await until(lambda: len(link.attempts) >= ATTEMPTS_WHILE_DOWN, "retries", DEADLINE)
+        dropped_while_down = robot.dropped
+        back = await back_for_two_seconds(link, client, operator)
+
+        lock = {"robot": "r1", "action": "acquire"}
+        await operator.send(op="call_service", id="lock", service=TELEOP_LOCK, args=lock)
+        await until(lambda: "lock" in operator.replies, "the teleop lock", DEADLINE)
+        await operator.send(op="publish", topic="/r1/cmd_vel", msg=twist_2d(0.1, 0.0))
+        await operator.send(op="call_service", id="cancel", service=f"/r1/{CANCEL_GOAL}")
+        await until(
+            lambda: bool(robot.commands) and "cancel" in operator.replies, "commands", DEADLINE
+        )
 
     # Retries are spaced by the client's jittered backoff, drawn from its seeded generator:
     # the first after the loss, then one more per failed attempt.
@@ -281,19 +329,35 @@ async def test_after_an_outage_it_reconnects_with_backoff_and_sends_only_fresh_m
     ceilings = [min(BACKOFF.maximum, BACKOFF.initial * BACKOFF.factor**n) for n in range(6)]
     assert any(delay < ceiling - SLACK for delay, ceiling in zip(delays, ceilings, strict=True))
 
-    # The robot kept publishing while the cloud was away; none of it reached the cloud.
+    # The robot kept publishing while the cloud was away, and none of that was sent late.
     assert dropped_while_down >= 20
-    after = operator.on("/r1/pose", since=went_down)
-    stamps = [
-        h.msg["header"]["stamp"]["sec"] + h.msg["header"]["stamp"]["nanosec"] / 1e9 for h in after
-    ]
-    assert min(stamps) >= back - SLACK
-    # Fresh poses at the robot's rate, no burst of queued ones.
-    assert largest_count_in_a_second([h.at for h in after]) <= RATES["pose"] + 3
-    assert len(operator.on("/r1/pose", since=back + 0.5)) >= 10
+    assert_only_fresh_poses(operator, went_down, back)
 
     # The latched topics were sent again once each; the subscription and service are back.
     assert [h.msg for h in operator.on("/r1/map_id", since=went_down)] == [{"data": MAP_ID}]
     assert len(operator.on("/r1/localisation", since=went_down)) == 1
     assert robot.commands[0]["linear"]["x"] == 0.1
     assert operator.replies["cancel"]["result"] is True
+
+
+async def test_a_link_gone_silent_never_blocks_the_robot_and_is_given_up_in_time(
+    daphne_server: LiveServer, link: Link, token: str, handshake: dict[str, str]
+) -> None:
+    client = RosbridgeClient(
+        await link.open(), token, backoff=BACKOFF, seed=SEED, keepalive=KEEPALIVE
+    )
+    # The robot streams its camera too, so the silent link's buffers fill.
+    robot = Robot(client, rates={**RATES, "camera/image/compressed": 10.0})
+    async with watched_robot(link, daphne_server, handshake, robot) as operator:
+        went_down = time.time()
+        down_at = asyncio.get_running_loop().time()
+        link.go_down(silently=True)
+        await until(lambda: len(link.attempts) >= 2, "retries", DEADLINE)
+        back = await back_for_two_seconds(link, client, operator)
+
+    # Given up after a keepalive's ping interval, timeout and close timeout at most.
+    assert link.attempts[0] - down_at <= 3 * KEEPALIVE + BACKOFF.initial + SLACK
+    # No publication waited on the dead link longer than its bounded send.
+    assert robot.slowest <= KEEPALIVE / 10 + SLACK
+    assert robot.dropped >= 10
+    assert_only_fresh_poses(operator, went_down, back)
