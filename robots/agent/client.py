@@ -14,8 +14,8 @@ message is kept and sent again after each reconnection. Nothing else is queued.
 
 A link that stalls without closing (Wi-Fi gone, no FIN ever comes) is the same case: once
 ``WRITE_LIMIT`` bytes wait for it (past a kernel buffer bounded to ``SEND_BUFFER``),
-``publish`` drops instead of waiting, so the robot's loop never blocks on the cloud and
-no backlog builds up to be flushed on return. A link that takes nothing for ``keepalive``
+``publish`` drops telemetry instead of waiting, so the robot's loop never blocks on the
+cloud and no backlog builds up to be flushed on return. A link that takes nothing for ``keepalive``
 seconds, or leaves a ping unanswered that long, is aborted (what it still holds is
 discarded, never delivered late) and reconnected.
 """
@@ -167,12 +167,16 @@ class RosbridgeClient:
 
     async def publish(self, topic: str, msg: Message) -> bool:
         """Send ``msg`` on the advertised ``topic`` now; False (and dropped) when not
-        connected. A latched topic's message is also kept for the next connection.
+        connected, or when the link is not keeping up. A latched topic's message is kept
+        for the next connection, and never dropped for a slow link (such messages are
+        rare and small).
 
         Raises KeyError for a topic never advertised."""
         declared = self._topics[topic]
         if declared.latch:
             declared.last = msg
+        elif self._congested():
+            return False  # a slow link gets no backlog of telemetry to flush later
         return await self._send({"op": "publish", "topic": topic, "msg": msg})
 
     async def call_service(
@@ -180,8 +184,7 @@ class RosbridgeClient:
     ) -> Json:
         """Call ``service`` and return its response values.
 
-        Raises NotConnected when there is no connection, or one not keeping up (or it
-        drops while waiting),
+        Raises NotConnected when there is no connection (or it drops while waiting),
         ServiceError when the call fails, TimeoutError after ``within`` (default
         ``call_timeout``) seconds.
         """
@@ -311,13 +314,15 @@ class RosbridgeClient:
             if not future.done():
                 future.set_exception(NotConnected("the connection was lost"))
 
+    def _congested(self) -> bool:
+        ws = self._ws
+        return ws is not None and ws.transport.get_write_buffer_size() >= WRITE_LIMIT
+
     async def _send(self, frame: Json) -> bool:
-        """Hand ``frame`` to the connection without waiting for a slow link; False (and
-        dropped) when there is none or it is not keeping up."""
+        """Hand ``frame`` to the connection without waiting long for a slow link; False
+        (and dropped) when there is none."""
         ws = self._ws
         if ws is None or not self._connected.is_set():
-            return False
-        if ws.transport.get_write_buffer_size() >= WRITE_LIMIT:
             return False
         try:
             async with asyncio.timeout(self.keepalive / 10):
