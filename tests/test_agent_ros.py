@@ -297,6 +297,47 @@ def test_a_ros_robot_is_the_softwares_hardware(node: None) -> None:
     assert (commands[-1].linear.x, commands[-1].angular.z) == pytest.approx((0.2, 0.4))
 
 
+def test_the_tag_detector_uses_the_robots_camera_info(node: None) -> None:
+    import rospy  # type: ignore[import-not-found,unused-ignore]
+    from nav_msgs.msg import Odometry  # type: ignore[import-not-found,unused-ignore]
+    from sensor_msgs.msg import (  # type: ignore[import-not-found,unused-ignore]
+        CameraInfo,
+        LaserScan,
+    )
+
+    from robots.agent.perception import CameraModel, TagDetector
+    from robots.agent.ros.hardware import RosHardware
+
+    scan = LaserScan()
+    scan.angle_min, scan.angle_increment, scan.ranges = 0.0, 0.1, [1.0] * 10
+    info = CameraInfo()
+    info.width, info.height = 1280, 720
+    info.K = [910.0, 0.0, 641.5, 0.0, 905.0, 359.5, 0.0, 0.0, 1.0]
+    for topic, kind, msg in (
+        ("/calibrated/odom", Odometry, Odometry()),
+        ("/calibrated/scan", LaserScan, scan),
+        ("/calibrated/camera/camera_info", CameraInfo, info),
+    ):
+        rospy.Publisher(topic, kind, queue_size=1, latch=True).publish(msg)
+
+    def hardware(namespace: str) -> RosHardware:
+        return RosHardware(
+            odom="/calibrated/odom",
+            scan="/calibrated/scan",
+            camera=f"/{namespace}/camera/image/compressed",
+            camera_info=f"/{namespace}/camera/camera_info",
+            cmd_vel=f"/{namespace}/cmd_vel",
+            timeout=30,
+            calibration_wait=10 if namespace == "calibrated" else 0.5,
+        )
+
+    calibrated = hardware("calibrated").camera_model
+    assert (calibrated.width, calibrated.height) == (1280, 720)
+    detector = TagDetector(calibrated)  # as the robot's software builds it from the hardware
+    assert detector.camera.matrix() == pytest.approx(np.reshape(info.K, (3, 3)))
+    assert hardware("uncalibrated").camera_model == CameraModel()
+
+
 ROBOT = "robot_0"
 CORRIDOR_A = "boccioni_1/CorridorA"
 START = (8.0, 23.2, 0.0)

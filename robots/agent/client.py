@@ -11,6 +11,13 @@ does not reconnect in lock step after a server restart). While disconnected, ``p
 drops the message and returns False: a robot's pose from ten seconds ago is worth less
 than nothing to an operator. Latched topics (``map_id``) are the exception: their latest
 message is kept and sent again after each reconnection. Nothing else is queued.
+
+A link that stalls without closing (Wi-Fi gone, no FIN ever comes) is the same case: once
+``WRITE_LIMIT`` bytes wait for it (past a kernel buffer bounded to ``SEND_BUFFER``),
+``publish`` drops telemetry instead of waiting, so the robot's loop never blocks on the
+cloud and no backlog builds up to be flushed on return. A link that takes nothing for ``keepalive``
+seconds, or leaves a ping unanswered that long, is aborted (what it still holds is
+discarded, never delivered late) and reconnected.
 """
 
 from __future__ import annotations
@@ -22,6 +29,7 @@ import itertools
 import json
 import logging
 import random
+import socket
 from collections.abc import Awaitable, Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -34,6 +42,14 @@ from websockets.exceptions import ConnectionClosed, InvalidHandshake
 from telemetry.domain.messages import Json, Message
 
 logger = logging.getLogger(__name__)
+
+# Bytes a connection may hold for a slow link before publications are dropped (also the
+# websockets flow-control mark, above which a send would wait).
+WRITE_LIMIT = 2**15
+# The kernel's send buffer of a connection (Linux doubles it): what a link that stalls
+# can take before ``WRITE_LIMIT`` applies, and so what it could deliver late. Autotuned,
+# it grows to megabytes (seconds of telemetry); this still carries 1.3 MB/s at 100 ms RTT.
+SEND_BUFFER = 2**16
 
 Callback = Callable[[Json], None]
 Handler = Callable[[Any], Json | Awaitable[Json]]
@@ -81,7 +97,8 @@ class RosbridgeClient:
     """One robot's connection to ``url`` (``ws://host:port/rosbridge``) with ``token``.
 
     Declare topics and services at any time, then ``await run()`` (it returns after
-    ``close``). ``call_timeout`` bounds service calls that name no timeout.
+    ``close``). ``call_timeout`` bounds service calls that name no timeout; ``keepalive``
+    is how long a link may stay silent or stalled before it is given up.
     """
 
     def __init__(
@@ -91,12 +108,14 @@ class RosbridgeClient:
         *,
         backoff: Backoff | None = None,
         call_timeout: float = 5.0,
+        keepalive: float = 5.0,
         seed: int | None = None,
     ) -> None:
         self.url = url
         self.token = token
         self.backoff = backoff or Backoff()
         self.call_timeout = call_timeout
+        self.keepalive = keepalive
         self.connections = 0  # how many times a connection opened
         self._rng = random.Random(seed)
         self._topics: dict[str, _Topic] = {}
@@ -148,12 +167,16 @@ class RosbridgeClient:
 
     async def publish(self, topic: str, msg: Message) -> bool:
         """Send ``msg`` on the advertised ``topic`` now; False (and dropped) when not
-        connected. A latched topic's message is also kept for the next connection.
+        connected, or when the link is not keeping up. A latched topic's message is kept
+        for the next connection, and never dropped for a slow link (such messages are
+        rare and small).
 
         Raises KeyError for a topic never advertised."""
         declared = self._topics[topic]
         if declared.latch:
             declared.last = msg
+        elif self._congested():
+            return False  # a slow link gets no backlog of telemetry to flush later
         return await self._send({"op": "publish", "topic": topic, "msg": msg})
 
     async def call_service(
@@ -207,9 +230,18 @@ class RosbridgeClient:
                 additional_headers={"Authorization": f"Token {self.token}"},
                 open_timeout=10,
                 max_size=None,
+                ping_interval=self.keepalive,
+                ping_timeout=self.keepalive,
+                close_timeout=self.keepalive,
+                write_limit=WRITE_LIMIT,
             ) as ws:
-                await self._opened(ws)
-                await self._receive(ws)
+                watchdog = asyncio.create_task(self._watch(ws))
+                try:
+                    await self._opened(ws)
+                    await self._receive(ws)
+                finally:
+                    watchdog.cancel()
+                    ws.transport.abort()  # what a dead link still holds is never sent late
         except (OSError, InvalidHandshake, ConnectionClosed, TimeoutError) as error:
             logger.warning("rosbridge: connection to %s: %s", self.url, error)
         finally:
@@ -221,10 +253,25 @@ class RosbridgeClient:
         """Declare everything on a new connection, then let publishing through."""
         self._ws = ws
         self.connections += 1
+        connected = ws.transport.get_extra_info("socket")
+        if connected is not None:
+            connected.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, SEND_BUFFER)
         for frame in self._declarations():
             await ws.send(json.dumps(frame))
         self._connected.set()
         logger.info("rosbridge: connected to %s", self.url)
+
+    async def _watch(self, ws: ClientConnection) -> None:
+        """Abort ``ws`` once its link has held ``WRITE_LIMIT`` bytes for ``keepalive``
+        seconds: a stalled link (websockets' pings wait behind the data then, so they
+        cannot tell)."""
+        stalled = 0.0
+        while stalled < self.keepalive:
+            await asyncio.sleep(self.keepalive / 10)
+            congested = ws.transport.get_write_buffer_size() >= WRITE_LIMIT
+            stalled = stalled + self.keepalive / 10 if congested else 0.0
+        logger.warning("rosbridge: the link to %s stalled", self.url)
+        ws.transport.abort()
 
     def _declarations(self) -> list[Json]:
         """Frames that re-create this robot's state on a server that knows nothing of it:
@@ -267,14 +314,23 @@ class RosbridgeClient:
             if not future.done():
                 future.set_exception(NotConnected("the connection was lost"))
 
+    def _congested(self) -> bool:
+        ws = self._ws
+        return ws is not None and ws.transport.get_write_buffer_size() >= WRITE_LIMIT
+
     async def _send(self, frame: Json) -> bool:
+        """Hand ``frame`` to the connection without waiting long for a slow link; False
+        (and dropped) when there is none."""
         ws = self._ws
         if ws is None or not self._connected.is_set():
             return False
         try:
-            await ws.send(json.dumps(frame))
+            async with asyncio.timeout(self.keepalive / 10):
+                await ws.send(json.dumps(frame))
         except ConnectionClosed:
             return False
+        except TimeoutError:
+            pass  # written: only the wait for the link to take it was cut short
         return True
 
     # --- incoming ----------------------------------------------------------------------

@@ -2,6 +2,7 @@
 
     python -m robots.agent.ros --server https://cloudnav.example --token cnr_... \\
         [--odom odom --scan scan --camera camera/image/compressed --cmd-vel cmd_vel] \\
+        [--camera-info camera/camera_info] \\
         [--navigation move_base --pose-source amcl_pose|tf --load-map change_map]
 
 Runs the robot's software (tag detector, Maps Supervisor, relocalisation on tags) on the
@@ -51,6 +52,7 @@ def arguments(argv: Sequence[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--odom", default="odom")
     parser.add_argument("--scan", default="scan")
     parser.add_argument("--camera", default="camera/image/compressed")
+    parser.add_argument("--camera-info", default="camera/camera_info", help="its calibration")
     parser.add_argument("--cmd-vel", default="cmd_vel")
     parser.add_argument("--camera-rate", type=float, default=RobotConfig().camera_rate)
     parser.add_argument("--particles", type=int, help="0: odometry and tags only (agent)")
@@ -80,6 +82,7 @@ async def main(options: argparse.Namespace) -> None:
         odom=options.odom,
         scan=options.scan,
         camera=options.camera,
+        camera_info=options.camera_info,
         cmd_vel=options.cmd_vel,
     )
     http_base, ws_url = endpoints(options.server)

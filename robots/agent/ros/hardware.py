@@ -1,12 +1,14 @@
 """A ROS 1 robot as the software's ``Hardware``: ``nav_msgs/Odometry`` on ``odom``,
 ``sensor_msgs/LaserScan`` on ``scan``, ``sensor_msgs/CompressedImage`` on the camera's
-topic, ``geometry_msgs/Twist`` on ``cmd_vel``. Call ``robots.agent.ros.ros_path()`` and
+topic (with its ``sensor_msgs/CameraInfo`` on ``camera_info``, if any), ``geometry_msgs/Twist``
+on ``cmd_vel``. Call ``robots.agent.ros.ros_path()`` and
 ``rospy.init_node`` first; ``RosHardware`` waits for the first odometry and scan."""
 
 from __future__ import annotations
 
 import math
 import threading
+from dataclasses import replace
 from typing import Any
 
 import cv2
@@ -17,6 +19,7 @@ from nav_msgs.msg import Odometry as RosOdometry  # type: ignore[import-not-foun
 from numpy.typing import NDArray
 from sensor_msgs.msg import (  # type: ignore[import-not-found,unused-ignore]
     BatteryState,
+    CameraInfo,
     CompressedImage,
     LaserScan,
 )
@@ -46,10 +49,32 @@ class RosBattery:
             self.voltage = float(msg.voltage)
 
 
+def calibrated_camera(topic: str, wait: float) -> CameraModel:
+    """The default camera with the intrinsics of the first ``CameraInfo`` on ``topic``
+    within ``wait`` seconds; as it is if none comes or it is uncalibrated (K all zero)."""
+    try:
+        info: Any = rospy.wait_for_message(topic, CameraInfo, wait)
+    except rospy.ROSException:
+        return CameraModel()
+    return camera_model_of(info)
+
+
+def camera_model_of(info: Any, mounting: CameraModel | None = None) -> CameraModel:
+    """``mounting`` (the default camera) with the size and K matrix of ``info``, a
+    ``sensor_msgs/CameraInfo``; as it is if ``info`` is uncalibrated."""
+    mounting = mounting or CameraModel()
+    k = [float(value) for value in info.K]
+    if k[0] <= 0 or k[4] <= 0:
+        return mounting
+    width, height = int(info.width), int(info.height)
+    return replace(mounting, width=width, height=height, fx=k[0], fy=k[4], cx=k[2], cy=k[5])
+
+
 class RosHardware:
     """The latest odometry, scan and camera frame of a ROS 1 robot, and its ``cmd_vel``.
-    ``camera_model`` is the camera's intrinsics and mounting (from its ``CameraInfo`` and
-    tf, or the default robot's)."""
+    ``camera_model`` is the camera's intrinsics and mounting: unless given, the intrinsics
+    of the ``CameraInfo`` the camera publishes within ``calibration_wait`` seconds (its K
+    matrix and size), else the default robot's, with the default robot's mounting."""
 
     def __init__(
         self,
@@ -59,9 +84,11 @@ class RosHardware:
         camera: str = "camera/image/compressed",
         cmd_vel: str = "cmd_vel",
         battery: str = "battery_state",
+        camera_info: str = "camera/camera_info",
         timeout: float = 30.0,
+        calibration_wait: float = 2.0,
     ) -> None:
-        self.camera_model = camera_model or CameraModel()
+        self.camera_model = camera_model or calibrated_camera(camera_info, calibration_wait)
         self.battery = RosBattery()
         rospy.Subscriber(battery, BatteryState, self.battery.on_state, queue_size=1)
         self._lock = threading.Lock()

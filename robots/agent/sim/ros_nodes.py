@@ -36,12 +36,14 @@ from nav_msgs.msg import (  # type: ignore[import-not-found,unused-ignore]
     Path,
 )
 from sensor_msgs.msg import (  # type: ignore[import-not-found,unused-ignore]
+    CameraInfo,
     CompressedImage,
     LaserScan,
 )
 
 from robots.agent.hardware import encode_jpeg
 from robots.agent.navigation import Driver, DriveState, LocalObstacles
+from robots.agent.perception import CameraModel
 from robots.agent.robot import PoseTracker, particle_filter
 from robots.agent.ros.hardware import yaw_of
 from robots.agent.sim.hardware import SimHardware
@@ -62,13 +64,15 @@ PARTICLES = 200
 
 class RosBody:
     """``hardware`` on ROS topics: ``cmd_vel`` in; ``odom`` (and tf ``odom ->
-    base_footprint``), ``scan`` and ``camera/image/compressed`` out."""
+    base_footprint``), ``scan`` and ``camera/image/compressed`` (with
+    ``camera/camera_info``, as a camera driver sends its calibration) out."""
 
     def __init__(self, hardware: SimHardware) -> None:
         self.hardware = hardware
         self._odom = rospy.Publisher("odom", Odometry, queue_size=1)
         self._scan = rospy.Publisher("scan", LaserScan, queue_size=1)
         self._camera = rospy.Publisher("camera/image/compressed", CompressedImage, queue_size=1)
+        self._camera_info = rospy.Publisher("camera/camera_info", CameraInfo, queue_size=1)
         self._tf = tf2_ros.TransformBroadcaster()
         self._commands: list[tuple[float, float]] = []
         rospy.Subscriber("cmd_vel", Twist, self._on_cmd_vel, queue_size=1)
@@ -113,6 +117,18 @@ class RosBody:
         msg.header.stamp, msg.header.frame_id = stamp, "camera_optical_frame"
         msg.format, msg.data = "jpeg", encode_jpeg(self.hardware.image(), 90)
         self._camera.publish(msg)
+        self._camera_info.publish(camera_info(msg.header, self.hardware.camera_model))
+
+
+def camera_info(header: Any, model: CameraModel) -> Any:
+    """The ``sensor_msgs/CameraInfo`` of ``model``: a pinhole camera, no distortion."""
+    msg = CameraInfo()
+    msg.header, msg.width, msg.height = header, model.width, model.height
+    msg.distortion_model, msg.D = "plumb_bob", [0.0] * 5
+    msg.K = [model.fx, 0.0, model.cx, 0.0, model.fy, model.cy, 0.0, 0.0, 1.0]
+    msg.R = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]
+    msg.P = [model.fx, 0.0, model.cx, 0.0, 0.0, model.fy, model.cy, 0.0, 0.0, 0.0, 1.0, 0.0]
+    return msg
 
 
 def ros_pose(pose: Pose) -> Any:
