@@ -128,6 +128,46 @@ class _Silent:
         return True
 
 
+class _Recorder:
+    def __init__(self) -> None:
+        self.sent: list[tuple[str, dict[str, Any]]] = []
+
+    async def publish(self, topic: str, msg: dict[str, Any]) -> bool:
+        self.sent.append((topic, msg))
+        return True
+
+
+async def depth_topics(config: RobotConfig) -> dict[str, dict[str, Any]]:
+    """The depth and camera topics a robot publishing ``config`` sent in one second."""
+    hardware = SimHardware(demo_world(), (3.0, 4.0, 0.0), seed=1)
+    tracker = PoseTracker(lambda _submap: _Filter())
+    supervisor = MapsSupervisor(_Maps(httpx.AsyncClient(base_url="http://cloud")), tracker)
+    recorder = _Recorder()
+    robot = Robot(hardware, supervisor, tracker, recorder, config, 0.0)
+    for _ in range(10):
+        await robot.tick()
+    return {topic: msg for topic, msg in recorder.sent if topic.startswith("camera/")}
+
+
+async def test_depth_goes_out_as_compressed_depth_and_raw_only_on_request() -> None:
+    sent = await depth_topics(RobotConfig(camera_rate=0, depth_rate=1.0))
+    assert set(sent) == {"camera/depth/image/compressedDepth", "camera/camera_info"}
+    message = sent["camera/depth/image/compressedDepth"]
+    assert message["format"] == "16UC1; compressedDepth png"
+    assert message["header"]["frame_id"] == sent["camera/camera_info"]["header"]["frame_id"]
+    depth = depth_of(message, 640 * 480)
+    assert depth is not None
+    assert depth.shape == (480, 640)
+    assert len(message["data"]) < 20_000  # the raw 16UC1 image is 819 kB of base64
+    raw = await depth_topics(RobotConfig(camera_rate=0, depth_rate=1.0, raw_depth=True))
+    assert raw["camera/depth/image"]["encoding"] == "16UC1"
+    same = depth_of(raw["camera/depth/image/compressedDepth"], 640 * 480)
+    unpacked = depth_of(raw["camera/depth/image"], 640 * 480)
+    assert same is not None
+    assert unpacked is not None
+    assert np.array_equal(unpacked, same, equal_nan=True)
+
+
 class _Maps(BundleCache):
     """Bundles made on the spot: an empty room, for any Map ID."""
 

@@ -22,6 +22,7 @@ from telemetry.domain.messages import (
     depth_image,
     depth_of,
 )
+from telemetry.domain.video import content_type_of, is_camera
 
 CORRIDOR_A = (6.0, 23.2, 0.2)
 PIXELS = 640 * 480
@@ -122,3 +123,11 @@ def png_instead(message: Any, png: bytes) -> dict[str, Any]:
 )
 def test_it_refuses_what_is_not_compressed_depth(depth: np.ndarray, spoil: Any) -> None:
     assert depth_of(spoil(compressed_depth("camera", depth, 3.0)), PIXELS) is None
+
+
+def test_a_depth_topic_is_no_camera_to_watch() -> None:
+    depth = "/r1/camera/depth/image/compressedDepth"
+    assert not is_camera(depth, "sensor_msgs/CompressedImage")
+    assert is_camera("/r1/camera/image/compressed", "sensor_msgs/CompressedImage")
+    assert content_type_of(COMPRESSED_DEPTH_FORMAT) is None
+    assert content_type_of("bgr8; png compressed bgr8") == "image/png"

@@ -133,7 +133,7 @@ async def pose_delays(robot: Any, operator: Any) -> list[float]:
             await asyncio.sleep(0.05)
 
     async def receive() -> list[float]:
-        delays = []
+        delays: list[float] = []
         async with asyncio.timeout(60):
             while len(delays) < POSES:
                 frame = json.loads(await operator.recv())

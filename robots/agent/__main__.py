@@ -86,6 +86,7 @@ async def main(options: argparse.Namespace) -> None:
             camera_rate=options.camera_rate,
             camera_timecode=options.camera_timecode,
             depth_rate=options.depth_rate,
+            raw_depth=options.raw_depth,
             local_planner=options.planner,
         ),
         changes=None if options.changes is None else plan_changes(options.changes),

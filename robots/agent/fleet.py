@@ -67,7 +67,11 @@ def add_robot_arguments(parser: argparse.ArgumentParser) -> None:
     )  # fmt: skip
     parser.add_argument(
         "--depth-rate", type=float, default=defaults.depth_rate,
-        help="depth images/s published (and offered as keyframes)",
+        help="depth images/s published as compressedDepth (and offered as keyframes)",
+    )  # fmt: skip
+    parser.add_argument(
+        "--raw-depth", action="store_true",
+        help="also publish each depth image raw on camera/depth/image (800 kB of JSON)",
     )  # fmt: skip
     parser.add_argument(
         "--no-visual", dest="visual", action="store_false",

@@ -18,7 +18,8 @@ change and at 1 Hz), ``map_id`` (latched, on entering a sub-map and on taking a 
 of it: ``building/code@v<n>``, the version held), ``localisation``
 (latched, on every change and at 1 Hz: lost, entering a sub-map or localised, see
 ``whereabouts``), ``camera/image/compressed`` (``camera_rate``), and
-``camera/depth/image`` with ``camera/camera_info`` (``depth_rate``); subscribes
+``camera/depth/image/compressedDepth`` with ``camera/camera_info`` (``depth_rate``; also
+the raw ``camera/depth/image`` with ``raw_depth``); subscribes
 ``cmd_vel``, ``goal`` and
 ``initialpose``; serves ``cancel_goal`` (``std_srvs/Trigger``), which preempts the
 active goal. (The server lets operators publish only ``cmd_vel``, ``goal`` and
@@ -63,6 +64,7 @@ from telemetry.domain.messages import (
     Message,
     battery_state,
     camera_info,
+    compressed_depth,
     depth_image,
     goal_of,
     initial_pose_of,
@@ -445,7 +447,9 @@ class Robot(Generic[H]):
     async def _publish_depth(self, depth: NDArray[np.float32]) -> None:
         model = self.hardware.camera_model
         frame_id = "camera_optical_frame"
-        await self.publisher.publish("camera/depth/image", depth_image(frame_id, depth, self.stamp))
+        await self.publisher.publish(DEPTH_TOPIC, compressed_depth(frame_id, depth, self.stamp))
+        if self.config.raw_depth:
+            await self.publisher.publish(RAW_DEPTH_TOPIC, depth_image(frame_id, depth, self.stamp))
         info = camera_info(
             frame_id, model.width, model.height, model.fx, model.fy, model.cx, model.cy, self.stamp
         )
@@ -486,16 +490,18 @@ def _unusable_goal(msg: Json) -> str:
 
 # --- declarations on the network -------------------------------------------------------
 
+DEPTH_TOPIC = "camera/depth/image/compressedDepth"
+RAW_DEPTH_TOPIC = "camera/depth/image"
 PUBLISHED = (
     "pose", "odom", "scan", "plan", "nav_status", "battery", "camera/image/compressed",
-    "camera/depth/image", "camera/camera_info",
+    DEPTH_TOPIC, "camera/camera_info",
 )  # fmt: skip
 
 
 def declare(robot: Robot[Any], client: RosbridgeClient) -> None:
     """Advertise ``robot``'s topics, subscribe its commands and serve ``cancel_goal`` on
     ``client``."""
-    for topic in PUBLISHED:
+    for topic in PUBLISHED + ((RAW_DEPTH_TOPIC,) if robot.config.raw_depth else ()):
         client.advertise(topic, ROBOT_TOPIC_TYPES[topic])
     for latched in ("map_id", "localisation"):
         client.advertise(latched, ROBOT_TOPIC_TYPES[latched], latch=True)

@@ -189,8 +189,11 @@ class RobotConfig:
     camera_rate: float = 5.0
     """JPEG frames published per second (0: none)."""
     depth_rate: float = 1.0
-    """Registered depth images (with ``camera_info``) published per second (0: none); a
-    640x480 depth image is 600 kB of JSON, so fewer than the colour frames."""
+    """Registered depth images (with ``camera_info``) published per second (0: none), as
+    ROS's ``compressedDepth`` (a 16-bit PNG, tens of kB); fewer than the colour frames."""
+    raw_depth: bool = False
+    """Publish each depth image also raw (``camera/depth/image``, ``sensor_msgs/Image``:
+    800 kB of JSON a frame at 640x480), for a subscriber that cannot read PNG."""
     detect_rate: float = 5.0
     """Camera frames per second the tag detector looks at."""
     status_rate: float = 1.0

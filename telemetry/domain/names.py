@@ -35,6 +35,7 @@ ROBOT_TOPIC_TYPES = {
     "localisation": "diagnostic_msgs/DiagnosticStatus",
     "battery": "sensor_msgs/BatteryState",
     "camera/image/compressed": "sensor_msgs/CompressedImage",
+    "camera/depth/image/compressedDepth": "sensor_msgs/CompressedImage",
     "camera/depth/image": "sensor_msgs/Image",
     "camera/camera_info": "sensor_msgs/CameraInfo",
     "cmd_vel": "geometry_msgs/Twist",

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from .messages import NANOS
+from .names import canonical_type
 from .times import parse_stamp
 
 MJPEG = "mjpeg"
@@ -36,6 +37,8 @@ COMPRESSED_VIDEO = "foxglove_msgs/CompressedVideo"
 that encodes H.264 itself; its access units are relayed to WebRTC viewers as they are."""
 CAMERA_TYPES = (COMPRESSED_IMAGE, COMPRESSED_VIDEO)
 COMPRESSED_SUFFIX = "/compressed"
+DEPTH_SUFFIX = "/compressedDepth"
+"""ROS's ``compressedDepth`` transport: a ``CompressedImage`` too, but a depth map."""
 
 # web_video_server's defaults: JPEG quality of a re-encode, and its libav (VP8) settings.
 DEFAULT_QUALITY = 95
@@ -110,10 +113,19 @@ class Frame:
         return self.stamp if self.stamp is not None else self.received
 
 
+def is_camera(topic: str, type_name: str) -> bool:
+    """True for a compressed image or video topic, but not a depth map sent through ROS's
+    ``compressedDepth`` transport (no picture to watch)."""
+    return canonical_type(type_name) in CAMERA_TYPES and not topic.endswith(DEPTH_SUFFIX)
+
+
 def content_type_of(image_format: str) -> str | None:
     """Return the MIME type of a CompressedImage ``format`` (``jpeg``, ``bgr8; png
-    compressed``...), or None for formats a browser cannot show."""
+    compressed``...), or None for formats a browser cannot show (a ``compressedDepth``
+    PNG sits behind a 12-byte header and holds millimetres, not a picture)."""
     lowered = image_format.lower()
+    if "compresseddepth" in lowered:
+        return None
     if "jpeg" in lowered or "jpg" in lowered:
         return "image/jpeg"
     if "png" in lowered:

@@ -23,14 +23,13 @@ from django.http import HttpRequest
 
 from robots.models import Robot
 from telemetry.domain import names, rules
-from telemetry.domain.names import canonical_type
 from telemetry.domain.rules import Owner, Principal
 from telemetry.domain.video import (
-    CAMERA_TYPES,
     NotAuthenticated,
     NotWatchable,
     UnknownStream,
     camera_topic_candidates,
+    is_camera,
 )
 from telemetry.exceptions import InvalidName
 from telemetry.fleet_feed import fleet_type
@@ -129,19 +128,15 @@ async def carries_images(hub: Hub, topic: str) -> bool:
     if known is None:
         found = await hub.relay.find("topics", topic)
         known = found[1] if found else None
-    return known is not None and canonical_type(known) in CAMERA_TYPES
+    return known is not None and is_camera(topic, known)
 
 
 async def published_cameras(hub: Hub) -> set[str]:
     """Return the compressed image and video topics published now, here or on other
     processes."""
-    found = {
-        name
-        for name, type_name in hub.bus.published_topics()
-        if canonical_type(type_name) in CAMERA_TYPES
-    }
+    found = {name for name, type_name in hub.bus.published_topics() if is_camera(name, type_name)}
     entries = await hub.relay.entries("topics")
-    found |= {n for n, t, _ in entries if t and canonical_type(t) in CAMERA_TYPES}
+    found |= {n for n, t, _ in entries if t and is_camera(n, t)}
     return found
 
 
