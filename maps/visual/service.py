@@ -74,7 +74,7 @@ def relocalise_in(buildings: Iterable[Building], document: Mapping[str, Any]) ->
         for i, item in enumerate(image_list(document.get("images")))
     ]
     if document.get("depth") is not None:
-        depth_image(document["depth"], images[0].shape, limit)  # checked; not needed to answer
+        depth_image(document["depth"], images[0].shape, limit)  # checked, unused (docs/design.md)
     intrinsics = intrinsics_of(document.get("camera_info"), images[0].shape)
     if any(image.shape != images[0].shape for image in images):
         raise KeyframeError("images: every image must have the same size")
