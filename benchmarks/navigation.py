@@ -4,7 +4,7 @@ Scenarios, each run ``--trials`` times with seeds drawn from ``--seed``:
 
 - ``corridor_0``, ``corridor_3``, ``corridor_8``: along Corridor A (14 m by 2.4 m), with
   0, 3 or 8 people walking seeded routes in it (crossing, pausing, some walking
-  towards the robot);
+  towards the robot; none starts within 1 m of the robot's start);
 - ``atrium_0``, ``atrium_3``, ``atrium_8``: across Atrium 1 (8 m square, pillars and a
   table) corner to corner, with 0, 3 or 8 people;
 - ``crossing``: a person walking back and forth across Atrium 1, across the robot's way;
@@ -95,10 +95,14 @@ class Setup:
 
 
 def _crowd_in(
-    area: tuple[float, float, float, float], count: int
+    area: tuple[float, float, float, float], count: int, start: Pose
 ) -> Callable[[World, int], list[Person]]:
+    """``count`` people walking in ``area``, none starting near the robot's ``start``."""
+
     def people(world: World, seed: int) -> list[Person]:
-        return seeded_people(world, count, seed, _mask(world, area)) if count else []
+        if not count:
+            return []
+        return seeded_people(world, count, seed, _mask(world, area), [start[:2]])
 
     return people
 
@@ -112,12 +116,12 @@ def _mask(world: World, area: tuple[float, float, float, float]) -> np.ndarray:
 
 
 def _corridor(count: int) -> Callable[[World, int], Setup]:
-    people = _crowd_in(CORRIDOR, count)
+    people = _crowd_in(CORRIDOR, count, WEST)
     return lambda world, seed: Setup([(WEST, EAST)], people(world, seed))
 
 
 def _atrium(count: int) -> Callable[[World, int], Setup]:
-    people = _crowd_in(ATRIUM, count)
+    people = _crowd_in(ATRIUM, count, SOUTH_WEST)
     return lambda world, seed: Setup([(SOUTH_WEST, NORTH_EAST)], people(world, seed))
 
 

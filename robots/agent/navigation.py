@@ -43,6 +43,7 @@ from numpy.typing import NDArray
 from maps.domain.planning import Costmap, OutOfMapError, PlanningError, plan_on
 from robots.agent.supervisor import SEARCH_RATE, Destination, Leg, LegKind, MapsSupervisor, SubMap
 from robots.agent.teb import TimedElasticBand, heading_at_end, local_path
+from robots.agent.tracking import ObstacleTracker, SeenObstacles
 from robots.domain.params import RobotConfig
 from robots.domain.se2 import Point, Pose, compose, inverse, transform, wrap
 from telemetry.domain.messages import GoalStatus, StatusEntry
@@ -164,6 +165,53 @@ def _clearance_grid(
     return np.maximum(np.asarray(distance, np.float64) - 0.5, 0.0) * resolution
 
 
+CELL = 0.05
+"""Metres: the clearance grid's cell (``LocalObstacles``' resolution)."""
+
+
+@dataclass
+class _Clearance:
+    """Clearance from what stands (a ``LocalObstacles`` grid) and from what moves
+    (returns predicted at constant velocity, counted ``margin`` nearer than they are)."""
+
+    still: LocalObstacles
+    movers: SeenObstacles
+    margin: float = 0.0
+
+    @classmethod
+    def of(cls, seen: SeenObstacles, obstacles: LocalObstacles) -> _Clearance:
+        """``seen`` split into what stands (``obstacles`` itself when nothing moves)
+        and what moves within ``MOVER_REACH``."""
+        moving = np.any(seen.velocities != 0, axis=1)
+        if not moving.any():
+            return cls(obstacles, SeenObstacles(np.zeros((0, 2)), np.zeros((0, 2))))
+        near = moving & (np.hypot(seen.points[:, 0], seen.points[:, 1]) <= MOVER_REACH)
+        still = LocalObstacles(seen.points[~moving], obstacles.reach, obstacles.resolution)
+        return cls(still, SeenObstacles(seen.points[near], seen.velocities[near]))
+
+    def along(self, xs: Floats, ys: Floats, times: Floats) -> Floats:
+        """Clearance at each point ``(xs, ys)`` (robot frame, shape (arcs, steps)) at
+        the step's time in ``times`` (steps,)."""
+        clear = self.still.clearance(xs, ys)
+        if len(self.movers.points) == 0:
+            return clear
+        predicted = self.movers.at(times)  # (steps, movers, 2)
+        dx = xs[:, :, None] - predicted[None, :, :, 0]
+        dy = ys[:, :, None] - predicted[None, :, :, 1]
+        moving = np.sqrt((dx * dx + dy * dy).min(axis=2)) - self.margin
+        return np.asarray(np.minimum(clear, moving))
+
+    def here(self) -> float:
+        """Clearance at the robot now."""
+        zero = np.zeros((1, 1))
+        return float(self.along(zero, zero, np.zeros(1))[0, 0])
+
+
+MOVER_REACH = 3.5
+"""Metres: returns that move farther than this are left out (at walking speed and the
+robot's, they cannot come within reach over the horizon)."""
+
+
 # --- the local controller --------------------------------------------------------------
 
 
@@ -176,43 +224,98 @@ class Choice:
 
 
 class DynamicWindow:
-    """The dynamic window approach (Fox, Burgard and Thrun, 1997) for a round robot.
+    """The dynamic window approach (Fox, Burgard and Thrun, 1997) for a round robot,
+    among things that move.
 
     Velocities reachable within one ``period`` under the acceleration limits are sampled
-    and each held for ``horizon`` seconds; arcs that come closer than ``radius + safety``
-    to a laser return are inadmissible (when the robot already stands closer, those that
-    come no closer than it is stay admissible, so it can leave). The rest are scored by
-    how near their end comes to the carrot, whether they end facing it, their clearance
-    and their speed. Arcs ending nearer a return than the robot stands now are never
-    admissible once it is that near, so it cannot creep closer tick by tick.
+    and each held for ``horizon`` seconds. The laser's returns are tracked
+    (``robots.agent.tracking``, the tracker TEB uses): those that stand are kept on a
+    clearance grid, and those that move (people, robots) are predicted at constant
+    velocity to each step's time, counting ``dynamic_obstacle_dist`` nearer than they
+    are. Arcs that come closer than ``radius + safety`` to either are inadmissible (when
+    the robot already stands closer, those that come no nearer than it is, and never
+    within half a cell of touching, stay admissible, so it can leave). The rest are scored
+    by how near their end comes to the carrot, whether they end facing it, their
+    clearance and their speed. With no way forward, the robot stops, or backs away at
+    ``back_off`` when something moving would run into it where it stands.
     """
 
     def __init__(self, config: RobotConfig) -> None:
         self.config = config
+        self.tracker = ObstacleTracker()
         steps = round(config.controller.horizon / config.period)
-        self._times = np.arange(1, steps + 1) * config.period
+        self._times: Floats = np.arange(1, steps + 1, dtype=np.float64) * config.period
 
     def choose(
-        self, velocity: Command, carrot: Point, obstacles: LocalObstacles, speed_cap: float
+        self,
+        velocity: Command,
+        carrot: Point,
+        obstacles: LocalObstacles,
+        speed_cap: float,
+        odom: Pose = (0.0, 0.0, 0.0),
+        seconds: float = 0.0,
     ) -> Choice:
-        """The best command toward ``carrot`` (robot frame) at most ``speed_cap`` m/s."""
+        """The best command toward ``carrot`` (robot frame) at most ``speed_cap`` m/s;
+        ``obstacles`` were seen at ``seconds`` with the odometry at ``odom`` (which lets
+        the tracker tell what moves)."""
+        clearance = _Clearance.of(self.tracker.update(obstacles.points, odom, seconds), obstacles)
+        clearance.margin = self.config.controller.dynamic_obstacle_dist
         linear, angular = self._samples(velocity, speed_cap)
         xs, ys, headings = self._rollout(linear, angular)
-        along = obstacles.clearance(xs, ys)
-        clear = along.min(axis=1)
-        here = float(obstacles.clearance(np.zeros(1), np.zeros(1))[0])
-        needed = self.config.body.radius + self.config.controller.safety
-        # Already too near: leave, along arcs that come no nearer (one cell of slack for
-        # the grid's steps) and end farther away.
-        admissible = (clear >= needed) | (
-            (here < needed) & (clear >= here - obstacles.resolution) & (along[:, -1] > here)
-        )
+        along = clearance.along(xs, ys, self._times)
+        admissible = self._admissible(along, clearance.here())
         forward = admissible & (linear > 0.02)
         if not forward.any():
-            return Choice(self._turn_toward(carrot) if admissible.any() else STOP, True)
-        cost = self._cost(xs[:, -1], ys[:, -1], headings[:, -1], carrot, clear, linear)
+            can_turn = bool(admissible.any())
+            return Choice(self._no_way_forward(velocity, carrot, clearance, can_turn), True)
+        cost = self._cost(xs[:, -1], ys[:, -1], headings[:, -1], carrot, along.min(axis=1), linear)
         best = int(np.argmin(np.where(forward, cost, np.inf)))
         return Choice((float(linear[best]), float(angular[best])))
+
+    def _admissible(self, along: Floats, here: float) -> NDArray[np.bool_]:
+        """Arcs that keep ``radius + safety`` clear all along; or, when the robot stands
+        nearer than that already, come no nearer (one cell of slack for the grid's
+        steps, but none within half a cell of touching) and end farther away."""
+        radius = self.config.body.radius
+        needed = radius + self.config.controller.safety
+        clear = along.min(axis=1)
+        if here >= needed:
+            return np.asarray(clear >= needed)
+        floor = min(here, max(here - CELL, radius + CELL / 2))
+        return np.asarray((clear >= floor) & (along[:, -1] > here))
+
+    def _no_way_forward(
+        self, velocity: Command, carrot: Point, clearance: _Clearance, can_turn: bool
+    ) -> Command:
+        """Back away from something moving that would run into the robot where it
+        stands, if a way back is clear; else turn toward the carrot, or stop."""
+        needed = self.config.body.radius + self.config.controller.safety
+        if self._standing_clearance(clearance) < needed:
+            back = self._backwards(velocity, clearance)
+            if back is not None:
+                return back
+        return self._turn_toward(carrot) if can_turn else STOP
+
+    def _backwards(self, velocity: Command, clearance: _Clearance) -> Command | None:
+        """The straight way back at up to ``back_off`` that stays clearest of everything
+        over the horizon, if it comes no nearer than standing still does."""
+        body, period = self.config.body, self.config.period
+        speed = max(-self.config.controller.back_off, velocity[0] - body.linear_accel * period)
+        linear = np.array([speed, speed / 2])
+        angular = np.zeros(2)
+        xs, ys, _ = self._rollout(linear, angular)
+        clear = clearance.along(xs, ys, self._times).min(axis=1)
+        best = int(np.argmax(clear))
+        return (
+            (float(linear[best]), 0.0)
+            if clear[best] > self._standing_clearance(clearance)
+            else None
+        )
+
+    def _standing_clearance(self, clearance: _Clearance) -> float:
+        """The least clearance over the horizon of the robot standing where it is."""
+        still = np.zeros((1, len(self._times)))
+        return float(clearance.along(still, still, self._times).min())
 
     def _samples(self, velocity: Command, speed_cap: float) -> tuple[Floats, Floats]:
         """Linear and angular velocities of every sample (flattened grid)."""
@@ -453,7 +556,8 @@ class Driver:
             # Slow enough to stop at the target within the braking limit, with a margin.
             cap = math.sqrt(2 * self.config.body.linear_accel * distance) * 0.7
             if self.teb is None:
-                choice = self.controller.choose(velocity, (local[0], local[1]), obstacles, cap)
+                toward = (local[0], local[1])
+                choice = self.controller.choose(velocity, toward, obstacles, cap, odom, seconds)
             else:
                 choice = self._band_choice(pose, odom, velocity, obstacles, cap, seconds)
             self._note_blocked(choice.blocked, seconds)

@@ -121,6 +121,13 @@ class ControllerConfig:
 
     safety: float = 0.04
     """m of clearance a trajectory keeps beyond the body's radius."""
+    dynamic_obstacle_dist: float = 0.15
+    """m of clearance a trajectory keeps from returns that move, beyond ``safety``, each
+    predicted at constant velocity to the time the trajectory gets there (as TEB's
+    ``teb.dynamic_obstacle_dist``: people may turn)."""
+    back_off: float = 0.15
+    """m/s: the speed the robot backs away at when something moving would run into it
+    where it stands and no way forward is clear."""
     horizon: float = 1.6
     """s each sampled trajectory is simulated for."""
     linear_samples: int = 9

@@ -8,7 +8,8 @@ radius and 0.4 m tall. The ``Crowd`` holds them on the simulated clock: robots' 
 
 People walk routes of waypoints at their own pace (0.5 to 1.4 m/s by default), pause at
 some waypoints, and loop. A person gives way to a robot: while one stands within
-``GIVE_WAY`` metres ahead of them they stand still, and after ``TURN_BACK`` seconds of
+``GIVE_WAY`` metres ahead of them, nearer their path than ``PASSING`` (they do not
+brush past a robot), they stand still, and after ``TURN_BACK`` seconds of
 that they turn round and walk their route the other way. Some people (``seeks_robots``)
 walk straight towards a robot they can see within ``SEEK_RANGE``, until they must give
 way, then go back to their route. People do not avoid one another: they pass through
@@ -44,6 +45,12 @@ WALKING_SPEEDS = (0.5, 1.4)
 """m/s: the range people's paces are drawn from."""
 GIVE_WAY = 0.45
 """Metres of free floor a person keeps between themselves and a robot ahead."""
+PASSING = 0.05
+"""Metres a person keeps between themselves and a robot they walk past: one nearer their
+path than that is in their way (people do not brush past a robot)."""
+START_CLEARANCE = 1.0
+"""Metres between a seeded person's start and the places given to keep clear (robots'
+starts)."""
 TURN_BACK = 4.0
 """Seconds a person waits for a robot in the way before turning round."""
 SEEK_RANGE = 5.0
@@ -177,14 +184,15 @@ class Person:
         self._next = (self._next + self._step) % len(self.route)
 
     def _in_the_way(self, heading: float, robots: Sequence[Body]) -> bool:
-        """Whether a robot stands within ``GIVE_WAY`` of this person's path ahead."""
+        """Whether a robot stands within ``GIVE_WAY`` ahead, and nearer than ``PASSING``
+        to this person's path."""
         for robot in robots:
             rx, ry, _ = robot.pose
             dx, dy = rx - self.x, ry - self.y
             ahead = dx * math.cos(heading) + dy * math.sin(heading)
             aside = abs(-dx * math.sin(heading) + dy * math.cos(heading))
             reach = self.radius + robot.radius
-            if ahead > 0 and aside < reach and ahead < reach + GIVE_WAY:
+            if ahead > 0 and aside < reach + PASSING and ahead < reach + GIVE_WAY:
                 return True
         return False
 
@@ -267,11 +275,17 @@ class Crowd:
 
 
 def seeded_people(
-    world: World, count: int, seed: int, walkable: NDArray[np.bool_] | None = None
+    world: World,
+    count: int,
+    seed: int,
+    walkable: NDArray[np.bool_] | None = None,
+    keep_clear: Sequence[Point] = (),
 ) -> list[Person]:
     """``count`` people with routes of 3 or 4 random places joined by planned paths,
     a pace in ``WALKING_SPEEDS``, a pause of 1 to 4 s at half their waypoints, and
-    start times spread over the first 5 s."""
+    start times spread over the first 5 s. Each starts at the first waypoint of their
+    loop at least ``START_CLEARANCE`` from every place of ``keep_clear`` (the robots'
+    starts), or the farthest from them."""
     rng = np.random.default_rng(seed)
     mask = (world.cells == FREE) if walkable is None else walkable & (world.cells == FREE)
     grid = np.where(mask, 0, 100).astype(np.int8)
@@ -279,12 +293,23 @@ def seeded_people(
     spots = np.argwhere(~costmap.blocked)
     people = []
     for index in range(count):
-        route = _route(costmap, spots, rng)
+        route = _starting_clear(_route(costmap, spots, rng), keep_clear)
         pauses = [float(rng.uniform(1.0, 4.0)) if rng.random() < 0.5 else 0.0 for _ in route]
         speed = float(rng.uniform(*WALKING_SPEEDS))
         start = float(rng.uniform(0.0, 5.0))
         people.append(Person(route, speed, pauses, seeks_robots=index % 4 == 3, start_after=start))
     return people
+
+
+def _starting_clear(route: list[Point], keep_clear: Sequence[Point]) -> list[Point]:
+    """The loop ``route`` started at its first waypoint ``START_CLEARANCE`` from every
+    place of ``keep_clear``, or the farthest from them."""
+    if not keep_clear:
+        return route
+    room = [min(math.dist(point, place) for place in keep_clear) for point in route]
+    clear = [index for index, gap in enumerate(room) if gap >= START_CLEARANCE]
+    first = clear[0] if clear else int(np.argmax(room))
+    return route[first:] + route[:first]
 
 
 def _route(costmap: Costmap, spots: NDArray[np.intp], rng: np.random.Generator) -> list[Point]:
