@@ -288,34 +288,31 @@ class DynamicWindow:
         self, velocity: Command, carrot: Point, clearance: _Clearance, can_turn: bool
     ) -> Command:
         """Back away from something moving that would run into the robot where it
-        stands, if a way back is clear; else turn toward the carrot, or stop."""
-        needed = self.config.body.radius + self.config.controller.safety
-        if self._standing_clearance(clearance) < needed:
-            back = self._backwards(velocity, clearance)
+        stands, if backing puts that off; else turn toward the carrot, or stop."""
+        still = np.zeros((1, len(self._times)))
+        standing = self._conflict_steps(clearance.along(still, still, self._times))[0]
+        if standing < len(self._times):
+            back = self._backwards(velocity, clearance, standing)
             if back is not None:
                 return back
         return self._turn_toward(carrot) if can_turn else STOP
 
-    def _backwards(self, velocity: Command, clearance: _Clearance) -> Command | None:
-        """The straight way back at up to ``back_off`` that stays clearest of everything
-        over the horizon, if it comes no nearer than standing still does."""
+    def _backwards(self, velocity: Command, clearance: _Clearance, standing: int) -> Command | None:
+        """The straight way back at up to ``back_off`` that meets something latest, if
+        later than the ``standing`` step of standing still."""
         body, period = self.config.body, self.config.period
         speed = max(-self.config.controller.back_off, velocity[0] - body.linear_accel * period)
         linear = np.array([speed, speed / 2])
-        angular = np.zeros(2)
-        xs, ys, _ = self._rollout(linear, angular)
-        clear = clearance.along(xs, ys, self._times).min(axis=1)
-        best = int(np.argmax(clear))
-        return (
-            (float(linear[best]), 0.0)
-            if clear[best] > self._standing_clearance(clearance)
-            else None
-        )
+        xs, ys, _ = self._rollout(linear, np.zeros(2))
+        conflict = self._conflict_steps(clearance.along(xs, ys, self._times))
+        best = int(np.argmax(conflict))
+        return (float(linear[best]), 0.0) if conflict[best] > standing else None
 
-    def _standing_clearance(self, clearance: _Clearance) -> float:
-        """The least clearance over the horizon of the robot standing where it is."""
-        still = np.zeros((1, len(self._times)))
-        return float(clearance.along(still, still, self._times).min())
+    def _conflict_steps(self, along: Floats) -> NDArray[np.intp]:
+        """Per arc, the first step nearer than ``radius + safety`` to something (the
+        number of steps when none is)."""
+        near = along < self.config.body.radius + self.config.controller.safety
+        return np.asarray(np.where(near.any(axis=1), near.argmax(axis=1), near.shape[1]), np.intp)
 
     def _samples(self, velocity: Command, speed_cap: float) -> tuple[Floats, Floats]:
         """Linear and angular velocities of every sample (flattened grid)."""
