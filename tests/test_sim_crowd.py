@@ -9,7 +9,16 @@ import numpy as np
 import pytest
 
 from robots.agent.fleet import demo_crowd
-from robots.agent.sim.crowd import GIVE_WAY, TURN_BACK, WALKING_SPEEDS, Crowd, Person
+from robots.agent.sim.crowd import (
+    GIVE_WAY,
+    PASSING,
+    START_CLEARANCE,
+    TURN_BACK,
+    WALKING_SPEEDS,
+    Crowd,
+    Person,
+    seeded_people,
+)
 from robots.agent.sim.hardware import SimHardware
 from robots.agent.sim.laser import LaserSpec
 from robots.agent.sim.world import demo_world
@@ -103,6 +112,30 @@ def test_a_person_gives_way_to_a_robot_then_turns_back() -> None:
     assert stop - 6.0 == pytest.approx(0.25 + 0.18 + GIVE_WAY, abs=0.06)
     crowd.advance_to(6.0 + TURN_BACK + 2.0)
     assert walker.x > stop + 1.0  # walking away, back the way they came
+
+
+def test_a_person_walking_past_a_standing_robot_keeps_clear_of_it() -> None:
+    world = demo_world()
+    # Their path passes the robot's edge with 3 mm to spare (a contact to the bench):
+    # nearer than PASSING, so they stop short of it instead of brushing past.
+    aside = 0.25 + 0.18 + 0.003
+    assert aside < 0.25 + 0.18 + PASSING
+    walker = Person([(10.0, 23.2 + aside), (5.0, 23.2 + aside)], speed=1.4)
+    crowd = Crowd(world, [walker])
+    hardware = SimHardware(world, POSE, crowd=crowd)
+    for step in range(1, 121):
+        crowd.advance_to(step * 0.05)
+        gap = math.dist(walker.position(), POSE[:2]) - walker.radius - hardware.body.radius
+        assert gap > GIVE_WAY / 2
+    assert walker.x > POSE[0]  # they stopped before passing it
+
+
+def test_seeded_people_start_clear_of_the_robots_starts() -> None:
+    world = demo_world()
+    robot = (5.0, 23.2)  # the west end of Corridor A, where the bench's robot starts
+    for seed in range(40):
+        for person in seeded_people(world, 8, seed, keep_clear=[robot]):
+            assert math.dist(person.route[0], robot) >= START_CLEARANCE
 
 
 def test_a_robot_seeking_person_walks_towards_a_robot_in_sight() -> None:
