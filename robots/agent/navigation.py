@@ -171,35 +171,39 @@ CELL = 0.05
 
 @dataclass
 class _Clearance:
-    """Clearance from what stands (a ``LocalObstacles`` grid) and from what moves
+    """Clearance from what stands (a ``LocalObstacles`` grid for returns farther than
+    ``EXACT_REACH``, exact distances to the nearer ones, so that a robot close to
+    something cannot creep nearer within one cell of the grid) and from what moves
     (returns predicted at constant velocity, counted ``margin`` nearer than they are)."""
 
     still: LocalObstacles
+    near: Floats
     movers: SeenObstacles
     margin: float = 0.0
 
     @classmethod
     def of(cls, seen: SeenObstacles, obstacles: LocalObstacles) -> _Clearance:
-        """``seen`` split into what stands (``obstacles`` itself when nothing moves)
-        and what moves within ``MOVER_REACH``."""
+        """``seen`` split into what stands, far and near, and what moves within
+        ``MOVER_REACH``."""
         moving = np.any(seen.velocities != 0, axis=1)
-        if not moving.any():
-            return cls(obstacles, SeenObstacles(np.zeros((0, 2)), np.zeros((0, 2))))
-        near = moving & (np.hypot(seen.points[:, 0], seen.points[:, 1]) <= MOVER_REACH)
-        still = LocalObstacles(seen.points[~moving], obstacles.reach, obstacles.resolution)
-        return cls(still, SeenObstacles(seen.points[near], seen.velocities[near]))
+        distance = np.hypot(seen.points[:, 0], seen.points[:, 1])
+        near = ~moving & (distance < EXACT_REACH)
+        far = ~moving & ~near
+        still = LocalObstacles(seen.points[far], obstacles.reach, obstacles.resolution)
+        movers = moving & (distance <= MOVER_REACH)
+        return cls(
+            still, seen.points[near], SeenObstacles(seen.points[movers], seen.velocities[movers])
+        )
 
     def along(self, xs: Floats, ys: Floats, times: Floats) -> Floats:
         """Clearance at each point ``(xs, ys)`` (robot frame, shape (arcs, steps)) at
         the step's time in ``times`` (steps,)."""
         clear = self.still.clearance(xs, ys)
-        if len(self.movers.points) == 0:
-            return clear
-        predicted = self.movers.at(times)  # (steps, movers, 2)
-        dx = xs[:, :, None] - predicted[None, :, :, 0]
-        dy = ys[:, :, None] - predicted[None, :, :, 1]
-        moving = np.sqrt((dx * dx + dy * dy).min(axis=2)) - self.margin
-        return np.asarray(np.minimum(clear, moving))
+        if len(self.near):
+            clear = np.minimum(clear, _nearest(xs, ys, self.near[None, :, :]))
+        if len(self.movers.points):
+            clear = np.minimum(clear, _nearest(xs, ys, self.movers.at(times)) - self.margin)
+        return np.asarray(clear)
 
     def here(self) -> float:
         """Clearance at the robot now."""
@@ -207,6 +211,16 @@ class _Clearance:
         return float(self.along(zero, zero, np.zeros(1))[0, 0])
 
 
+def _nearest(xs: Floats, ys: Floats, points: Floats) -> Floats:
+    """Distance from each point ``(xs, ys)`` (arcs, steps) to the nearest of ``points``
+    at its step, (steps, n, 2), or the same ``points`` at every step, (1, n, 2)."""
+    dx = xs[:, :, None] - points[None, :, :, 0]
+    dy = ys[:, :, None] - points[None, :, :, 1]
+    return np.asarray(np.sqrt((dx * dx + dy * dy).min(axis=2)))
+
+
+EXACT_REACH = 0.6
+"""Metres: returns that stand nearer than this are measured exactly, not on the grid."""
 MOVER_REACH = 3.5
 """Metres: returns that move farther than this are left out (at walking speed and the
 robot's, they cannot come within reach over the horizon)."""
