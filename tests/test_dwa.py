@@ -67,9 +67,9 @@ def test_a_dwa_robot_backs_away_from_a_person_walking_into_it() -> None:
     driver = Driver(config)
     pose: Pose = (0.0, 0.0, 0.0)
     commands = []
-    for cycle in range(8):
+    for cycle in range(6):
         seconds = cycle * config.period
-        person = (1.2 - 0.6 * seconds, 0.0)  # walking straight at the robot, on its way
+        person = (0.9 - 0.6 * seconds, 0.0)  # walking straight at the robot, on its way
         obstacles = scan_of(person, pose)
         drive = driver.drive((1.6, 0.0, 0.0), None, pose, (0.0, 0.0), obstacles, seconds, pose)
         assert drive.command is not None

@@ -251,7 +251,8 @@ class DynamicWindow:
     within half a cell of touching, stay admissible, so it can leave). The rest are scored
     by how near their end comes to the carrot, whether they end facing it, their
     clearance and their speed. With no way forward, the robot stops, or backs away at
-    ``back_off`` when something moving would run into it where it stands.
+    ``back_off`` when something moving would run into it where it stands within half
+    the horizon.
     """
 
     def __init__(self, config: RobotConfig) -> None:
@@ -302,10 +303,13 @@ class DynamicWindow:
         self, velocity: Command, carrot: Point, clearance: _Clearance, can_turn: bool
     ) -> Command:
         """Back away from something moving that would run into the robot where it
-        stands, if backing puts that off; else turn toward the carrot, or stop."""
-        still = np.zeros((1, len(self._times)))
-        standing = self._conflict_steps(clearance.along(still, still, self._times))[0]
-        if standing < len(self._times):
+        stands within half the horizon, if backing puts that off; else turn toward the
+        carrot, or stop. (A person who is about to stop for the robot is no reason to
+        back away: only a meeting that near is.)"""
+        soon = self._times[: len(self._times) // 2]
+        still = np.zeros((1, len(soon)))
+        standing = self._conflict_steps(clearance.along(still, still, soon))[0]
+        if standing < len(soon):
             back = self._backwards(velocity, clearance, standing)
             if back is not None:
                 return back
@@ -313,19 +317,20 @@ class DynamicWindow:
 
     def _backwards(self, velocity: Command, clearance: _Clearance, standing: int) -> Command | None:
         """The straight way back at up to ``back_off`` that meets something latest, if
-        later than the ``standing`` step of standing still."""
+        no sooner than the ``standing`` step of standing still (backing off from a fast
+        walker may not put the meeting off a whole step, but softens it)."""
         body, period = self.config.body, self.config.period
         speed = max(-self.config.controller.back_off, velocity[0] - body.linear_accel * period)
         linear = np.array([speed, speed / 2])
         xs, ys, _ = self._rollout(linear, np.zeros(2))
         conflict = self._conflict_steps(clearance.along(xs, ys, self._times))
         best = int(np.argmax(conflict))
-        return (float(linear[best]), 0.0) if conflict[best] > standing else None
+        return (float(linear[best]), 0.0) if conflict[best] >= standing else None
 
     def _conflict_steps(self, along: Floats) -> NDArray[np.intp]:
-        """Per arc, the first step nearer than ``radius + safety`` to something (the
-        number of steps when none is)."""
-        near = along < self.config.body.radius + self.config.controller.safety
+        """Per arc, the first step within the body's radius of something (movers'
+        margin counted); the number of steps when none is."""
+        near = along < self.config.body.radius
         return np.asarray(np.where(near.any(axis=1), near.argmax(axis=1), near.shape[1]), np.intp)
 
     def _samples(self, velocity: Command, speed_cap: float) -> tuple[Floats, Floats]:
