@@ -428,12 +428,7 @@ async def test_the_bridge_node_carries_an_operators_goal_to_ros_and_survives_the
     finally:
         odom_out.unregister()  # latched: later tests' robots would read them
         scan_out.unregister()
-        bridge.terminate()
-        try:
-            bridge.wait(timeout=30)
-        except subprocess.TimeoutExpired:
-            bridge.kill()
-            bridge.wait(timeout=30)
+        stop_node(bridge)
 
 
 # --- a ROS 1 robot of rospy nodes, its own move_base, the bridge and the cloud -----------
