@@ -4,13 +4,19 @@ BIN := .venv/bin
 export CLOUDNAV_TEST_REDIS_URL ?= redis://127.0.0.1:6379/9
 export CLOUDNAV_TEST_POSTGRES_URL ?= postgres://postgres:postgres@127.0.0.1:5432/postgres
 
-.PHONY: setup services demo test unit lint typecheck pytest bench format
+.PHONY: setup services demo test unit lint typecheck pytest bench format ros2
 
 setup:
 	bash scripts/setup.sh
 
 services:
 	bash scripts/services.sh
+
+## The ROS 2 robot side's virtualenvs (Jazzy, Kilted), built once and cached; the ROS 2
+## tests build them too when absent.
+ros2:
+	bash scripts/ros2_env.sh jazzy
+	bash scripts/ros2_env.sh kilted
 
 ## Set up, seed the demo building and run the server (http://127.0.0.1:8000) with simulated robots.
 demo: setup

@@ -26,6 +26,17 @@ and the robots' noise.
   one's: cells inside a new obstacle are seen by nobody) that were proposed;
   ``false_cell_rate`` the proposed cells that did not change, over the cells observed
   (``false_share_of_proposed``: over the cells proposed).
+- **No change, live** (``false_proposed_cells``, ``no_change_*``): where upkeep failed
+  before. A daphne on a scratch database seeded with the demo building (its maps are the
+  building as it is: nothing changed), three simulated robots in this process starting
+  by the entrance tag with their cameras, particle filters and rosbridge as ``make demo``
+  runs them, each sent from sub-map to sub-map (``TOUR``) again and again, while a second
+  process keeps a core busy (``--no-load`` leaves it out), for ``--no-change-minutes``
+  simulated minutes of each robot (30 by default; the robots' clocks fall behind the
+  wall clock on a loaded machine, as they did when it failed). Every cell the fleet then
+  proposes is a false one: ``false_proposed_cells`` must be 0.
+  ``no_change_simulated_min`` is how far the robots' clocks got, ``no_change_wall_min``
+  the wall time it took.
 - **Accept to robot** (``accept_to_robot_s``): a daphne on a scratch database seeded
   with the demo building and ``--robots`` simulated robots in this process, standing in
   Corridor A (localised from the entrance tag); an admin's accepted change (a new
@@ -43,6 +54,7 @@ import contextlib
 import itertools
 import json
 import math
+import sys
 import time
 from dataclasses import dataclass
 from typing import Any
@@ -71,6 +83,7 @@ from robots.domain.params import RobotConfig
 from robots.domain.se2 import Pose, wrap
 
 SCAN_RATE = 10.0
+HTTP_TIMEOUT = 60.0  # seconds: the bench's server answers slowly on a loaded machine
 SPEED = 0.35  # m/s the operator drives at
 TURN = 1.2  # rad/s at most
 
@@ -79,12 +92,29 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=int, default=0, help="the world's changes and the noise")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     parser.add_argument("--robots", type=int, default=3, help="robots taking a new version")
+    parser.add_argument(
+        "--no-change-minutes",
+        type=float,
+        default=30.0,
+        help="simulated minutes of each robot in the no-change live run (0: no such run)",
+    )
+    parser.add_argument(
+        "--no-change-time-scale",
+        type=float,
+        default=1.0,
+        help="the robots' pace against the wall clock in the no-change run",
+    )
+    parser.add_argument(
+        "--no-load", action="store_true", help="no second process loading the machine"
+    )
 
 
 def run(options: dict[str, Any]) -> None:
     result = measure_mapping(options["seed"])
     result.update(measure_change_detection(options["seed"]))
     result["accept_to_robot_s"] = asyncio.run(measure_accept_to_robot(options))
+    if options["no_change_minutes"] > 0:
+        result.update(asyncio.run(measure_no_change(options)))
     if options["json"]:
         print(json.dumps(result))
     else:
@@ -389,7 +419,9 @@ async def measure_accept_to_robot(options: dict[str, Any]) -> float:
                     estimate, "boccioni_1/CorridorA", member.robot.tracker.odom
                 )
             await _until(lambda: all(_holds(m, 1) for m in fleet), 60)
-            async with httpx.AsyncClient(base_url=url, auth=("admin", _admin_password())) as http:
+            async with httpx.AsyncClient(
+                base_url=url, auth=("admin", _admin_password()), timeout=HTTP_TIMEOUT
+            ) as http:
                 accepted = time.monotonic()
                 answer = await http.post(
                     "/api/buildings/boccioni_1/maps/CorridorA/versions/1/rollback",
@@ -402,6 +434,97 @@ async def measure_accept_to_robot(options: dict[str, Any]) -> float:
             running.cancel()
             with contextlib.suppress(asyncio.CancelledError):
                 await running
+
+
+# --- no change, live --------------------------------------------------------------------
+
+TOUR = ("Atrium1", "CorridorB", "CorridorC", "Atrium2", "CorridorD", "Atrium3", "Office7")
+"""Where the robots are sent in turn (the centre of each sub-map's main space), and back."""
+
+
+async def measure_no_change(options: dict[str, Any]) -> dict[str, Any]:
+    """Three robots touring the unchanged demo building; what the fleet proposed."""
+    from benchmarks.agent import demo_server
+
+    minutes = options["no_change_minutes"]
+    load = None if options["no_load"] else _busy_process()
+    try:
+        with demo_server({"url": None, "robots": 3}) as (url, tokens):
+            fleet = build_fleet(list(tokens.items())[:3], FleetOptions(url, seed=options["seed"]))
+            started = time.monotonic()
+            running = asyncio.create_task(run_fleet(fleet, options["no_change_time_scale"]))
+            try:
+                await _tour_until(fleet, minutes * 60, options["seed"])
+                simulated = min(m.robot.seconds for m in fleet)
+                await asyncio.sleep(2 * 5.0 + 2.0)  # the upkeep's last batch and save
+            finally:
+                running.cancel()
+                with contextlib.suppress(asyncio.CancelledError):
+                    await running
+            proposed = await _open_proposals(url)
+    finally:
+        if load is not None:
+            load.kill()
+            load.wait()
+    return {
+        "false_proposed_cells": sum(proposed.values()),
+        "no_change_proposals": proposed,
+        "no_change_simulated_min": round(simulated / 60, 2),
+        "no_change_wall_min": round((time.monotonic() - started) / 60, 2),
+        "no_change_loaded": load is not None,
+    }
+
+
+def _busy_process() -> Any:
+    """A second process keeping a core busy, as the machine was when upkeep failed."""
+    import subprocess
+
+    return subprocess.Popen([sys.executable, "-c", "while True: pass"])
+
+
+async def _tour_until(fleet: list[Any], seconds: float, seed: int) -> None:
+    """Send each idle robot to its next sub-map of ``TOUR`` until every robot's clock
+    has run ``seconds`` (no wall deadline: a loaded machine only takes longer)."""
+    spaces = space_interiors()
+    steps = [seed + index for index in range(len(fleet))]
+    said = time.monotonic()
+    while min(m.robot.seconds for m in fleet) < seconds:
+        if time.monotonic() - said >= 60:  # a long run says how far it got
+            said = time.monotonic()
+            clocks = ", ".join(f"{m.robot.seconds:.0f}" for m in fleet)
+            print(f"no change: robots' clocks at {clocks} of {seconds:.0f} s", file=sys.stderr)
+        for index, member in enumerate(fleet):
+            robot = member.robot
+            if robot.navigator.board.active is None and robot.supervisor.current is not None:
+                code = TOUR[steps[index] % len(TOUR)]
+                steps[index] += 1
+                x0, y0, x1, y1 = spaces[code][0]
+                robot.on_goal(
+                    {
+                        "header": {"frame_id": f"boccioni_1/{code}"},
+                        "pose": {
+                            "position": {"x": (x0 + x1) / 2, "y": (y0 + y1) / 2, "z": 0.0},
+                            "orientation": {"w": 1.0},
+                        },
+                    }
+                )
+        await asyncio.sleep(1.0)
+
+
+async def _open_proposals(url: str) -> dict[str, int]:
+    """Cells of each sub-map's open proposal (by code; sub-maps with none left out)."""
+    async with httpx.AsyncClient(
+        base_url=url, auth=("admin", _admin_password()), timeout=HTTP_TIMEOUT
+    ) as http:
+        maps = (await http.get("/api/buildings/boccioni_1/maps/")).json()
+        found: dict[str, int] = {}
+        for entry in maps:
+            code = entry["code"]
+            answer = await http.get(f"/api/buildings/boccioni_1/maps/{code}/changes/?state=open")
+            cells = sum(len(p["added"]) + len(p["removed"]) for p in answer.json())
+            if cells:
+                found[code] = cells
+        return found
 
 
 def _holds(member: Any, revision: int) -> bool:

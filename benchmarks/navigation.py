@@ -40,6 +40,7 @@ import numpy as np
 
 from maps.domain.demo_building import demo_building
 from maps.domain.planning import warm_up
+from robots.agent.depth_scan import ObstacleMemory, seen_obstacles
 from robots.agent.navigation import STOP, Driver, DriveState, LocalObstacles
 from robots.agent.sim.crowd import Crowd, Person, seeded_people
 from robots.agent.sim.hardware import SimHardware
@@ -65,6 +66,10 @@ SOUTH_WEST, NORTH_EAST = (18.7, 19.9, math.pi / 4), (25.3, 26.5, math.pi / 4)
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=int, default=1, help="seed of the trials")
     parser.add_argument("--planner", choices=("dwa", "teb"), default="teb")
+    parser.add_argument(
+        "--sensors", choices=("laser", "rgbd"), default="laser",
+        help="the robots' laser, or an RGB-D camera alone (scan made from depth)",
+    )  # fmt: skip
     parser.add_argument("--trials", type=int, default=3, help="trials per scenario")
     parser.add_argument("--scenarios", help="comma-separated subset of the scenarios")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
@@ -73,7 +78,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(options: dict[str, Any]) -> None:
     warm_up()
     names = options["scenarios"].split(",") if options.get("scenarios") else list(SCENARIOS)
-    config = RobotConfig(local_planner=options["planner"])
+    config = RobotConfig(local_planner=options["planner"], sensors=options.get("sensors", "laser"))
     results = [
         trial(name, config, options["seed"] * 1000 + 10 * index + number)
         for index, name in enumerate(names)
@@ -163,6 +168,7 @@ class RobotRun:
     hardware: SimHardware
     driver: Driver
     goal: Pose
+    seen: ObstacleMemory
     arrived_at: float | None = None
     failed: str = ""
     contacts: int = 0
@@ -192,11 +198,7 @@ def trial(scenario: str, config: RobotConfig, seed: int) -> TrialResult:
     crowd = Crowd(world, setup.people)
     submap = building_submap()
     runs = [
-        RobotRun(
-            SimHardware(world, start, seed=seed + i, limits=config.body, crowd=crowd),
-            Driver(config),
-            goal,
-        )
+        _robot_run(world, crowd, config, seed + i, start, goal)
         for i, (start, goal) in enumerate(setup.robots)
     ]
     seconds = 0.0
@@ -205,6 +207,15 @@ def trial(scenario: str, config: RobotConfig, seed: int) -> TrialResult:
         for run in runs:
             _step(run, submap, seconds, crowd)
     return _result(scenario, runs)
+
+
+def _robot_run(
+    world: World, crowd: Crowd, config: RobotConfig, seed: int, start: Pose, goal: Pose
+) -> RobotRun:
+    hardware = SimHardware(
+        world, start, seed=seed, limits=config.body, crowd=crowd, sensors=config.sensors
+    )
+    return RobotRun(hardware, Driver(config), goal, seen_obstacles(hardware.scan_mount, config))
 
 
 def _step(run: RobotRun, submap: SubMap, seconds: float, crowd: Crowd) -> None:
@@ -218,8 +229,8 @@ def _step(run: RobotRun, submap: SubMap, seconds: float, crowd: Crowd) -> None:
     if run.arrived_at is not None or run.failed:
         hardware.command(0.0, 0.0)
         return
-    ranges = hardware.scan().astype(np.float64)
-    obstacles = LocalObstacles.from_scan(ranges, hardware.scan_angles)
+    points = run.seen.update(hardware.scan(), hardware.scan_angles, hardware.odom_pose, seconds)
+    obstacles = LocalObstacles(points)
     started = time.process_time()
     drive = run.driver.drive(
         run.goal, submap, after, hardware.reported_velocity, obstacles, seconds, hardware.odom_pose
@@ -297,7 +308,12 @@ def building_submap() -> SubMap:
 
 def summarise(results: list[TrialResult], options: dict[str, Any]) -> dict[str, Any]:
     """The JSON object: totals over every trial, then per scenario."""
-    summary = {"planner": options["planner"], "seed": options["seed"], **_figures(results)}
+    summary = {
+        "planner": options["planner"],
+        "sensors": options.get("sensors", "laser"),
+        "seed": options["seed"],
+        **_figures(results),
+    }
     head_on = [r for r in results if r.scenario == "head_on"]
     summary["head_on_trials"] = len(head_on)
     summary["head_on_passes"] = sum(r.success and r.collisions == 0 for r in head_on)

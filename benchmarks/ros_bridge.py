@@ -168,11 +168,14 @@ def _summary(delays: list[float]) -> dict[str, Any]:
 
 
 @contextlib.contextmanager
-def node(env: dict[str, str], log: Path, *command: str) -> Iterator[subprocess.Popen[bytes]]:
-    """``python -m <command>`` on the private roscore, logging to ``log``; stopped after."""
+def node(
+    env: dict[str, str], log: Path, *command: str, python: str = sys.executable
+) -> Iterator[subprocess.Popen[bytes]]:
+    """``python -m <command>`` in ``env`` (a private roscore's, a ROS 2 domain's), logging
+    to ``log``; stopped after."""
     with log.open("wb") as out:
         process = subprocess.Popen(
-            [sys.executable, "-m", *command],
+            [python, "-m", *command],
             env={**env, "PYTHONPATH": str(ROOT)},
             cwd=ROOT,
             stdout=out,

@@ -23,10 +23,11 @@ from __future__ import annotations
 import threading
 import weakref
 from collections import Counter
-from collections.abc import AsyncIterator, Callable, Mapping
+from collections.abc import AsyncIterator, Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
+from asgiref.sync import sync_to_async
 from django.conf import settings
 from django.http import HttpResponse, HttpResponseBase, StreamingHttpResponse
 from rest_framework import status
@@ -139,6 +140,11 @@ def video_budget() -> HeavyBudget:
     return _budget("CLOUDNAV_VIDEO_ENCODER")
 
 
+def export_budget() -> HeavyBudget:
+    """Return this process's budget of recording exports (each held until it is sent)."""
+    return _budget("CLOUDNAV_EXPORT")
+
+
 def _budget(prefix: str) -> HeavyBudget:
     # Keyed by the settings too, so a test that changes them gets a budget of its own.
     key = (
@@ -197,6 +203,55 @@ def heavy_response(
         response["Content-Length"] = str(len(body))
     release_with(response, ticket)
     return response
+
+
+def budgeted_stream(
+    request: Any, ticket: Ticket, chunks: Iterator[bytes], content_type: str
+) -> StreamingHttpResponse:
+    """Answer with ``chunks`` as they are made, holding ``ticket`` until the answer is done.
+
+    Under ASGI each chunk is made in a worker thread once the client took the one before,
+    so the answer never waits whole in memory (Django would read a plain iterator to its
+    end first) nor in Twisted's buffer.
+    """
+    scope = getattr(getattr(request, "_request", request), "scope", None)
+    content = _releasing(chunks, ticket) if scope is None else _paced_chunks(chunks, scope, ticket)
+    response = StreamingHttpResponse(content, content_type=content_type)
+    release_with(response, ticket)
+    return response
+
+
+def _releasing(chunks: Iterator[bytes], ticket: Ticket) -> Iterator[bytes]:
+    try:
+        yield from chunks
+    finally:
+        ticket.release()
+
+
+_DONE = object()
+
+
+def _next_chunk(chunks: Iterator[bytes]) -> object:
+    return next(chunks, _DONE)
+
+
+async def _paced_chunks(
+    chunks: Iterator[bytes], scope: Mapping[str, Any], ticket: Ticket
+) -> AsyncIterator[bytes]:
+    """Yield ``chunks``, each made (in a thread: it reads files) once the client took the
+    one before."""
+    readiness = readiness_for(scope)  # here, on the event loop, where Twisted runs
+    made = sync_to_async(_next_chunk, thread_sensitive=False)
+    try:
+        while (chunk := await made(chunks)) is not _DONE:
+            await readiness.wait()
+            yield chunk  # type: ignore[misc]
+    finally:
+        readiness.close()
+        ticket.release()
+        close = getattr(chunks, "close", None)
+        if close is not None:
+            await sync_to_async(close, thread_sensitive=False)()
 
 
 async def _paced(body: bytes, scope: Mapping[str, Any], ticket: Ticket) -> AsyncIterator[bytes]:

@@ -54,6 +54,8 @@ CLOUDNAV_KEYFRAME_DIR = Path(
 CLOUDNAV_KEYFRAME_QUEUE = int(os.environ.get("CLOUDNAV_KEYFRAME_QUEUE", "32"))
 CLOUDNAV_MAX_IMAGE_PIXELS = int(os.environ.get("CLOUDNAV_MAX_IMAGE_PIXELS", str(1280 * 960)))
 CLOUDNAV_RELOCALISE_WORKERS = int(os.environ.get("CLOUDNAV_RELOCALISE_WORKERS", "2"))
+# Relocalisation calls waiting for a worker, per lane (robots, people): maps/visual/lanes.py.
+CLOUDNAV_RELOCALISE_QUEUE = int(os.environ.get("CLOUDNAV_RELOCALISE_QUEUE", "8"))
 CLOUDNAV_MAX_MAP_PIXELS = int(os.environ.get("CLOUDNAV_MAX_MAP_PIXELS", str(4096 * 4096)))
 CLOUDNAV_MAX_UPLOAD_BYTES = int(os.environ.get("CLOUDNAV_MAX_UPLOAD_BYTES", str(32 * 1024 * 1024)))
 DATA_UPLOAD_MAX_MEMORY_SIZE = CLOUDNAV_MAX_UPLOAD_BYTES
@@ -61,6 +63,8 @@ FILE_UPLOAD_MAX_MEMORY_SIZE = CLOUDNAV_MAX_UPLOAD_BYTES
 # Request bodies (cloudnav_web.bodies): past this size only clients with credentials that
 # hold may send one, and none may pass the second limit (an upload's two files and more).
 CLOUDNAV_ANONYMOUS_BODY_BYTES = int(os.environ.get("CLOUDNAV_ANONYMOUS_BODY_BYTES", "65536"))
+# A request's headers must all arrive within this many seconds (cloudnav_web.headers).
+CLOUDNAV_HEADER_SECONDS = float(os.environ.get("CLOUDNAV_HEADER_SECONDS", "10"))
 CLOUDNAV_MAX_BODY_BYTES = int(
     os.environ.get("CLOUDNAV_MAX_BODY_BYTES", str(2 * CLOUDNAV_MAX_UPLOAD_BYTES + 2**20))
 )
@@ -77,6 +81,11 @@ CLOUDNAV_VIDEO_ENCODER_MEMORY_BYTES = int(
     os.environ.get("CLOUDNAV_VIDEO_ENCODER_MEMORY_BYTES", str(2**30))
 )
 CLOUDNAV_VIDEO_ENCODER_PER_CLIENT = int(os.environ.get("CLOUDNAV_VIDEO_ENCODER_PER_CLIENT", "4"))
+# Recording exports (.mcap, .bag) have theirs too, held until the file has been sent: each
+# holds about CLOUDNAV_EXPORT_BYTES (a chunk being written, one being read), whatever its range.
+CLOUDNAV_EXPORT_SLOTS = int(os.environ.get("CLOUDNAV_EXPORT_SLOTS", "8"))
+CLOUDNAV_EXPORT_MEMORY_BYTES = int(os.environ.get("CLOUDNAV_EXPORT_MEMORY_BYTES", str(2**28)))
+CLOUDNAV_EXPORT_PER_CLIENT = int(os.environ.get("CLOUDNAV_EXPORT_PER_CLIENT", "2"))
 # WebRTC (/whep): ICE servers as a JSON list of {"urls": ..., "username": ..., "credential":
 # ...} (STUN or TURN, for peers behind NAT; none: host candidates only, enough on a LAN),
 # and how many WebRTC sessions one client (a person or a robot) may hold at a time.
@@ -136,6 +145,8 @@ AXES_COOLOFF_TIME = timedelta(
 AXES_LOCKOUT_PARAMETERS = [["username", "ip_address"]]
 AXES_RESET_ON_SUCCESS = True
 AXES_HTTP_RESPONSE_CODE = 429
+# A locked-out sign-in on the login page gets a page that says so, not bare text.
+AXES_LOCKOUT_TEMPLATE = "registration/locked_out.html"
 
 ROOT_URLCONF = "cloudnav_web.urls"
 ASGI_APPLICATION = "cloudnav_web.asgi.application"
@@ -162,15 +173,28 @@ DATABASES = {
     )
 }
 if DATABASES["default"]["ENGINE"] == "django.db.backends.sqlite3":
-    # SQLite serves one writer at a time; wait for the lock instead of failing at once.
-    DATABASES["default"].setdefault("OPTIONS", {})["timeout"] = 20
+    # SQLite serves one writer at a time. A transaction takes the write lock when it begins
+    # (IMMEDIATE): one that began reading and then wrote could not wait for the lock and
+    # failed at once with "database is locked". Writers wait for it up to ``timeout``
+    # seconds; with WAL, readers never wait for a writer, nor a writer for readers.
+    DATABASES["default"].setdefault("OPTIONS", {}).update(
+        timeout=20,
+        transaction_mode="IMMEDIATE",
+        init_command="PRAGMA journal_mode=WAL",
+    )
 
 REDIS_URL = os.environ.get("REDIS_URL", "")
 if REDIS_URL:
     CHANNEL_LAYERS = {
         "default": {
             "BACKEND": "channels_redis.core.RedisChannelLayer",
-            "CONFIG": {"hosts": [REDIS_URL], "capacity": 1000, "expiry": 10},
+            # a socket timeout longer than channels_redis' 5 s blocking pop, or a receive
+            # in a lull fails with redis-py's default 5 s timeout (telemetry.relay)
+            "CONFIG": {
+                "hosts": [{"address": REDIS_URL, "socket_timeout": 15}],
+                "capacity": 1000,
+                "expiry": 10,
+            },
         }
     }
 else:
@@ -233,5 +257,9 @@ LOGGING = {
         "console": {"class": "logging.StreamHandler", "formatter": "plain", "filters": ["redact"]}
     },
     "root": {"handlers": ["console"], "level": os.environ.get("LOG_LEVEL", "INFO")},
-    "loggers": {"django.request": {"level": "ERROR"}},
+    "loggers": {
+        "django.request": {"level": "ERROR"},
+        # daphne's access log (cloudnav_web.access_log): DEBUG adds the unchanged checks (304)
+        "cloudnav_web.access": {"level": os.environ.get("CLOUDNAV_ACCESS_LOG_LEVEL") or "INFO"},
+    },
 }

@@ -2,6 +2,17 @@
 
 from __future__ import annotations
 
+import re
+
+# ``<_io.BytesIO object at 0x7f...>``: how Pillow and zipfile name the upload they failed on.
+_OBJECT_AT = re.compile(r"<[^<>]*? at 0x[0-9a-fA-F]+>")
+
+
+def said(error: BaseException) -> str:
+    """A library's error as a person may read it: objects named by memory address (which
+    tell an attacker about the server's memory layout) become "the file"."""
+    return _OBJECT_AT.sub("the file", str(error))
+
 
 class MapStoreError(Exception):
     """Base of every map store error."""
@@ -75,4 +86,20 @@ class MappingError(MapStoreError):
 
 class KeyframeError(MapStoreError):
     """A keyframe or relocalisation request is unusable (its image, depth, camera or
-    pose); nothing of it is stored."""
+    pose); nothing of it is stored. ``field`` names what is at fault (``keyframe`` for a
+    stored keyframe's file)."""
+
+    def __init__(self, field: str, message: str) -> None:
+        super().__init__(f"{field}: {message}")
+        self.field = field
+        self.message = message
+
+
+class RelocalisationRefused(MapStoreError):
+    """The caller may relocalise in no building the request names (robots of a building
+    and the people who may drive there may): a 403, or a failed service call."""
+
+
+class OutsideExtent(MapStoreError):
+    """A mapping session's robot reports a pose beyond the extent a session may map (from
+    where it started); the scan is not used and the map stays as it was."""

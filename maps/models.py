@@ -236,9 +236,11 @@ class MappingSession(models.Model):
 class ChangeProposal(models.Model):
     """A change to a sub-map that the fleet's lasers back: cells that became occupied
     (``added``) and free (``removed``), as ``[row, col]`` of the version ``based_on``,
-    with the passes that saw each (``added_passes``, ``removed_passes``; 0 for a cell an
-    admin painted). An admin's edit may also make cells ``unknown``; an ``edited``
-    proposal is no longer rewritten by the fleet's evidence."""
+    with the passes and the distinct robots that saw each (``added_passes``,
+    ``removed_passes``, ``added_robots``, ``removed_robots``; 0 for a cell an admin
+    painted) and the robots behind the whole (``robots``). An admin's edit may also make
+    cells ``unknown``; an ``edited`` proposal is no longer rewritten by the fleet's
+    evidence."""
 
     OPEN, ACCEPTED, REJECTED = "open", "accepted", "rejected"
     STATES = [(s, s) for s in (OPEN, ACCEPTED, REJECTED)]
@@ -250,9 +252,12 @@ class ChangeProposal(models.Model):
     removed = models.JSONField(default=list)
     added_passes = models.JSONField(default=list)
     removed_passes = models.JSONField(default=list)
+    added_robots = models.JSONField(default=list)
+    removed_robots = models.JSONField(default=list)
     unknown = models.JSONField(default=list)
     edited = models.BooleanField(default=False)
     passes = models.PositiveIntegerField(default=0)
+    robots = models.PositiveIntegerField(default=0)
     scans = models.PositiveIntegerField(default=0)
     created = models.DateTimeField(auto_now_add=True)
     updated = models.DateTimeField(auto_now=True)

@@ -5,13 +5,17 @@ from __future__ import annotations
 import base64
 import hashlib
 import json
-from collections.abc import Iterable, Mapping
+import math
+from collections.abc import Iterable, Iterator, Mapping
+from contextlib import contextmanager
 from functools import lru_cache
 from typing import Any
 
 import numpy as np
 from django.conf import settings
 from django.db import transaction
+
+from robots.domain.params import RobotConfig
 
 from .domain.mapfile import (
     LoadedMap,
@@ -22,7 +26,7 @@ from .domain.mapfile import (
     open_map_image,
     validate_metadata,
 )
-from .domain.planning import Costmap, inflate
+from .domain.planning import Costmap, GoalCheck, goal_check, inflate
 from .domain.preview import upload_preview
 from .domain.tagart import TagArt
 from .domain.tagpayload import TagPayload, encode_payload
@@ -83,6 +87,19 @@ def _apply_metadata(submap: MapFile, meta: MapMetadata) -> None:
     submap.negate = meta.negate
     submap.mode = meta.mode
     submap.version = content_version(bytes(submap.image), meta)
+
+
+@contextmanager
+def locked_building(building: Building) -> Iterator[Building]:
+    """Hold ``building``'s row for the rest of a transaction; yield it as now stored.
+
+    Rules that read several rows of a building before a write (a building keeps an admin)
+    run inside, so two requests at once see each other's result, never the same old state:
+    PostgreSQL locks the row; SQLite's transactions take the write lock when they begin
+    (``transaction_mode`` IMMEDIATE in the settings), which serialises them the same way.
+    """
+    with transaction.atomic():
+        yield Building.objects.select_for_update().get(pk=building.pk)
 
 
 @transaction.atomic
@@ -323,6 +340,32 @@ def _cached_costmap(pk: int, version: str, radius: float) -> Costmap:  # noqa: A
     submap = SubMap.objects.get(pk=pk)
     origin = (submap.origin_x, submap.origin_y)
     return inflate(grid_of(submap), radius, submap.resolution, origin=origin)
+
+
+# Poses sent to robots are checked for a robot of the default build (body and margin).
+GOAL_CHECK_RADIUS = RobotConfig().planning_radius
+# Metres in front of a tag's plate where the robot reading it stands: it enters there.
+ENTRY_DISTANCE = 0.6
+
+
+def goal_check_of(submap: SubMap) -> GoalCheck:
+    """Return ``submap`` ready to check goals, waypoints and initial poses on (see
+    ``GoalCheck.check``), entered in front of the tags standing in it; cached per
+    version and tag poses."""
+    tags = submap.tags.order_by("pk").values_list("x", "y", "yaw")
+    entries = tuple(
+        (x + ENTRY_DISTANCE * math.cos(yaw), y + ENTRY_DISTANCE * math.sin(yaw))
+        for x, y, yaw in tags
+    )
+    return _cached_goal_check(submap.pk, submap.version, entries)
+
+
+@lru_cache(maxsize=16)
+def _cached_goal_check(
+    pk: int, version: str, entries: tuple[tuple[float, float], ...]
+) -> GoalCheck:
+    submap = SubMap.objects.get(pk=pk)
+    return goal_check(grid_of(submap), _cached_costmap(pk, version, GOAL_CHECK_RADIUS), entries)
 
 
 def route_in(building: Building, start: str, goal: str) -> list[RouteStep]:

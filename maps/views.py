@@ -24,6 +24,7 @@ from . import services, versions
 from .access import (
     Role,
     buildings_for,
+    buildings_where,
     global_role,
     may_create_buildings,
     robot_of,
@@ -50,6 +51,7 @@ from .serializers import (
 from .signals import bundle_fetched
 from .visual import service as visual
 from .visual import store as visual_store
+from .visual.lanes import Caller
 
 
 def building_for(request: Request, code: str, need: Role = Role.VIEWER) -> Building:
@@ -103,6 +105,15 @@ class BuildingDetail(generics.RetrieveUpdateDestroyAPIView[Building]):
 # Members and their roles
 
 
+def members_of(request: Request, code: str, need: Role) -> Building:
+    """Building ``code`` whose members the caller may see (``building_for``); robots see
+    none (PermissionDenied): who works in a building is people's business."""
+    building = building_for(request, code, need)
+    if robot_of(request.user) is not None:
+        raise PermissionDenied("Robots do not read a building's members.")
+    return building
+
+
 class MemberList(generics.ListCreateAPIView[Membership]):
     """A building's members and their roles; its admins add members (POST {username, role})."""
 
@@ -111,7 +122,7 @@ class MemberList(generics.ListCreateAPIView[Membership]):
 
     def get_queryset(self) -> QuerySet[Membership]:
         need = Role.VIEWER if self.request.method == "GET" else Role.ADMIN
-        building = building_for(self.request, self.kwargs["building"], need)
+        building = members_of(self.request, self.kwargs["building"], need)
         return building.memberships.select_related("user").order_by("user__username")
 
     def get_serializer_context(self) -> dict[str, Any]:
@@ -134,7 +145,7 @@ class MemberDetail(generics.RetrieveUpdateDestroyAPIView[Membership]):
 
     def get_object(self) -> Membership:
         need = Role.VIEWER if self.request.method == "GET" else Role.ADMIN
-        building = building_for(self.request, self.kwargs["building"], need)
+        building = members_of(self.request, self.kwargs["building"], need)
         member = building.memberships.select_related("user")
         found = member.filter(user__username=self.kwargs["username"]).first()
         if found is None:
@@ -145,20 +156,32 @@ class MemberDetail(generics.RetrieveUpdateDestroyAPIView[Membership]):
         if "role" not in serializer.validated_data:
             raise ValidationError({"role": ["This field is required."]})
         role = role_named(serializer.validated_data["role"])
-        _keep_an_admin(serializer.instance, role, "role")
-        serializer.save()
+        with services.locked_building(serializer.instance.building):
+            _keep_an_admin(self.request, serializer.instance, role, "role")
+            serializer.save()
 
     def perform_destroy(self, instance: Membership) -> None:
-        _keep_an_admin(instance, Role.NONE, "username")
-        instance.delete()
+        with services.locked_building(instance.building):
+            _keep_an_admin(self.request, instance, Role.NONE, "username")
+            instance.delete()
 
 
 def _effective_role(membership: Membership) -> Role:
     return role_named(membership.role) or global_role(membership.user)
 
 
-def _keep_an_admin(membership: Membership, new: Role, field: str) -> None:
-    """Refuse to take the last admin role of a building away (no one could then manage it)."""
+def _keep_an_admin(request: Request, membership: Membership, new: Role, field: str) -> None:
+    """Refuse to take the last admin role of a building away (no one could then manage it).
+
+    Called with the building locked: the caller's role and the members' are read again, as
+    a request at the same instant may have changed them (PermissionDenied if the caller is
+    no admin any more, ValidationError if no admin would be left).
+    """
+    building_for(request, membership.building.code, Role.ADMIN)
+    try:
+        membership.refresh_from_db(fields=["role"])
+    except Membership.DoesNotExist:
+        raise NotFound("No such member of this building.") from None
     if new >= Role.ADMIN or _effective_role(membership) < Role.ADMIN:
         return
     others = membership.building.memberships.exclude(pk=membership.pk).select_related("user")
@@ -447,8 +470,10 @@ class SubMapKeyframes(APIView):
 
 class Relocalise(APIView):
     """``/cloudnav/relocalise`` over REST: where the images were taken, among the
-    keyframes of the caller's buildings (``building`` narrows it; 403 for one the caller
-    may not use)."""
+    keyframes of the buildings the caller may relocalise in (a robot: its own; a person:
+    where they may drive), ``building`` narrowing it; 403 when that is none. Answered on
+    the relocalisation lanes the rosbridge service uses (robots first; 429 or 503 with
+    Retry-After when the caller's share or the lane is full)."""
 
     parser_classes = [JSONParser]
 
@@ -459,8 +484,15 @@ class Relocalise(APIView):
         code = request.data.get("building")
         if code is not None and not isinstance(code, str):
             raise ValidationError({"building": ["a building code is required"]})
-        buildings = [building_for(request, code)] if code else list(buildings_for(request.user))
-        return Response(visual.relocalise_in(buildings, request.data))
+        robot = robot_of(request.user)
+        if robot is not None:
+            allowed = buildings_for(request.user)
+            caller = Caller(f"robot:{robot.name}", robot=True)
+        else:
+            allowed = buildings_where(request.user, Role.OPERATOR)
+            caller = Caller(f"user:{request.user.get_username()}", robot=False)
+        buildings = visual.buildings_to_search(allowed.values_list("pk", flat=True), code)
+        return Response(visual.relocalise_queued(caller, buildings, request.data).result())
 
 
 # Topology and routes

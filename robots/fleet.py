@@ -14,12 +14,14 @@ import asyncio
 import contextlib
 import logging
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from datetime import UTC, datetime, timedelta
+from functools import partial
 
 from channels.db import database_sync_to_async
-from django.db import DatabaseError, transaction
 
+from cloudnav_web.batches import write_batch
 from maps.domain.versions import split_map_ref
 from telemetry.domain.messages import Pose2D
 
@@ -161,26 +163,18 @@ def valid_map_id(map_id: str) -> bool:
 def write_states(batch: dict[int, _Entry]) -> set[int]:
     """Upsert the rows of ``batch`` and return the robots whose row could not be written.
 
-    One query per combination of known fields; if one fails (a robot deleted meanwhile, a
-    row the database refuses) its rows are written one by one, each in a transaction of
-    its own, so one bad row never blocks the others."""
+    One query per combination of known fields, row by row where the database refuses one
+    (``write_batch``: a robot deleted meanwhile, a row the database refuses), so one bad
+    row never blocks the others. Raises ``BatchInterrupted`` when the database cannot be
+    reached."""
     failed: set[int] = set()
     for rows, known in _groups(batch):
-        try:
-            with transaction.atomic():
-                _upsert(rows, known)
-        except DatabaseError:
-            for row in rows:
-                try:
-                    with transaction.atomic():
-                        _upsert([row], known)
-                except DatabaseError as error:
-                    failed.add(row.robot_id)
-                    logger.warning("fleet state of robot %s not written: %s", row.robot_id, error)
+        refused = write_batch(rows, partial(_upsert, known=known), "a robot's fleet state")
+        failed.update(row.robot_id for row in refused)
     return failed
 
 
-def _upsert(rows: list[RobotState], known: tuple[str, ...]) -> None:
+def _upsert(rows: Sequence[RobotState], known: tuple[str, ...]) -> None:
     RobotState.objects.bulk_create(
         rows, update_conflicts=True, unique_fields=["robot"], update_fields=list(known)
     )

@@ -18,7 +18,7 @@ from maps.access import Role, buildings_for, global_role, role_in
 from maps.models import Building
 
 from . import missions
-from .models import Mission, Robot
+from .models import Mission
 
 
 class MissionSerializer(serializers.ModelSerializer[Mission]):
@@ -48,7 +48,9 @@ class MissionSerializer(serializers.ModelSerializer[Mission]):
 class NewMissionSerializer(serializers.Serializer[Any]):
     building = serializers.CharField()
     robot = serializers.CharField()
-    name = serializers.CharField(required=False, allow_blank=True, default="")
+    name = serializers.CharField(
+        required=False, allow_blank=True, default="", max_length=Mission.NAME_LENGTH
+    )
     mode = serializers.ChoiceField(choices=Mission.Mode.values, default=Mission.Mode.ONCE)
     waypoints = serializers.JSONField()
 
@@ -102,7 +104,8 @@ class MissionList(APIView):
         asked.is_valid(raise_exception=True)
         data = asked.validated_data
         building = buildings_for(request.user).filter(code=data["building"]).first()
-        robot = Robot.objects.filter(name=data["robot"]).first()
+        # A robot of other buildings only is as absent as one that does not exist.
+        robot = building.robots.filter(name=data["robot"]).first() if building else None
         if building is None or robot is None:
             raise NotFound("No such building or robot.")
         _operator_in(request.user, building)
@@ -115,8 +118,10 @@ class MissionList(APIView):
                 data["name"],
                 request.user.get_username(),
             )
+        except missions.RobotBusyElsewhere as error:
+            return Response({"robot": [str(error)]}, status=status.HTTP_409_CONFLICT)
         except missions.MissionError as error:
-            raise ValidationError({"mission": [str(error)]}) from None
+            raise ValidationError({error.field: [str(error)]}) from None
         return Response(MissionSerializer(mission).data, status=status.HTTP_201_CREATED)
 
 

@@ -6,22 +6,38 @@ tick for the robots its process serves; people call ``start`` and ``command``.
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
+from functools import partial
 from typing import Any
 
 from django.db import transaction
 
-from maps.models import Building
+from cloudnav_web.batches import write_batch
+from maps.domain.planning import PoseRefused
+from maps.models import Building, SubMap
+from maps.services import goal_check_of
 
 from .models import Mission, Robot
 
 COMMANDS = ("pause", "resume", "skip", "cancel")
 REACHED = "reached"
+# The longest note a mission keeps (a robot's reason for failing may be longer).
+NOTE_MAX = Mission._meta.get_field("note").max_length or 300
 
 
 class MissionError(ValueError):
-    """A mission or a command that cannot be: the reason, for the person asking."""
+    """A mission or a command that cannot be: the reason, for the person asking, and the
+    request's field at fault (``mission`` when it is no one field)."""
+
+    def __init__(self, message: str, field: str = "mission") -> None:
+        super().__init__(message)
+        self.field = field
+
+
+class RobotBusyElsewhere(MissionError):
+    """The robot runs a mission of another building: only that building's people may
+    replace it (they may be another tenant; their mission is not theirs to end)."""
 
 
 @dataclass(frozen=True)
@@ -41,7 +57,8 @@ def check_waypoints(building: Building, waypoints: Any) -> list[dict[str, Any]]:
     and finite x, y (yaw defaults to 0)."""
     if not isinstance(waypoints, list) or not waypoints:
         raise MissionError("waypoints: a list of at least one {map, x, y, yaw}")
-    codes = set(building.submaps.values_list("code", flat=True))
+    submaps = {submap.code: submap for submap in building.submaps.all()}
+    codes = set(submaps)
     clean = []
     for n, point in enumerate(waypoints, 1):
         try:
@@ -53,8 +70,18 @@ def check_waypoints(building: Building, waypoints: Any) -> list[dict[str, Any]]:
             raise MissionError(f"waypoint {n}: {building.code} has no sub-map {code!r}")
         if not all(abs(v) < 1e6 for v in (x, y, yaw)):
             raise MissionError(f"waypoint {n}: x, y and yaw must be finite")
+        _check_reachable(submaps[code], n, x, y)
         clean.append({"map": code, "x": x, "y": y, "yaw": yaw})
     return clean
+
+
+def _check_reachable(submap: SubMap, n: int, x: float, y: float) -> None:
+    """MissionError (field ``waypoints``) unless a robot could stand at (x, y) of
+    ``submap`` (``maps.domain.planning.GoalCheck``)."""
+    try:
+        goal_check_of(submap).check((x, y), f"waypoint {n}")
+    except PoseRefused as refused:
+        raise MissionError(f"{refused} ({submap.map_id})", field="waypoints") from None
 
 
 @transaction.atomic
@@ -67,9 +94,12 @@ def start(
     if not robot.buildings.filter(pk=building.pk).exists():
         raise MissionError(f"{robot.name} is not registered in {building.code}")
     clean = check_waypoints(building, waypoints)
-    Mission.objects.filter(robot=robot, state__in=Mission.ACTIVE).update(
-        state=Mission.State.CANCELLED, note=f"replaced by a mission of {by}"
-    )
+    active = Mission.objects.select_for_update().filter(robot=robot, state__in=Mission.ACTIVE)
+    if active.exclude(building=building).exists():
+        raise RobotBusyElsewhere(
+            f"{robot.name} is on a mission of another building; it can be replaced only there"
+        )
+    active.update(state=Mission.State.CANCELLED, note=f"replaced by a mission of {by}")
     return Mission.objects.create(
         building=building, robot=robot, waypoints=clean, mode=mode, name=name, created_by=by
     )
@@ -95,6 +125,21 @@ def command(mission: Mission, what: str, by: str) -> Mission:
     return mission
 
 
+@transaction.atomic
+def pause_for_stop(robot: str, by: str, by_buildings: frozenset[int]) -> list[str]:
+    """Pause every running mission of ``robot``: someone pressed STOP. The note names
+    ``by`` in missions of ``by_buildings`` (where that person is known) and no one
+    elsewhere. Return the paused missions' names (or ``#id`` for unnamed ones)."""
+    paused = []
+    running = Mission.objects.filter(robot__name=robot, state=Mission.State.RUNNING)
+    for mission in running.select_for_update():
+        who = by if mission.building_id in by_buildings else "an operator of another building"
+        mission.state, mission.note = Mission.State.PAUSED, f"paused: {robot} stopped by {who}"
+        mission.save(update_fields=["state", "note", "updated"])
+        paused.append(mission.name or f"#{mission.pk}")
+    return paused
+
+
 def _advance(mission: Mission) -> None:
     """On to the next waypoint: the next lap of a patrol, or done."""
     mission.index += 1
@@ -109,15 +154,37 @@ def _advance(mission: Mission) -> None:
 
 def record_outcomes(outcomes: Mapping[int, str]) -> None:
     """What robots reported of the goals sent for missions: REACHED moves the mission on;
-    anything else (the robot's reason for failing) pauses it, with that reason."""
-    for mission in Mission.objects.filter(pk__in=outcomes, state=Mission.State.RUNNING):
+    anything else (the robot's reason for failing) pauses it, with that reason. Mission by
+    mission where the database refuses one (``write_batch``); raises ``BatchInterrupted``
+    with the missions not recorded when the database cannot be reached."""
+    write_batch(sorted(outcomes), partial(_record, outcomes=outcomes), "a mission's outcome")
+
+
+def _record(pks: Sequence[int], outcomes: Mapping[int, str]) -> None:
+    # read again on each try: a try that failed changed nothing (its transaction is gone)
+    for mission in Mission.objects.filter(pk__in=pks, state=Mission.State.RUNNING):
         outcome = outcomes[mission.pk]
         if outcome == REACHED:
             _advance(mission)
             mission.sent = -1
         else:
-            mission.state, mission.note = Mission.State.PAUSED, f"paused: {outcome}"
+            mission.state, mission.note = Mission.State.PAUSED, f"paused: {outcome}"[:NOTE_MAX]
         mission.save()
+
+
+def _refusal(mission: Mission, point: Mapping[str, Any]) -> str:
+    """Why the mission's waypoint ``point`` cannot be sent now (its sub-map is gone or
+    changed under it), or ""."""
+    submap = mission.building.submaps.filter(code=point["map"]).first()
+    if submap is None:
+        return (
+            f"waypoint {mission.index + 1}: {mission.building.code} has no sub-map {point['map']!r}"
+        )
+    try:
+        _check_reachable(submap, mission.index + 1, point["x"], point["y"])
+    except MissionError as error:
+        return str(error)
+    return ""
 
 
 def goals_due(robots: Iterable[str]) -> list[Goal]:
@@ -131,6 +198,11 @@ def goals_due(robots: Iterable[str]) -> list[Goal]:
         if mission.sent == mission.index:
             continue
         point = mission.waypoints[mission.index]
+        refused = _refusal(mission, point)
+        if refused:
+            mission.state, mission.note = Mission.State.PAUSED, f"paused: {refused}"
+            mission.save(update_fields=["state", "note", "updated"])
+            continue
         goals.append(
             Goal(
                 mission.pk,

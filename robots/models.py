@@ -67,10 +67,11 @@ class Mission(models.Model):
         CANCELLED = "cancelled"
 
     ACTIVE = (State.RUNNING, State.PAUSED)
+    NAME_LENGTH = 100
 
     building = models.ForeignKey(Building, models.CASCADE, related_name="missions")
     robot = models.ForeignKey(Robot, models.CASCADE, related_name="missions")
-    name = models.CharField(max_length=100, blank=True)
+    name = models.CharField(max_length=NAME_LENGTH, blank=True)
     waypoints = models.JSONField()
     mode = models.CharField(max_length=10, choices=Mode.choices, default=Mode.ONCE)
     state = models.CharField(max_length=10, choices=State.choices, default=State.RUNNING)

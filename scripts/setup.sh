@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Set up everything CloudNav needs on a fresh Debian machine; quick when already done.
-#   Debian packages (chromium, redis-server, postgresql, ROS 1) with apt-get where absent,
+#   Debian packages (chromium, redis-server, postgresql, ROS 1, cmake and g++ for the ROS 2
+#   interface packages) with apt-get where absent,
 #   the Python virtualenv from requirements.txt, Node packages from package-lock.json,
 #   and the database schema.
 set -euo pipefail
@@ -28,6 +29,11 @@ apt_packages() {
     geometry-msgs map-msgs; do
     dpkg -s "python3-$ros" >/dev/null 2>&1 || missing+=("python3-$ros")
   done
+  # The ROS 2 robot side's interface packages (scripts/ros2_env.sh) build with these.
+  command -v cmake >/dev/null || missing+=(cmake)
+  dpkg -s build-essential >/dev/null 2>&1 || missing+=(build-essential)
+  "$PYTHON" -c 'import os, sysconfig; assert os.path.exists(sysconfig.get_paths()["include"] + "/Python.h")' \
+    2>/dev/null || missing+=(python3-dev)
   if [ ${#missing[@]} -gt 0 ]; then
     echo "setup: installing Debian packages: ${missing[*]}"
     as_root apt-get update -q

@@ -5,30 +5,36 @@ from __future__ import annotations
 
 import asyncio
 import math
-from concurrent.futures import ThreadPoolExecutor
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from channels.db import database_sync_to_async
-from django.conf import settings
-from django.db import close_old_connections
+from django.contrib.auth import get_user_model
 
 from maps import services as map_services
+from maps.access import Role, role_in
 from maps.domain.planning import DEFAULT_ROBOT_RADIUS, PlanningError, path_length, plan_on
 from maps.domain.tagpayload import parse_payload
-from maps.exceptions import KeyframeError, MapStoreError
-from maps.visual.service import relocalise_in
+from maps.exceptions import KeyframeError, MapStoreError, RelocalisationRefused
+from maps.models import Building
+from maps.visual.lanes import Caller, RelocalisationBusy
+from maps.visual.service import buildings_to_search, relocalise_queued
 from telemetry.domain import names
 from telemetry.domain.messages import Path, path_of
 from telemetry.domain.protocol import Json
 from telemetry.domain.times import now_stamp
-from telemetry.exceptions import NotAllowed, ServiceFailed
+from telemetry.exceptions import NotAllowed, PoseRefused, ServiceFailed
 from telemetry.server_services import ServerService, ServiceCall
+
+if TYPE_CHECKING:
+    from robots.teleop import TeleopLocks
 
 TELEOP_LOCK = f"{names.CLOUDNAV}/teleop_lock"
 ROUTE = f"{names.CLOUDNAV}/route"
 RESOLVE_TAG = f"{names.CLOUDNAV}/resolve_tag"
 PLAN_PATH = f"{names.CLOUDNAV}/plan_path"
 RELOCALISE = f"{names.CLOUDNAV}/relocalise"
+STOP = f"{names.CLOUDNAV}/stop"
+CHECK_POSE = f"{names.CLOUDNAV}/check_pose"
 
 
 def _text(call: ServiceCall, key: str) -> str:
@@ -39,12 +45,19 @@ def _text(call: ServiceCall, key: str) -> str:
 
 
 async def teleop_lock(call: ServiceCall) -> Json:
-    """``{robot, action: acquire|release|status}`` -> ``{success, holder, message}``.
+    """``{robot, action: acquire|release|status|ask|refuse|take}`` -> ``{success, holder,
+    message}``.
 
     Only someone who may drive the robot may take its lock; one connection holds it at a
     time, until it releases it, disconnects, or sends no ``cmd_vel`` for the lock's TTL
-    (``CLOUDNAV_TELEOP_LOCK_TTL``, 5 s). ``status`` tells anyone who may see the robot who
-    holds it ("" for nobody). Raises ServiceFailed if ``robot`` is not a robot's name.
+    (``CLOUDNAV_TELEOP_LOCK_TTL``, 5 s): asking again renews nothing, and a connection
+    whose lock lapsed waits that long before it may take it again. ``status`` tells anyone
+    who may see the robot who holds it ("" for nobody) and, while someone asks for it, who
+    (``asked_by``) and in how many seconds it passes to them (``handover_in``). ``ask``
+    asks the holder: the lock passes to the asker ``CLOUDNAV_TELEOP_HANDOVER`` (5 s) later,
+    when they ask again, unless the holder ``refuse``-s first. ``take`` (an admin of one
+    of the robot's buildings) takes the lock from whoever holds it. Raises ServiceFailed
+    if ``robot`` is not a robot's name.
     """
     robot, action = call.arg("robot"), call.arg("action", "acquire")
     if not names.is_robot_name(robot):
@@ -52,17 +65,107 @@ async def teleop_lock(call: ServiceCall) -> Json:
     locks, conn = call.server.teleop, call.conn
     if action == "status":
         await call.access.require("see", names.robot_topic(robot, names.CMD_VEL))
-        return {"success": True, "holder": await locks.holder(robot), "message": ""}
+        return await _status(locks, robot)
     await call.access.require("drive", names.robot_topic(robot, names.CMD_VEL))
     if action == "acquire":
         granted, holder = await locks.acquire(robot, conn.key, conn.principal.label)
         message = "" if granted else f"{robot} is driven by {holder}"
+        if not granted and not holder:
+            message = f"your control of {robot} lapsed: others may take it before you again"
         return {"success": granted, "holder": holder, "message": message}
+    if action == "ask":
+        granted, holder, message, left = await locks.ask(robot, conn.key, conn.principal.label)
+        answer: dict[str, Json] = {"success": granted, "holder": holder, "message": message}
+        if left is not None:
+            answer["handover_in"] = round(left, 1)  # waiting: ask again then
+        return answer
+    if action == "refuse":
+        asker = await locks.refuse(robot, conn.key)
+        message = f"{asker} was refused" if asker else "nobody asks for the lock you hold"
+        return {"success": bool(asker), "holder": await locks.holder(robot), "message": message}
+    if action == "take":
+        if not await database_sync_to_async(_admin_of)(conn.principal.user_id, robot):
+            raise NotAllowed(f"only an admin of {robot}'s building may take its teleop lock")
+        granted, taken_from = await locks.take(robot, conn.key, conn.principal.label)
+        message = f"taken from {taken_from}" if taken_from else ""
+        return {"success": granted, "holder": conn.principal.label, "message": message}
     if action == "release":
         released = await locks.release(robot, conn.key)
         message = "" if released else f"this connection does not hold the lock of {robot}"
         return {"success": released, "holder": "", "message": message}
-    raise ServiceFailed("'action' must be 'acquire', 'release' or 'status'")
+    raise ServiceFailed(
+        "'action' must be 'acquire', 'release', 'status', 'ask', 'refuse' or 'take'"
+    )
+
+
+async def _status(locks: TeleopLocks, robot: str) -> dict[str, Json]:
+    """Who holds the lock; while someone asks for it, who and in how many seconds it
+    passes to them (``asked_by``, ``handover_in``)."""
+    answer: dict[str, Json] = {"success": True, "holder": await locks.holder(robot), "message": ""}
+    asked = await locks.request(robot) if answer["holder"] else None
+    if asked is not None:
+        answer["asked_by"], answer["handover_in"] = asked[0], round(asked[1], 1)
+    return answer
+
+
+def _admin_of(user_id: int | None, robot: str) -> bool:
+    """True if user ``user_id`` is an admin of a building of ``robot``."""
+    if user_id is None:
+        return False
+    user = get_user_model().objects.filter(pk=user_id, is_active=True).first()
+    buildings = Building.objects.filter(robots__name=robot)
+    return user is not None and any(role_in(user, b) >= Role.ADMIN for b in buildings)
+
+
+async def stop(call: ServiceCall) -> Json:
+    """``{robot}`` -> ``{success, message, goal, missions, teleop}``: STOP (``telemetry.stop``).
+
+    Whoever may drive the robot may stop it: its teleop lock is withdrawn, it gets a zero
+    Twist, its active goal is cancelled whoever sent it, its running missions are paused,
+    and a ``robot_stopped`` event names who stopped it. ``goal`` is what the robot said
+    of its goal, ``missions`` the missions paused, ``teleop`` whose lock was withdrawn.
+    Raises ServiceFailed if ``robot`` is not a robot's name.
+    """
+    robot = call.arg("robot")
+    if not names.is_robot_name(robot):
+        raise ServiceFailed("'robot' must be a robot's name (a letter, then letters, digits or _)")
+    await call.access.require("drive", names.robot_topic(robot, names.CMD_VEL))
+    stopped = await call.server.stop.stop(robot, call.conn)
+    return stopped.as_values()
+
+
+async def check_pose(call: ServiceCall) -> Json:
+    """``{map_id, x, y, what?: goal|initial pose}`` -> ``{success, message}``: whether a
+    robot could stand there (``telemetry.pose_checks``), the reason when not. The pages
+    ask before sending a goal or an initial pose; a publication that fails the same
+    check is refused anyway. Raises ServiceFailed for a sub-map the caller cannot see.
+    """
+    map_id = _text(call, "map_id").split("@", 1)[0]
+    point = _point_of(call.args[0] if isinstance(call.args, list) and call.args else call.args)
+    what = call.arg("what", "goal")
+    if what not in ("goal", "initial pose"):
+        raise ServiceFailed("'what' must be 'goal' or 'initial pose'")
+    building, _, code = map_id.partition("/")
+    visible = await database_sync_to_async(map_services.visible_submap)(
+        call.conn.principal.buildings, building, code
+    )
+    if visible is None:
+        raise ServiceFailed(f"{map_id} is not a visible sub-map")
+    try:
+        await call.server.poses.check_point(map_id, point, str(what))
+    except PoseRefused as refused:
+        return {"success": False, "message": refused.message}
+    return {"success": True, "message": ""}
+
+
+def _point_of(args: Json) -> tuple[float, float]:
+    try:
+        point = float(args["x"]), float(args["y"])
+    except (KeyError, TypeError, ValueError):
+        raise ServiceFailed("'x' and 'y' must be numbers") from None
+    if not all(math.isfinite(v) for v in point):
+        raise ServiceFailed("'x' and 'y' must be finite")
+    return point
 
 
 async def route(call: ServiceCall) -> Json:
@@ -172,9 +275,10 @@ async def relocalise(call: ServiceCall) -> Json:
     """``{images, depth?, camera_info?, mount?, building?, submap?}`` -> ``{localised,
     map_id, pose: {x, y, yaw}, covariance (9), inliers, keyframes, image, reason}``.
 
-    Searched among the keyframes of the caller's buildings (``building`` narrows it; one
-    it may not use is refused). Runs on the relocalisation threads
-    (``CLOUDNAV_RELOCALISE_WORKERS``), never on the event loop that relays topics.
+    Searched among the keyframes of the buildings the caller may relocalise in (a robot:
+    its own; a person: where they may drive; viewers may not), ``building`` narrowing it.
+    Runs on the relocalisation lanes ``POST /api/relocalise`` shares (robots first),
+    never on the event loop that relays topics; refused when they are full.
     """
     args = call.args[0] if isinstance(call.args, list) and call.args else call.args
     if not isinstance(args, dict):
@@ -182,39 +286,23 @@ async def relocalise(call: ServiceCall) -> Json:
     code = args.get("building")
     if code is not None and not isinstance(code, str):
         raise ServiceFailed("'building' must be a building code")
-    visible = call.conn.principal.buildings
+    principal = call.conn.principal
+    allowed = principal.buildings if principal.robot else principal.drive_buildings
+    caller = Caller(principal.label, robot=principal.robot is not None)
     try:
-        return await _on_relocalise_threads(_relocalise, visible, code, args)
-    except KeyframeError as exc:
+        buildings = await database_sync_to_async(buildings_to_search)(allowed, code)
+        return await asyncio.wrap_future(relocalise_queued(caller, buildings, args))
+    except RelocalisationRefused as exc:
+        raise NotAllowed(str(exc)) from None
+    except (KeyframeError, RelocalisationBusy) as exc:
         raise ServiceFailed(str(exc)) from None
-
-
-def _relocalise(visible: frozenset[int], code: str | None, args: dict[str, Any]) -> Json:
-    try:
-        buildings = map_services.visible_buildings(visible)
-        if code:
-            buildings = [b for b in buildings if b.code == code]
-            if not buildings:
-                raise NotAllowed(f"building {code} does not exist or is not visible")
-        return relocalise_in(buildings, args)
-    finally:
-        close_old_connections()
-
-
-_RELOCALISE_POOL: ThreadPoolExecutor | None = None
-
-
-async def _on_relocalise_threads(function: Any, *args: Any) -> Any:
-    global _RELOCALISE_POOL
-    if _RELOCALISE_POOL is None:
-        workers = max(1, settings.CLOUDNAV_RELOCALISE_WORKERS)
-        _RELOCALISE_POOL = ThreadPoolExecutor(workers, thread_name_prefix="relocalise")
-    return await asyncio.get_running_loop().run_in_executor(_RELOCALISE_POOL, function, *args)
 
 
 def services() -> dict[str, ServerService]:
     return {
         TELEOP_LOCK: ServerService("cloudnav/TeleopLock", teleop_lock),
+        STOP: ServerService("cloudnav/Stop", stop),
+        CHECK_POSE: ServerService("cloudnav/CheckPose", check_pose),
         ROUTE: ServerService("cloudnav/Route", route),
         RESOLVE_TAG: ServerService("cloudnav/ResolveTag", resolve_tag),
         PLAN_PATH: ServerService("cloudnav/PlanPath", plan_path),

@@ -38,11 +38,15 @@ class RosbridgeConfig:
     per_connection: ConnectionLimits
     fragments_total_bytes: int
     fragment_timeout: float
+    # What all the connections of one person or robot may hold of fragmented messages, so
+    # that one viewer's many sockets cannot take the whole server's budget.
+    fragments_per_client_bytes: int
     max_send_bytes: int
     send_queue_frames: int
     send_queue_bytes: int
     teleop_lock_ttl: float
     teleop_silence: float
+    teleop_handover: float
     fleet_flush_interval: float
     redis_url: str
 
@@ -69,11 +73,15 @@ class RosbridgeConfig:
             ),
             fragments_total_bytes=setting("CLOUDNAV_ROSBRIDGE_FRAGMENT_BYTES_TOTAL", 32 * MIB, int),
             fragment_timeout=setting("CLOUDNAV_ROSBRIDGE_FRAGMENT_TIMEOUT", 10.0, float),
+            fragments_per_client_bytes=setting(
+                "CLOUDNAV_ROSBRIDGE_FRAGMENT_BYTES_PER_CLIENT", 8 * MIB, int
+            ),
             max_send_bytes=setting("CLOUDNAV_ROSBRIDGE_MAX_SEND_BYTES", 2 * max_frame_bytes, int),
             send_queue_frames=setting("CLOUDNAV_ROSBRIDGE_SEND_QUEUE_FRAMES", 256, int),
             send_queue_bytes=setting("CLOUDNAV_ROSBRIDGE_SEND_QUEUE_BYTES", 8 * MIB, int),
             teleop_lock_ttl=setting("CLOUDNAV_TELEOP_LOCK_TTL", 5.0, float),
             teleop_silence=setting("CLOUDNAV_TELEOP_SILENCE", 0.5, float),
+            teleop_handover=setting("CLOUDNAV_TELEOP_HANDOVER", 5.0, float),
             fleet_flush_interval=setting("CLOUDNAV_FLEET_FLUSH_INTERVAL", 1.0, float),
             redis_url=getattr(settings, "REDIS_URL", "") or "",
         )

@@ -23,7 +23,7 @@ from telemetry.domain.bus import SubscribeParams
 from telemetry.domain.decoding import decode_frame
 from telemetry.domain.fragments import Reassembler
 from telemetry.domain.protocol import SUPPORTED_COMPRESSIONS, parse_op
-from telemetry.exceptions import BadFrame, RosbridgeError
+from telemetry.exceptions import BadFrame, RosbridgeError, ServerFault
 from telemetry.hub import Client, Hub, get_hub
 from telemetry.server_services import ServiceCall
 from telemetry.services import Access, authenticate
@@ -85,6 +85,7 @@ class RosbridgeConsumer(AsyncWebsocketConsumer):  # type: ignore[misc]  # Channe
             self.hub.fragment_budget,
             asyncio.get_running_loop().call_later,
             config.fragment_timeout,
+            client_share=self.hub.fragment_share(identity.principal.label),
         )
         self.conn = Connection(
             identity.principal,
@@ -138,8 +139,10 @@ class RosbridgeConsumer(AsyncWebsocketConsumer):  # type: ignore[misc]  # Channe
         except RosbridgeError as error:
             replies.answer(conn, error, frame)
         except Exception:
-            # A frame must never take the connection down with it, even through a bug here.
+            # A frame must never take the connection down with it, even through a bug here;
+            # its sender is answered all the same (a call waits for its response).
             logger.exception("%s: frame failed: %.200r", conn.principal.label, data)
+            replies.answer(conn, ServerFault("the server could not carry this out"), frame)
 
     # ------------------------------------------------------------ topics
 
@@ -150,6 +153,8 @@ class RosbridgeConsumer(AsyncWebsocketConsumer):  # type: ignore[misc]  # Channe
         conn = self._conn
         if name.endswith(_CMD_VEL_SUFFIX):
             await self.hub.teleop.check_command(conn, name, op.msg)
+        elif conn.principal.robot is None:
+            await self.hub.poses.check(name, op.msg)  # goals and initial poses
         self.hub.publish(conn, name, op.msg, op.latch, self._frame_size)
 
     async def on_subscribe(self, op: protocol.Subscribe) -> None:

@@ -24,6 +24,13 @@ from maps.access import Role, buildings_for, global_role, role_in
 from .models import Event
 
 MAX_EVENTS = 1000
+# Query parameter -> the field it filters.
+FILTERS = {
+    "building": "building__code",
+    "robot": "robot__name",
+    "kind": "kind",
+    "severity": "severity",
+}
 
 
 class EventSerializer(serializers.ModelSerializer[Event]):
@@ -37,7 +44,7 @@ class EventSerializer(serializers.ModelSerializer[Event]):
         model = Event
         fields = [
             "id", "time", "building", "robot", "kind", "severity", "actor", "message", "data",
-            "alert", "acknowledged_at", "acknowledged_by",
+            "alert", "acknowledged_at", "acknowledged_by", "cleared_at",
         ]  # fmt: skip
         read_only_fields = fields
 
@@ -57,14 +64,27 @@ def visible_events(user: Any) -> QuerySet[Event]:
 
 
 def open_alerts(events: QuerySet[Event]) -> QuerySet[Event]:
-    return events.filter(alert=True, acknowledged_at__isnull=True)
+    """Alerts nobody acknowledged whose condition has not ended."""
+    return events.filter(alert=True, acknowledged_at__isnull=True, cleared_at__isnull=True)
+
+
+def _text(params: Any, key: str) -> str:
+    """The filter ``key`` ("" if absent); ValidationError for a NUL, which no stored text
+    holds (and PostgreSQL refuses)."""
+    text = str(params.get(key) or "")
+    if "\x00" in text:
+        raise ValidationError({key: ["no NUL characters"]})
+    return text
 
 
 def _time(params: Any, key: str) -> Any:
-    text = params.get(key)
+    text = _text(params, key)
     if not text:
         return None
-    when = parse_datetime(text)
+    try:
+        when = parse_datetime(text)
+    except ValueError:  # well formed but no such moment (2026-02-30)
+        when = None
     if when is None:
         raise ValidationError({key: ["an ISO 8601 date and time"]})
     return when
@@ -84,7 +104,8 @@ def _time(params: Any, key: str) -> Any:
 )
 class EventList(generics.ListAPIView[Event]):
     """Events, newest first: filter by building, robot, kind, severity, time (``since``,
-    ``until``, ISO 8601); ``alerts=open`` gives the alerts nobody acknowledged yet,
+    ``until``, ISO 8601); ``alerts=open`` gives the alerts nobody acknowledged yet whose
+    condition has not ended (``cleared_at``),
     ``alerts=all`` every alert; ``limit`` (default 100, at most 1000)."""
 
     serializer_class = EventSerializer
@@ -94,12 +115,9 @@ class EventList(generics.ListAPIView[Event]):
     def get_queryset(self) -> QuerySet[Event]:
         params = self.request.query_params
         events = visible_events(self.request.user)
-        for field, key in (("building__code", "building"), ("robot__name", "robot")):
-            if params.get(key):
-                events = events.filter(**{field: params[key]})
-        for key in ("kind", "severity"):
-            if params.get(key):
-                events = events.filter(**{key: params[key]})
+        for key, field in FILTERS.items():
+            if value := _text(params, key):
+                events = events.filter(**{field: value})
         if params.get("alerts") == "all":
             events = events.filter(alert=True)
         elif params.get("alerts") == "open":
@@ -145,7 +163,11 @@ class OpenAlerts(APIView):
 
     @extend_schema(responses=serializers.DictField(child=serializers.IntegerField()))
     def get(self, request: Request) -> Response:
-        count = (
-            visible_events(request.user).filter(alert=True, acknowledged_at__isnull=True).count()
-        )
-        return Response({"open": count})
+        """With an ETag of the count: a page asking again gets 304 while it is unchanged
+        (an unchanged check, kept out of the INFO log)."""
+        count = open_alerts(visible_events(request.user)).count()
+        etag = f'"open-{count}"'
+        headers = {"ETag": etag, "Cache-Control": "private, no-cache"}
+        if etag in request.headers.get("If-None-Match", ""):
+            return Response(status=304, headers=headers)
+        return Response({"open": count}, headers=headers)

@@ -14,7 +14,8 @@ import contextlib
 import logging
 import time
 import uuid
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import replace
 from datetime import UTC, datetime
 from typing import Any
 
@@ -22,11 +23,13 @@ from channels.db import database_sync_to_async
 from django.db import transaction
 from django.db.models import Max
 
+from cloudnav_web.batches import UNREACHABLE, BatchInterrupted, write_batch
 from maps.models import Building
 from robots.models import Robot
 from telemetry.domain import names
 from telemetry.domain.events import EventDeriver, EventDraft, Kind, Severity
 from telemetry.domain.messages import pose_of
+from telemetry.domain.storable import storable, storable_text
 
 from .models import Event
 
@@ -34,6 +37,8 @@ logger = logging.getLogger(__name__)
 
 # This process, as the ``origin`` of the events its event log writes.
 ORIGIN = uuid.uuid4().hex[:12]
+# The longest message an event keeps (``Event.message``).
+MESSAGE_MAX = Event._meta.get_field("message").max_length or 500
 # Events read from the log at most at once by a recorder.
 FOREIGN_BATCH = 1000
 
@@ -81,6 +86,10 @@ class EventLog:
         """``actor`` (a label) published ``msg`` on ``robot``'s goal topic."""
         self._add(self.deriver.goal_sent(robot, actor, msg, self.clock()))
 
+    def stopped(self, robot: str, actor: str, done: Mapping[str, Any]) -> None:
+        """``actor`` (a label) stopped ``robot``; ``done`` says how."""
+        self._add(self.deriver.stopped(robot, actor, done, self.clock()))
+
     def teleop(self, robot: str, kind: Kind, holder: str) -> None:
         self._add(self.deriver.teleop(robot, kind, holder, self.clock()))
 
@@ -99,20 +108,31 @@ class EventLog:
                 return
 
     def _derived(self, drafts: list[EventDraft]) -> None:
+        drafts = [storable_draft(d) for d in drafts]
         self._pending.extend(drafts)
         if self.on_event is not None:
             for draft in drafts:
-                self.on_event(draft)
+                if draft.kind is not Kind.ALERT_CLEARED:
+                    self.on_event(draft)
 
     async def flush(self) -> None:
         batch, self._pending = self._pending, []
         if not batch:
             return
         try:
-            await database_sync_to_async(write_events)(batch, ORIGIN)
-        except Exception:
-            logger.exception("writing %d events failed; they are kept for the next try", len(batch))
-            self._pending[:0] = batch
+            stored = await database_sync_to_async(store_events)(batch, ORIGIN)
+        except BatchInterrupted as interrupted:
+            unwritten = interrupted.unwritten
+            logger.warning("%d events wait for the database: %s", len(unwritten), interrupted)
+            self._pending[:0] = unwritten
+            return
+        except Exception:  # never retried: a batch that cannot be written must not block
+            logger.exception("%d events could not be written and are dropped", len(batch))
+            return
+        # A clearing is news only where it cleared an alert: told once it is known.
+        for draft, _ in stored:
+            if draft.kind is Kind.ALERT_CLEARED and self.on_event is not None:
+                self.on_event(draft)
 
     async def close(self) -> None:
         """Write what waits (a process shutting down)."""
@@ -124,10 +144,43 @@ class EventLog:
 
 
 def write_events(batch: list[EventDraft], origin: str = "") -> list[Event]:
-    """Store ``batch``: two lookups (robots with their buildings, buildings by code) and one
-    insert. An event's building is the one its robot was last seen in, else the robot's
-    first building. ``origin`` is the process whose event log derived them ("" for a
-    request's own events)."""
+    """Store ``batch`` (see ``store_events``) and return the rows written."""
+    return [row for _, row in store_events(batch, origin)]
+
+
+def store_events(batch: list[EventDraft], origin: str = "") -> list[tuple[EventDraft, Event]]:
+    """Store ``batch``: two lookups (robots with their buildings, buildings by code), one
+    of the open alerts of its robots when it raises or clears any, one insert (row by row
+    if the database refuses it: a refused event is logged and dropped, never retried), and
+    one update per draft that clears alerts. An event's building is the one its robot was
+    last seen in, else the robot's first building. ``origin`` is the process whose event
+    log derived them ("" for a request's own events).
+
+    One condition, one alert: an alert whose robot has one of its kind not cleared yet is
+    not stored. A draft's ``clears`` closes the robot's open alerts of those kinds
+    (``cleared_at`` = its time); an ``alert_cleared`` draft that closed none is not
+    stored. Returns each stored draft with its row. Raises ``BatchInterrupted`` holding
+    the drafts not written when the database cannot be reached."""
+    try:
+        kept, alerts = _kept(batch, origin)
+    except UNREACHABLE as error:
+        raise BatchInterrupted(batch) from error
+    written: list[Event] = []
+    rows = [row for _, row in kept]
+    try:
+        write_batch(rows, lambda some: written.extend(Event.objects.bulk_create(some)), "an event")
+    except BatchInterrupted as interrupted:  # rows and drafts in the same order
+        left = [draft for draft, _ in kept[len(kept) - len(interrupted.unwritten) :]]
+        raise BatchInterrupted(left) from interrupted
+    alerts.close()
+    stored = {id(row) for row in written}
+    return [(draft, row) for draft, row in kept if id(row) in stored]
+
+
+def _kept(
+    batch: list[EventDraft], origin: str
+) -> tuple[list[tuple[EventDraft, Event]], _OpenAlerts]:
+    """The drafts of ``batch`` to store, with their rows, and the open alerts they close."""
     robots = {
         r.name: r
         for r in Robot.objects.filter(
@@ -136,32 +189,87 @@ def write_events(batch: list[EventDraft], origin: str = "") -> list[Event]:
     }
     codes = {d.building for d in batch if d.building}
     buildings = {b.code: b for b in Building.objects.filter(code__in=codes)}
-    rows = []
+    alerts = _OpenAlerts(batch, robots.values())
+    kept: list[tuple[EventDraft, Event]] = []
     for draft in batch:
         robot = robots.get(draft.robot or "")
         building = buildings.get(draft.building or "")
         if building is None and robot is not None:
             building = next(iter(robot.buildings.all()), None)
-        rows.append(
-            Event(
-                time=datetime.fromtimestamp(draft.time, UTC),
-                building=building,
-                robot=robot,
-                kind=draft.kind.value,
-                severity=draft.severity.value,
-                actor=draft.actor,
-                message=draft.message[:500],
-                data=dict(draft.data),
-                alert=draft.alert,
-                origin=origin,
-            )
-        )
-    return Event.objects.bulk_create(rows)
+        row = _row(draft, robot, building, origin)
+        if alerts.keep(draft, row):
+            kept.append((draft, row))
+    return kept, alerts
+
+
+def _row(draft: EventDraft, robot: Robot | None, building: Building | None, origin: str) -> Event:
+    return Event(
+        time=datetime.fromtimestamp(draft.time, UTC),
+        building=building,
+        robot=robot,
+        kind=draft.kind.value,
+        severity=draft.severity.value,
+        actor=draft.actor,
+        message=draft.message[:MESSAGE_MAX],
+        data=dict(draft.data),
+        alert=draft.alert,
+        origin=origin,
+    )
+
+
+def storable_draft(draft: EventDraft) -> EventDraft:
+    """``draft`` with its text as the event log stores it (``storable``): a robot's text
+    with a NUL in it is an event like any other, never a batch the database refuses."""
+    return replace(
+        draft,
+        message=storable_text(draft.message),
+        actor=storable_text(draft.actor),
+        data=storable(dict(draft.data)),
+    )
+
+
+class _OpenAlerts:
+    """The alerts of a batch's robots not cleared yet, by robot and kind: stored ones read
+    at once, and the batch's own as they are kept."""
+
+    def __init__(self, batch: list[EventDraft], robots: Iterable[Robot]) -> None:
+        self._open: dict[tuple[int, str], list[Event]] = {}
+        self._closing: list[tuple[datetime, list[int]]] = []
+        if any(d.alert or d.clears for d in batch):
+            rows = Event.objects.filter(
+                robot__in=[r.pk for r in robots], alert=True, cleared_at__isnull=True
+            ).only("id", "robot_id", "kind")
+            for row in rows:
+                self._open.setdefault((row.robot_id, row.kind), []).append(row)  # type: ignore[arg-type]
+
+    def keep(self, draft: EventDraft, row: Event) -> bool:
+        """Whether ``row`` (``draft`` as a row) is to be stored; closes what it clears."""
+        if row.robot_id is None:
+            return draft.kind is not Kind.ALERT_CLEARED
+        closed = [self._close(row.robot_id, kind, row.time) for kind in draft.clears]
+        if draft.alert:
+            if self._open.get((row.robot_id, row.kind)):
+                return False
+            self._open[(row.robot_id, row.kind)] = [row]
+        return draft.kind is not Kind.ALERT_CLEARED or any(closed)
+
+    def _close(self, robot_id: int, kind: Kind, when: datetime) -> bool:
+        rows = self._open.pop((robot_id, kind.value), [])
+        for row in rows:
+            row.cleared_at = when  # the batch's own, not stored yet
+        self._closing.append((when, [row.pk for row in rows if row.pk is not None]))
+        return bool(rows)
+
+    def close(self) -> None:
+        """Write the clearing of alerts stored before this batch."""
+        for when, ids in self._closing:
+            if ids:
+                Event.objects.filter(pk__in=ids, cleared_at__isnull=True).update(cleared_at=when)
 
 
 def write_on_commit(draft: EventDraft) -> None:
     """Store ``draft`` (an event a request derived) once its transaction commits."""
-    transaction.on_commit(lambda: write_events([draft]))
+    transaction.on_commit(lambda: write_events([storable_draft(draft)]))
 
 
 def foreign_events(after: int | None, robots: frozenset[str]) -> tuple[int, list[EventDraft]]:

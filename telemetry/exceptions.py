@@ -52,6 +52,16 @@ class ActionFailed(RosbridgeError):
     """An action goal cannot be carried out; the caller gets an ``action_result`` that failed."""
 
 
+class ServerFault(RosbridgeError):
+    """The server could not carry a frame out (a shared store such as Redis did not answer,
+    or a bug); the caller is told, the frame is dropped and the connection stays."""
+
+
 class LimitReached(RosbridgeError):
     """The connection (or the server as a whole) holds as much of something as it may:
     subscriptions, advertisements, pending calls, parameters or fragments."""
+
+
+class PoseRefused(RosbridgeError):
+    """A goal or initial pose no robot could stand at (in an obstacle, in unknown space,
+    outside its sub-map, out of reach, or naming no sub-map): refused where it was sent."""

@@ -6,6 +6,9 @@ they share, each named by what it does.
   topics of other processes;
 - service and action calls (``telemetry.service_calls``);
 - the teleop gate (``telemetry.teleop_gate``): who may send ``cmd_vel`` now;
+- STOP (``telemetry.stop``): halt a robot whatever moves it;
+- pose checks (``telemetry.pose_checks``): goals and initial poses no robot could stand
+  at are refused where they are sent;
 - the fleet feed (``telemetry.fleet_feed``): robots' pose, Map ID, events and missions;
 - the access review (``telemetry.access_review``): what an access change withdraws;
 - parameters (``telemetry.params``) and the event log (``telemetry.events``);
@@ -28,6 +31,7 @@ mapping sessions and map upkeep tap their robots' ``scan``, ``odom`` and ``pose`
 from __future__ import annotations
 
 import asyncio
+import contextvars
 import time
 import weakref
 from collections.abc import Awaitable, Callable
@@ -52,12 +56,14 @@ from telemetry.events import EventLog
 from telemetry.fleet_feed import FleetFeed, fleet_latched, fleet_type
 from telemetry.missions import MissionRunner
 from telemetry.params import Parameters, RedisParams
+from telemetry.pose_checks import PoseChecks
 from telemetry.recording.recorder import Recorder
-from telemetry.relay import Relay
+from telemetry.relay import Relay, shared_redis
 from telemetry.server_services import ServerParts, ServerService
 from telemetry.service_calls import ServiceCalls
 from telemetry.service_registry import server_services
 from telemetry.services import Access, Registry
+from telemetry.stop import RobotStop
 from telemetry.teleop_gate import TeleopGate
 
 
@@ -91,10 +97,13 @@ class Hub:
         held = Holdings("parameters", limits.params, limits.param_bytes)
         self.params = Parameters(held, lambda key: self.relay.owner_key(key))
         self.fragment_budget = ByteBudget(config.fragments_total_bytes)
+        self._fragment_shares: dict[str, ByteBudget] = {}
         self.clients: dict[str, Client] = {}
         self.events = EventLog()
         self.missions = MissionRunner(self._send_goal, self.robots)
         self.teleop = TeleopGate(config, self.bus, self.events)
+        self.poses = PoseChecks()
+        self.stop = RobotStop(self.calls, self.teleop, self.events, lambda: self.relay)
         self.fleet = FleetFeed(
             FleetTracker(interval=config.fleet_flush_interval),
             self.events,
@@ -114,13 +123,28 @@ class Hub:
             robots=self.robots,
             relay=lambda: self.relay,
         )
-        self.server_parts = ServerParts(self.teleop.locks, self.params, directory)
+        self.server_parts = ServerParts(
+            self.teleop.locks, self.params, directory, self.stop, self.poses
+        )
+
+    def fragment_share(self, label: str) -> ByteBudget:
+        """The fragment budget all connections of principal ``label`` draw on together."""
+        share = self._fragment_shares.get(label)
+        if share is None:
+            share = ByteBudget(self.config.fragments_per_client_bytes)
+            self._fragment_shares[label] = share
+        return share
 
     def tap(self, topic: str | None, on_message: OnMessage) -> TopicTap:
         """Call ``on_message(topic, msg)`` with every message of ``topic`` (an absolute
         name, or ``EVERY_TOPIC``) fanned out in this process until the returned tap is
         closed; the one way to tap the topic bus (see the module's docstring)."""
         return self.bus.tap(topic, on_message)
+
+    def tell(self, name: str, msg: dict[str, Json]) -> None:
+        """Publish ``msg`` on ``name`` as the server, latched (subscribers that come later
+        get the last one)."""
+        self.bus.publish(None, name, msg, latch=True)
 
     def record_with(self, recorder: Recorder) -> None:
         """Record the robots connected here: the recorder taps every topic."""
@@ -141,9 +165,8 @@ class Hub:
         if not self.config.redis_url:
             return
         from channels.layers import get_channel_layer
-        from redis.asyncio import from_url
 
-        redis = from_url(self.config.redis_url)
+        redis = shared_redis(self.config.redis_url)
         relay = Relay(self, get_channel_layer(), redis)
         await relay.start()
         self.relay = self.bus.listener = relay
@@ -211,8 +234,8 @@ class Hub:
     async def subscribe(
         self, conn: Connection, name: str, op: protocol.Subscribe, params: SubscribeParams
     ) -> None:
-        """Subscribe; in scaled mode also join the topic's group and replay a latched
-        message published on another process."""
+        """Subscribe; in scaled mode also subscribe to the topic's Redis channel and replay
+        a latched message published on another process."""
         type_name = op.type
         if type_name is None and self.bus.get(name) is None:
             found = await self.relay.find("topics", name)
@@ -264,8 +287,10 @@ async def get_hub() -> Hub:
     loop = asyncio.get_running_loop()
     task = _hubs.get(loop)
     if task is None or (task.done() and task.exception() is not None):
-        # a hub that failed to start (Redis unreachable) is retried by the next connection
-        task = _hubs[loop] = loop.create_task(_new_hub())
+        # a hub that failed to start (Redis unreachable) is retried by the next connection;
+        # in a fresh context: the hub's background tasks outlive whatever asked first, and
+        # an HTTP request's asgiref executors quit when it ends (issue 23 point 9)
+        task = _hubs[loop] = loop.create_task(_new_hub(), context=contextvars.Context())
     return await asyncio.shield(task)
 
 
@@ -275,6 +300,6 @@ async def _new_hub() -> Hub:
 
     hub = Hub(RosbridgeConfig.load(), server_services())
     await hub.start()
-    MappingRunner(hub).start()  # mapping sessions of the robots connected here
+    MappingRunner(hub, tell=hub.tell).start()  # mapping sessions of the robots connected here
     UpkeepRunner(hub).start()  # laser evidence about the stored maps, from the same robots
     return hub

@@ -15,8 +15,10 @@ from typing import Any
 
 from channels.db import database_sync_to_async
 
+from cloudnav_web.batches import BatchInterrupted
 from robots import missions
 from robots.missions import Goal
+from telemetry.domain.storable import storable_text
 
 logger = logging.getLogger(__name__)
 
@@ -54,7 +56,8 @@ class MissionRunner:
         if code == SUCCEEDED:
             self._outcomes[sent[0]] = missions.REACHED
         elif code in FAILED:
-            self._outcomes[sent[0]] = f"goal {FAILED[code]}: {latest.get('text') or 'no reason'}"
+            reason = storable_text(str(latest.get("text") or "no reason"))
+            self._outcomes[sent[0]] = f"goal {FAILED[code]}: {reason}"
         else:
             return
         del self._sent[robot]
@@ -70,9 +73,13 @@ class MissionRunner:
             outcomes, self._outcomes = self._outcomes, {}
             try:
                 goals = await database_sync_to_async(_tick)(self.robots(), outcomes)
-            except Exception:
-                logger.exception("the mission tick failed; its outcomes are kept for the next")
-                self._outcomes = {**outcomes, **self._outcomes}
+            except BatchInterrupted as interrupted:
+                logger.warning("mission outcomes wait for the database: %s", interrupted)
+                kept = {pk: outcomes[pk] for pk in interrupted.unwritten}
+                self._outcomes = {**kept, **self._outcomes}
+                continue
+            except Exception:  # the outcomes were recorded: never twice (a waypoint skipped)
+                logger.exception("the mission tick failed after recording its outcomes")
                 continue
             for goal in goals:
                 self._sent[goal.robot] = (goal.mission, self.clock())

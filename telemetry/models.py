@@ -56,7 +56,9 @@ class Event(models.Model):
     """Something that happened: when, where, to which robot, what, how bad, who caused it.
 
     ``actor`` is ``server``, ``robot:<name>`` or ``user:<name>``; ``data`` the values behind
-    ``message``. An alert (``alert``) stays open until acknowledged. A recording carries
+    ``message``. An alert (``alert``) stays open until acknowledged or cleared
+    (``cleared_at``: its condition ended, told by a later ``alert_cleared`` or other event
+    naming it in ``data["cleared"]``). A recording carries
     the same fields, so events can be listed and filtered the same way there.
     """
 
@@ -80,6 +82,7 @@ class Event(models.Model):
     acknowledged_by = models.ForeignKey(
         settings.AUTH_USER_MODEL, null=True, blank=True, on_delete=models.SET_NULL, related_name="+"
     )
+    cleared_at = models.DateTimeField(null=True, blank=True)
 
     class Meta:
         ordering = ["-time", "-id"]

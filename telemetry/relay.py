@@ -1,10 +1,17 @@
-"""Scaled mode: rosbridge traffic between server processes, over the Redis channel layer.
+"""Scaled mode: rosbridge traffic between server processes, over Redis.
 
-Each server process owns one channel. It joins a topic's group while it has subscribers to
-that topic, and sends each message published on it to the group once: one channel-layer
-hop per process, whatever the number of subscribers, and none at all for local ones.
-Requests to a service or action advertised on another process go to that process's
-channel; answers come back as ready frames for one connection (``rb.deliver``).
+Topics travel on Redis pub/sub, one Redis channel per topic (``names.topic_channel``): a
+process subscribes to it while it has subscribers to the topic, whether or not anyone
+publishes it yet, so the order of subscribe, advertise, connect and reconnect never
+matters; messages published here go out batched, one pipelined round trip per turn of the
+event loop however many there are (measured against the channel layer in README.md).
+Control messages go over the channel layer: each server process owns one channel, requests
+to a service or action advertised on another process go to that process's channel, and
+answers come back as ready frames for one connection (``rb.deliver``).
+
+Every loop (receiving, sending, heartbeat, access changes) is supervised: a loop that
+fails is logged and restarted, never left dead; after Redis comes back empty (restarted),
+the heartbeat writes this process's part of the shared directory again from what it holds.
 
 What every process must see lives in Redis under ``names.redis_key``: which process
 advertises which topic, service and action, which robots it serves, latched messages and
@@ -31,6 +38,7 @@ from telemetry.domain.encoding import Wire
 from telemetry.domain.protocol import Json
 from telemetry.recording.elsewhere import FLUSH_REQUEST, FLUSHED
 from telemetry.revocation import AccessChange, access_channel
+from telemetry.stop import STOP_REQUEST
 
 if TYPE_CHECKING:
     from telemetry.hub import Hub
@@ -39,8 +47,9 @@ logger = logging.getLogger(__name__)
 
 HEARTBEAT = 5.0
 ALIVE_FOR = 15
-REGROUP_EVERY = 600.0  # channels_redis forgets group members after a day; rejoin well before
 MAX_PENDING = 10_000
+RESTART_AFTER = 0.5  # a failed loop waits this long before it runs again (Redis may be down)
+SETTLE_WITHIN = 2.0  # a subscription waits at most this long for Redis to confirm it
 
 
 @dataclass(frozen=True)
@@ -77,23 +86,30 @@ class Relay:
         self.redis = redis
         self.channel = ""
         self.process = uuid.uuid4().hex[:12]
+        self.topics = TopicChannels(redis, hub.bus.receive_remote)
         self._outbox: asyncio.Queue[_Call] = asyncio.Queue()
-        self._settled: asyncio.Future[None] | None = None
-        self._groups: set[str] = set()
         self._tasks: list[asyncio.Task[None]] = []
+        # this process's part of the shared directory, to write again after Redis restarts
+        self._mine: dict[str, dict[str, str]] = {}
+        self._latched: dict[str, str] = {}
         self.dropped = 0
 
     async def start(self) -> None:
         self.channel = await self.layer.new_channel(names.PROCESS_CHANNEL_PREFIX)
+        self.topics.origin = self.channel
         await self.redis.sadd(names.redis_key("processes"), self.channel)
-        # access changes (``telemetry.revocation``) reach every process on this Redis channel
-        access = self.redis.pubsub()
-        await access.subscribe(access_channel(self.redis))
         await self._beat()
+        loops = {
+            "receive": self._receive_loop,
+            "send": self._send_loop,
+            "heartbeat": self._heartbeat_loop,
+            "access": self._access_loop,
+            "topic receive": self.topics.receive_loop,
+            "topic send": self.topics.send_loop,
+        }
         loop = asyncio.get_running_loop()
-        works = (self._receive_loop(), self._send_loop(), self._heartbeat_loop())
-        for work in (*works, self._access_loop(access)):
-            self._tasks.append(loop.create_task(work))
+        for name, work in loops.items():
+            self._tasks.append(loop.create_task(keep_running(name, work)))
 
     # ------------------------------------------------------------ ordered sending
 
@@ -115,7 +131,7 @@ class Relay:
             try:
                 await queued.call(*queued.args)
             except Exception:
-                logger.exception("relay: a channel-layer call failed")
+                logger.exception("relay: a channel-layer or Redis call failed")
             finally:
                 if not queued.done.done():
                     queued.done.set_result(None)
@@ -123,42 +139,30 @@ class Relay:
     # ------------------------------------------------------------ BusListener
 
     def published(self, topic: Topic, msg: dict[str, Json]) -> None:
-        message = {
-            "type": "rb.publish",
-            "origin": self.channel,
-            "topic": topic.name,
-            "topic_type": topic.type,
-            "msg": msg,
-            "latched": topic.latched,
-        }
-        self._queue(self.layer.group_send, names.topic_group(topic.name), message)
+        self.topics.publish(topic, msg)
         if topic.latched:
             value = json.dumps({"type": topic.type, "msg": msg})
+            self._latched[topic.name] = value
             self._queue(self.redis.hset, names.redis_key("latched"), topic.name, value)
 
     def interest(self, topic: str, interested: bool) -> None:
-        group = names.topic_group(topic)
-        if interested:
-            self._groups.add(group)
-            self._settled = self._queue(self.layer.group_add, group, self.channel)
-        else:
-            self._groups.discard(group)
-            self._queue(self.layer.group_discard, group, self.channel)
+        self.topics.interest(topic, interested)
 
     def publishers_changed(self, topic: Topic) -> None:
         if topic.publishers:
-            self._queue(self._put, "topics", topic.name, topic.type or "")
+            self.put("topics", topic.name, topic.type or "")
         else:
-            self._queue(self._remove, "topics", topic.name)
-            self._queue(self.redis.hdel, names.redis_key("latched"), topic.name)
+            self.remove("topics", topic.name)
+            if self._latched.pop(topic.name, None) is not None:
+                self._queue(self.redis.hdel, names.redis_key("latched"), topic.name)
 
     def owner_key(self, conn_key: str) -> str:
         return f"{self.channel}/{conn_key}"
 
     async def settled(self) -> None:
-        """Wait until this process has joined every topic group it asked for so far."""
-        if self._settled is not None:
-            await self._settled
+        """Wait until Redis has confirmed every topic subscription asked for so far (at
+        most ``SETTLE_WITHIN`` seconds: with Redis down, subscribing goes on regardless)."""
+        await self.topics.settled()
 
     # ------------------------------------------------------------ directory
 
@@ -172,9 +176,11 @@ class Relay:
         await self.redis.hdel(self._hash(kind), name)
 
     def put(self, kind: str, name: str, value: str) -> None:
+        self._mine.setdefault(kind, {})[name] = value
         self._queue(self._put, kind, name, value)
 
     def remove(self, kind: str, name: str) -> None:
+        self._mine.get(kind, {}).pop(name, None)
         self._queue(self._remove, kind, name)
 
     async def _live_processes(self) -> list[str]:
@@ -247,36 +253,35 @@ class Relay:
 
     async def _dispatch(self, message: dict[str, Any]) -> None:
         kind = message.get("type")
-        if kind == "rb.publish":
-            if message["origin"] != self.channel:
-                self.hub.bus.receive_remote(
-                    message["topic"], message["topic_type"], message["msg"], message["latched"]
-                )
-        elif kind == "rb.deliver":
+        if kind == "rb.deliver":
             client = self.hub.clients.get(message["conn"])
             if client is not None:
                 client.conn.deliver(Wire(tuple(message["payloads"]), message["binary"]))
         elif kind == FLUSH_REQUEST:
             await self.hub.flush_recording(message["robots"])
             self.send(message["reply"], {"type": FLUSHED})
+        elif kind == STOP_REQUEST:
+            await self.hub.stop.halt_here(message["robot"])
         else:
             await self.hub.calls.remote_request(message)
 
     # ------------------------------------------------------------ access changes
 
-    async def _access_loop(self, access: Any) -> None:
-        """Apply each access change announced by any process (``telemetry.revocation``)."""
-        while True:
-            try:
-                async for message in access.listen():
-                    if message.get("type") == "message":
-                        change = AccessChange.of(json.loads(message["data"]))
+    async def _access_loop(self) -> None:
+        """Apply each access change announced by any process (``telemetry.revocation``);
+        a new subscription each time it (re)starts."""
+        access = self.redis.pubsub()
+        try:
+            await access.subscribe(access_channel(self.redis))
+            async for message in access.listen():
+                if message.get("type") == "message":
+                    change = AccessChange.of(json.loads(message["data"]))
+                    try:
                         await self.hub.review.access_changed(change)
-            except asyncio.CancelledError:
-                raise
-            except Exception:
-                logger.exception("relay: an access change failed")
-                await asyncio.sleep(1.0)
+                    except Exception:
+                        logger.exception("relay: an access change failed")
+        finally:
+            await access.aclose()
 
     # ------------------------------------------------------------ liveness
 
@@ -284,18 +289,147 @@ class Relay:
         await self.redis.set(names.redis_key("alive", self.channel), self.process, ex=ALIVE_FOR)
 
     async def _heartbeat_loop(self) -> None:
-        since_regroup = 0.0
         while True:
             await asyncio.sleep(HEARTBEAT)
-            since_regroup += HEARTBEAT
+            await self._beat()
+            if await self.redis.sadd(names.redis_key("processes"), self.channel):
+                await self._rewrite_directory()
+
+    async def _rewrite_directory(self) -> None:
+        """Redis lost this process's entry (it restarted empty): write again what this
+        process advertises, the robots it serves and its latched messages."""
+        logger.warning("relay: Redis forgot this process; writing its directory again")
+        for kind, entries in self._mine.items():
+            for name, value in list(entries.items()):
+                await self._put(kind, name, value)
+        for topic, value in list(self._latched.items()):
+            await self.redis.hset(names.redis_key("latched"), topic, value)
+
+
+class TopicChannels:
+    """Topics between processes on Redis pub/sub: one Redis channel per topic, subscribed
+    while this process has subscribers to it; outgoing messages batched per loop turn."""
+
+    def __init__(self, redis: Any, deliver: Callable[[str, str | None, Any, bool], None]) -> None:
+        self.redis = redis
+        self.deliver = deliver
+        self.origin = ""
+        self.database = int(redis.connection_pool.connection_kwargs.get("db", 0))
+        self._wanted: set[str] = set()  # topic names
+        self._pending: list[tuple[str, str]] = []  # (Redis channel, payload)
+        self._ready = asyncio.Event()
+        self._confirmed: dict[str, asyncio.Future[None]] = {}
+        self._pubsub: Any = None
+        self._commanding = asyncio.Lock()
+        self.sent_batches = 0
+
+    def publish(self, topic: Topic, msg: dict[str, Json]) -> None:
+        payload = {"origin": self.origin, "type": topic.type, "msg": msg, "latched": topic.latched}
+        self._pending.append((names.topic_channel(topic.name, self.database), json.dumps(payload)))
+        self._ready.set()
+
+    def interest(self, topic: str, interested: bool) -> None:
+        channel = names.topic_channel(topic, self.database)
+        if interested:
+            self._wanted.add(topic)
+            self._confirmed[channel] = asyncio.get_running_loop().create_future()
+            self._command(lambda pubsub: pubsub.subscribe(channel))
+        else:
+            self._wanted.discard(topic)
+            self._confirmed.pop(channel, None)
+            self._command(lambda pubsub: pubsub.unsubscribe(channel))
+
+    def _command(self, command: Callable[[Any], Awaitable[Any]]) -> None:
+        if self._pubsub is not None:
+            asyncio.get_running_loop().create_task(self._in_order(command, self._pubsub))
+        # with no connection yet, ``receive_loop`` subscribes to every wanted topic
+
+    async def _in_order(self, command: Callable[[Any], Awaitable[Any]], pubsub: Any) -> None:
+        async with self._commanding:  # a fair lock: (un)subscriptions reach Redis in order
             try:
-                await self._beat()
-                if since_regroup >= REGROUP_EVERY:
-                    since_regroup = 0.0
-                    for group in list(self._groups):
-                        self._queue(self.layer.group_add, group, self.channel)
+                await command(pubsub)
             except Exception:
-                logger.exception("relay: heartbeat failed")
+                # the receive loop fails too, and subscribes to every wanted topic again
+                logger.warning("relay: a topic subscription change failed", exc_info=True)
+
+    async def settled(self) -> None:
+        waiting = [f for f in self._confirmed.values() if not f.done()]
+        if waiting:
+            await asyncio.wait(waiting, timeout=SETTLE_WITHIN)
+
+    async def send_loop(self) -> None:
+        """Send what was published since the last round trip, in one pipeline."""
+        while True:
+            await self._ready.wait()
+            self._ready.clear()
+            batch, self._pending = self._pending, []
+            try:
+                async with self.redis.pipeline(transaction=False) as pipe:
+                    for channel, payload in batch:
+                        pipe.publish(channel, payload)
+                    await pipe.execute()
+            finally:
+                self.sent_batches += 1
+
+    async def receive_loop(self) -> None:
+        """Subscribe to every wanted topic on a new connection, then hand each message
+        from another process to the local bus."""
+        pubsub = self.redis.pubsub(ignore_subscribe_messages=False)
+        try:
+            # one connection: a (un)subscription sent while it is made would go on another
+            await pubsub.connect()
+            self._pubsub = pubsub
+            wanted = [names.topic_channel(topic, self.database) for topic in self._wanted]
+            if wanted:
+                self._command(lambda pubsub: pubsub.subscribe(*wanted))
+            while True:
+                message = await pubsub.get_message(timeout=None)
+                if message is not None:
+                    self._received(message)
+        finally:
+            self._pubsub = None
+            await pubsub.aclose()
+
+    def _received(self, message: dict[str, Any]) -> None:
+        channel = _text(message["channel"])
+        if message["type"] == "subscribe":
+            confirmed = self._confirmed.get(channel)
+            if confirmed is not None and not confirmed.done():
+                confirmed.set_result(None)
+        elif message["type"] == "message":
+            payload = json.loads(message["data"])
+            if payload["origin"] != self.origin:
+                topic = names.topic_of_channel(channel)
+                self.deliver(topic, payload["type"], payload["msg"], payload["latched"])
+
+
+async def keep_running(name: str, work: Callable[[], Awaitable[None]]) -> None:
+    """Run ``work`` for ever: when it fails (Redis timed out, restarted, unreachable), log
+    why and start it again after ``RESTART_AFTER`` seconds."""
+    while True:
+        try:
+            await work()
+            logger.error("relay: the %s loop ended; starting it again", name)
+        except asyncio.CancelledError:
+            raise
+        except Exception:
+            logger.exception("relay: the %s loop failed; starting it again", name)
+        await asyncio.sleep(RESTART_AFTER)
+
+
+def shared_redis(url: str) -> Any:
+    """The asyncio Redis client of the relay and of the state it shares (locks, parameters).
+
+    After Redis restarts, each pooled connection fails once on its next use ("Connection
+    closed by server"): a command that meets a dropped connection is tried again on a new
+    one (up to 3 times, backing off to 0.5 s) instead of losing a message or a lock."""
+    from redis.asyncio import from_url
+    from redis.asyncio.retry import Retry
+    from redis.backoff import ExponentialBackoff
+    from redis.exceptions import ConnectionError as DroppedConnection
+
+    retry = Retry(ExponentialBackoff(cap=0.5, base=0.05), 3)
+    return from_url(url, retry=retry, retry_on_error=[DroppedConnection])
 
 
 def _text(value: Any) -> str:

@@ -19,17 +19,22 @@ if TYPE_CHECKING:
     from telemetry.connection import Connection
     from telemetry.directory import Directory
     from telemetry.params import Parameters
+    from telemetry.pose_checks import PoseChecks
     from telemetry.services import Access
+    from telemetry.stop import RobotStop
 
 
 @dataclass(frozen=True)
 class ServerParts:
-    """What server services may use of the process: teleop locks, parameters, and the
-    directory of what is published, served and connected (here and on other processes)."""
+    """What server services may use of the process: teleop locks, parameters, the
+    directory of what is published, served and connected (here and on other processes),
+    STOP and the checks of poses sent to robots."""
 
     teleop: TeleopLocks
     params: Parameters
     directory: Directory
+    stop: RobotStop
+    poses: PoseChecks
 
 
 @dataclass

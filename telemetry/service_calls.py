@@ -10,6 +10,7 @@ from typing import Any
 from telemetry.connection import Connection
 from telemetry.cross_process import CrossProcess
 from telemetry.domain import protocol
+from telemetry.domain.bus import Peer
 from telemetry.domain.calls import CallTable, PendingCall
 from telemetry.domain.encoding import Outgoing
 from telemetry.domain.limits import ConnectionLimits
@@ -82,6 +83,17 @@ class ServiceCalls:
         )
         request = protocol.call_service(provider.spelling, pending.request_id, op.args)
         provider.peer.deliver(Outgoing(request).wire())
+
+    def call_as_server(self, name: str, args: Json, caller: Peer) -> bool:
+        """Call ``name``, served by a connection of this process, as the server itself: the
+        answer is delivered to ``caller``. False if no connection here serves ``name``."""
+        provider = self.services.provider(name)
+        if provider is None:
+            return False
+        pending = self.services.start(provider, caller, None, name)
+        request = protocol.call_service(provider.spelling, pending.request_id, args)
+        provider.peer.deliver(Outgoing(request).wire())
+        return True
 
     def service_response(self, conn: Connection, name: str, op: protocol.ServiceResponse) -> None:
         call = self.services.finish(name, conn, op.id)

@@ -27,6 +27,7 @@ class TeleopGate:
             on_event=events.teleop,
             ttl=config.teleop_lock_ttl,
             silence=config.teleop_silence,
+            handover=config.teleop_handover,
         )
 
     async def check_command(self, conn: Connection, name: str, msg: dict[str, Json]) -> None:

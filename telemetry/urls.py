@@ -5,6 +5,7 @@ from __future__ import annotations
 from django.urls import URLPattern, path
 
 from telemetry import event_views as events
+from telemetry.recording import settings_views as recording_settings
 from telemetry.recording import views as recording
 from telemetry.video import views as video
 
@@ -30,6 +31,11 @@ urlpatterns: list[URLPattern] = [
         "api/buildings/<slug:code>/recording.mcap",
         recording.BuildingRecording.as_view(),
         name="building-recording",
+    ),
+    path(
+        "api/buildings/<slug:code>/recording/",
+        recording_settings.BuildingRecordingSettings.as_view(),
+        name="building-recording-settings",
     ),
     path(
         "api/robots/<slug:name>/recording.json",

@@ -47,10 +47,15 @@ class Refused(Exception):
 
 
 class RosClient:
-    """A rosbridge client over a WebsocketCommunicator."""
+    """A rosbridge client over a WebsocketCommunicator (or a ``SocketCommunicator``).
 
-    def __init__(self, communicator: WebsocketCommunicator) -> None:
+    ``settle``: how long ``quiet`` waits past its round trip for a frame that crosses
+    server processes (a sender's ``sync`` on one process does not order delivery on another).
+    """
+
+    def __init__(self, communicator: Any, settle: float = 0.0) -> None:
         self.communicator = communicator
+        self.settle = settle
 
     async def send(self, **frame: Any) -> None:
         await self.communicator.send_to(text_data=json.dumps(frame))
@@ -100,7 +105,7 @@ class RosClient:
         await self.send(op="call_service", id="quiet", service="/rosapi/get_time")
         frame = await self.receive()
         if frame.get("op") == "service_response" and frame.get("id") == "quiet":
-            return True
+            return not self.settle or await self.nothing_more(self.settle)
         await self.receive_until(lambda f: f.get("id") == "quiet")
         return False
 
@@ -110,6 +115,38 @@ class RosClient:
 
     async def close(self) -> None:
         await self.communicator.disconnect()
+
+
+class SocketCommunicator:
+    """What ``RosClient`` uses of a ``WebsocketCommunicator``, over a real WebSocket to a
+    live server: one frame may be awaited without being taken (``receive_nothing``)."""
+
+    def __init__(self, socket: Any) -> None:
+        self.socket = socket
+        self._next: asyncio.Task[str | bytes] | None = None
+
+    async def send_to(self, text_data: str) -> None:
+        await self.socket.send(text_data)
+
+    def _next_frame(self) -> asyncio.Task[str | bytes]:
+        if self._next is None:
+            self._next = asyncio.ensure_future(self.socket.recv())
+        return self._next
+
+    async def receive_output(self, timeout: float) -> dict[str, Any]:  # noqa: ASYNC109 (its signature)
+        data = await asyncio.wait_for(asyncio.shield(self._next_frame()), timeout)
+        self._next = None
+        key = "text" if isinstance(data, str) else "bytes"
+        return {"type": "websocket.send", key: data}
+
+    async def receive_nothing(self, timeout: float) -> bool:  # noqa: ASYNC109 (its signature)
+        done, _ = await asyncio.wait({self._next_frame()}, timeout=timeout)
+        return not done
+
+    async def disconnect(self) -> None:
+        if self._next is not None:
+            self._next.cancel()
+        await self.socket.close()
 
 
 def session_cookie(user: User) -> bytes:
@@ -175,7 +212,9 @@ async def rosbridge() -> AsyncIterator[Connect]:
 # test writes is what the server sees. Extra environment (``env=``) overrides settings the
 # server reads from the environment, e.g. ``REDIS_URL`` or ``CLOUDNAV_ROSBRIDGE_...``.
 
-STARTUP_DEADLINE = 30.0
+STARTUP_DEADLINE = 90.0
+"""Seconds a daphne may take to answer: on a 2-core machine at load 20 it takes 20 s to
+import and listen, and its first request several seconds more."""
 BASE_DIR = Path(__file__).resolve().parent.parent
 
 
@@ -423,9 +462,10 @@ def spawn_daphne(log_dir: Path, environment: dict[str, str], host: str) -> LiveS
 def wait_until_serving(server: LiveServer, deadline: float = STARTUP_DEADLINE) -> bool:
     """Poll the server with HTTP requests until it answers; False if it died or timed out."""
     give_up = time.monotonic() + deadline
-    while time.monotonic() < give_up and server.process.poll() is None:
+    while (left := give_up - time.monotonic()) > 0 and server.process.poll() is None:
         try:
-            with urllib.request.urlopen(f"{server.url}/api/", timeout=1):
+            # A short timeout aborts a first request that a busy machine serves slowly.
+            with urllib.request.urlopen(f"{server.url}/api/", timeout=min(10.0, left)):
                 return True
         except urllib.error.HTTPError:
             return True  # any HTTP answer means the application is up
@@ -449,6 +489,11 @@ class LiveServers:
         self.started.append(server)
         return server
 
+    def start_many(self, count: int, env: dict[str, str] | None = None) -> list[LiveServer]:
+        servers = start_daphnes(count, self.log_dir, self.database_url, env)
+        self.started += servers
+        return servers
+
     def stop_all(self) -> None:
         for server in self.started:
             server.stop()
@@ -466,6 +511,10 @@ def daphne_servers(transactional_db: None, tmp_path: Path) -> Iterator[LiveServe
 def daphne_server(daphne_servers: LiveServers) -> LiveServer:
     """One live daphne server (embedded mode) on the test database."""
     return daphne_servers.start()
+
+
+# The access-log level at which the unchanged checks (304) are written too.
+ACCESS_LOG_ALL = {"CLOUDNAV_ACCESS_LOG_LEVEL": "DEBUG"}
 
 
 # ---------------------------------------------------------------- scaled mode
@@ -504,6 +553,17 @@ class ScaledCluster:
     tokens: dict[str, str]
     cookies: dict[str, str]
     database_url: str = ""
+    spawn: Callable[[], LiveServer] | None = None
+
+    def replace(self, index: int) -> LiveServer:
+        """Kill server ``index`` at once (SIGKILL, as a crash) and start a new process in its
+        place, on the same Redis and database; return the new one."""
+        assert self.spawn is not None
+        old = self.servers[index]
+        old.process.kill()
+        old.process.wait(10)
+        self.servers[index] = self.spawn()
+        return self.servers[index]
 
 
 def run_manage(database_url: str, *args: str) -> str:
@@ -534,10 +594,11 @@ print(json.dumps(seed_fleet()))
 def seed_fleet() -> dict[str, dict[str, str]]:
     """Create a building with ``PEOPLE`` as members and robots r1, r2; return their
     credentials. Runs in a process of its own against the scaled database."""
-    from tests.conftest import make_building, make_robot, make_user
+    from tests.conftest import make_building, make_robot, make_submap, make_user
 
     people = [make_user(name, role) for name, role in PEOPLE]
     building = make_building(members=people)
+    make_submap(building, code="Hall")  # goals are checked against their sub-map
     tokens = {name: make_robot(name=name, buildings=[building])[1] for name in ("r1", "r2")}
     cookies = {user.username: session_cookie(user).decode() for user in people}
     return {"tokens": tokens, "cookies": cookies}
@@ -572,6 +633,54 @@ def flush_redis(url: str) -> None:
     client.close()
 
 
+class PrivateRedis:
+    """A redis-server of this test's own on a free port (never the shared one), to stop and
+    start again: ``url``, ``restart(down=seconds)``."""
+
+    def __init__(self, directory: Path) -> None:
+        self.port = free_port()
+        self.url = f"redis://127.0.0.1:{self.port}/0"
+        self.directory = directory
+        self.process: subprocess.Popen[bytes] | None = None
+        self.start()
+
+    def start(self) -> None:
+        command = ["redis-server", "--port", str(self.port), "--bind", "127.0.0.1"]
+        options = ["--save", "", "--appendonly", "no", "--dir", str(self.directory)]
+        self.process = subprocess.Popen(
+            [*command, *options], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
+        )
+        give_up = time.monotonic() + STARTUP_DEADLINE
+        while not self._answers():
+            assert time.monotonic() < give_up, "redis-server did not start"
+            time.sleep(0.05)
+
+    def _answers(self) -> bool:
+        import redis
+
+        try:
+            return bool(redis.Redis.from_url(self.url, socket_timeout=1).ping())
+        except redis.RedisError:
+            return False
+
+    def stop(self) -> None:
+        if self.process is not None and self.process.poll() is None:
+            self.process.kill()  # empty when it starts again, as a restarted cache would be
+            self.process.wait(10)
+
+    def restart(self, down: float = 0.0) -> None:
+        self.stop()
+        time.sleep(down)  # the outage itself is what is tested
+        self.start()
+
+
+@pytest.fixture
+def private_redis(tmp_path: Path) -> Iterator[PrivateRedis]:
+    server = PrivateRedis(tmp_path)
+    yield server
+    server.stop()
+
+
 @pytest.fixture(scope="session")
 def scaled_template() -> Iterator[tuple[str, dict[str, Any]]]:
     """A PostgreSQL database migrated and seeded once per run, copied by each scaled test;
@@ -596,9 +705,65 @@ def scaled_servers(
             database_url = stack.enter_context(postgres_database(scaled_postgres_url(), template))
             flush_redis(redis_url)
             environment = {"REDIS_URL": redis_url, **(env or {})}
-            servers = start_daphnes(count, tmp_path, database_url, environment)
-            for server in servers:
-                stack.callback(server.stop)  # before the drop
-            return ScaledCluster(servers, seeded["tokens"], seeded["cookies"], database_url)
+
+            def spawn(count: int = 1) -> list[LiveServer]:
+                servers = start_daphnes(count, tmp_path, database_url, environment)
+                for server in servers:
+                    stack.callback(server.stop)  # before the drop
+                return servers
+
+            return ScaledCluster(
+                spawn(count),
+                seeded["tokens"],
+                seeded["cookies"],
+                database_url,
+                spawn=lambda: spawn()[0],
+            )
 
         yield start
+
+
+# ``rosbridge_across_processes``: the rosbridge fixture's clients, on two live server
+# processes in scaled mode over the test database, for tests parametrised to run in both
+# modes (the same rules and behaviour, whichever process each party is on).
+
+CROSS_PROCESS_SETTLE = 2.0  # how long "nothing arrived" is waited for across processes
+
+
+@pytest.fixture
+async def rosbridge_across_processes(
+    daphne_servers: LiveServers,
+) -> AsyncIterator[Callable[..., Awaitable[RosClient]]]:
+    """``await connect(process, token=...)`` or ``connect(process, user=...)``: a
+    ``RosClient`` on server process 0 or 1 of two sharing Redis and the test database.
+    Raises Refused when the handshake is refused. All closed at the end."""
+    import websockets
+
+    redis_url = scaled_redis_url()
+    flush_redis(redis_url)
+    servers = daphne_servers.start_many(2, env={"REDIS_URL": redis_url})
+    opened: list[RosClient] = []
+
+    async def connect(
+        process: int, token: str | None = None, user: User | None = None
+    ) -> RosClient:
+        from channels.db import database_sync_to_async
+
+        server = servers[process]
+        headers = {}
+        if user is not None:
+            cookie = await database_sync_to_async(session_cookie)(user)
+            headers = {"Cookie": cookie.decode(), "Origin": server.url}
+        try:
+            socket = await websockets.connect(
+                server.rosbridge_url(token), additional_headers=headers, open_timeout=TIMEOUT * 3
+            )
+        except websockets.InvalidStatus as refused:
+            raise Refused(server.rosbridge_url()) from refused
+        client = RosClient(SocketCommunicator(socket), settle=CROSS_PROCESS_SETTLE)
+        opened.append(client)
+        return client
+
+    yield connect
+    for client in opened:
+        await client.close()

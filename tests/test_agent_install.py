@@ -25,7 +25,8 @@ IMPORT_CHECK = """
 import importlib, importlib.util, pkgutil, sys
 import robots.agent
 names = [m.name for m in pkgutil.walk_packages(robots.agent.__path__, "robots.agent.")]
-ros = ("robots.agent.ros.", "robots.agent.sim.ros_nodes")  # need ROS installed
+ros = ("robots.agent.ros.", "robots.agent.sim.ros_nodes")  # need ROS 1 installed
+ros += ("robots.agent.ros2.", "robots.agent.sim.ros2_nodes")  # rclpy (scripts/ros2_env.sh)
 names = [n for n in names if not n.startswith(ros)]
 for name in names:
     importlib.import_module(name)

@@ -27,12 +27,19 @@ from robots.agent.supervisor import (
 )
 from robots.domain.params import RobotConfig
 from tests.conftest import make_robot
-from tests.fixtures_live import LiveServer
+from tests.fixtures_live import ACCESS_LOG_ALL, LiveServer, LiveServers
 
 pytestmark = pytest.mark.django_db(transaction=True)
 
 CORRIDOR_A = "boccioni_1/CorridorA"
 BUNDLE_LINE = re.compile(r'"GET /api/buildings/boccioni_1/maps/(\w+)/bundle" (\d{3})')
+
+
+@pytest.fixture
+def daphne_server(daphne_servers: LiveServers) -> LiveServer:
+    """The live server, its access log with the unchanged bundle checks (304) these tests
+    count."""
+    return daphne_servers.start(env=ACCESS_LOG_ALL)
 
 
 def over_the_network(server: LiveServer, token: str) -> httpx.AsyncClient:

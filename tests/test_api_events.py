@@ -67,6 +67,15 @@ def test_an_operator_acknowledges_an_alert_and_it_is_no_longer_open(operator, ev
     assert client.get("/api/events/?alerts=open").json() == []
 
 
+def test_a_cleared_alert_is_no_longer_open_but_stays_in_the_events(viewer, events):
+    Event.objects.filter(pk=events[0].pk).update(cleared_at=T0 + timedelta(minutes=1))
+    client = client_for(viewer)
+    assert client.get("/api/alerts/open").json() == {"open": 0}
+    assert client.get("/api/events/?alerts=open").json() == []
+    [kept] = client.get("/api/events/?alerts=all").json()
+    assert kept["cleared_at"].startswith("2026-11-24T08:01")
+
+
 def test_a_viewer_may_not_acknowledge(viewer, events):
     assert client_for(viewer).post(f"/api/events/{events[0].id}/acknowledge").status_code == 403
 

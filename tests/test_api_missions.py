@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from robots.models import Mission
-from tests.conftest import client_for, make_robot, make_submap
+from tests.conftest import client_for, make_robot, make_submap, map_pgm
 
 pytestmark = pytest.mark.django_db
 
@@ -17,7 +17,8 @@ WAYPOINTS = [
 
 @pytest.fixture
 def robot(building):
-    make_submap(building, code="CorridorA")
+    # 5 x 3 m, walled round, unknown in the top-left corner: waypoints are checked on it
+    make_submap(building, code="CorridorA", image=map_pgm(width=100, height=60))
     robot, _ = make_robot(name="r1", buildings=[building])
     return robot
 
@@ -76,3 +77,22 @@ def test_a_viewer_watches_but_runs_no_missions(viewer, operator, robot):
 def test_it_rejects_outsider(outsider, operator, robot):
     start(operator)
     assert client_for(outsider).get("/api/missions/").status_code == 403
+
+
+@pytest.mark.parametrize(
+    ("point", "reason"),
+    [
+        ((0.02, 1.5), "in an obstacle"),
+        ((0.1, 2.85), "in unknown space"),
+        ((6.0, 1.0), "outside the map"),
+    ],
+)
+def test_a_waypoint_no_robot_could_reach_is_refused_with_its_field(operator, robot, point, reason):
+    x, y = point
+    waypoints = [WAYPOINTS[0], {"map": "CorridorA", "x": x, "y": y}]
+    answer = start(operator, waypoints=waypoints)
+    assert answer.status_code == 400
+    assert answer.json() == {
+        "waypoints": [f"The waypoint 2 ({x:.2f}, {y:.2f}) is {reason}. (boccioni_1/CorridorA)"]
+    }
+    assert not Mission.objects.exists()

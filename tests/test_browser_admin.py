@@ -270,3 +270,22 @@ def test_an_admin_places_a_tag_and_prints_it(context: BrowserContext, demo: Demo
     assert sheet.ok
     assert sheet.headers["content-type"] == "application/pdf"
     screenshot(page, "building-page")
+
+
+def test_a_tag_placed_by_a_click_saves_with_the_millimetres_the_click_gave(
+    context: BrowserContext, demo: Demo
+) -> None:
+    page = open_as(context, demo, "admin", f"/buildings/{BUILDING}/maps/CorridorC/")
+    expect(page.locator("#map-wrap")).to_have_attribute("data-loaded", "CorridorC")
+    expect(page.locator("#tag-list tr")).to_have_count(4)
+    page.click("#place-tag")
+    press_and_drag(page, 30.0, 7.5, math.pi / 2)
+    placed = page.input_value("input[name=x]")
+    assert len(placed.partition(".")[2]) == 3  # the pose a click gives, to the millimetre
+    page.fill("input[name=x]", "30.013")  # a click rarely lands on a whole centimetre
+    page.fill("input[name=y]", "7.507")
+    page.select_option("select[name=links_to]", "RoomB")
+    page.click("#tag-save")
+    expect(page.locator("#tag-messages .alert.ok")).to_contain_text("saved")
+    tags = page.request.get(demo.url(f"/api/tags/?building={BUILDING}&map=CorridorC")).json()
+    assert any(abs(tag["x"] - 30.013) < 1e-6 and abs(tag["y"] - 7.507) < 1e-6 for tag in tags)

@@ -5,13 +5,14 @@ accepting it, the published version holding the cells painted."""
 
 from __future__ import annotations
 
+import time
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import pytest
-from playwright.sync_api import Browser, BrowserContext, Page, expect
+from playwright.sync_api import Browser, BrowserContext, Page, Request, expect
 
 from maps import services
 from maps.domain.demo_building import demo_building
@@ -38,6 +39,7 @@ def test_an_admin_maps_with_a_robot_watches_the_map_grow_and_publishes_it(
 ) -> None:
     page = open_as(context, demo, "admin", f"/robots/{ROBOT}/")
     expect(page.locator("#robot-map")).to_contain_text("CorridorA", timeout=30_000)
+    asked = sessions_asked(page)
     page.fill("#mapping-start input[name=code]", "Porch")
     page.click("#mapping-start button[type=submit]")
     expect(page.locator("#mapping-state")).to_have_text(f"{BUILDING}/Porch: running")
@@ -52,14 +54,47 @@ def test_an_admin_maps_with_a_robot_watches_the_map_grow_and_publishes_it(
     )
     expect(page.locator("#mapping-figures")).to_contain_text("keyframes")
     screenshot(page, "robot-mapping-live")
+    # Told as the map was saved: three reads within 10 s, which neither the start's own
+    # read nor the 30 s fallback make.
+    assert any(later - earlier <= 10 for earlier, later in zip(asked, asked[2:], strict=False))
 
     page.click("#mapping-finish")
     expect(page.locator("#mapping-state")).to_have_text(f"{BUILDING}/Porch: finished")
-    page.click("#mapping-publish")
+    page.click("#mapping-publish")  # asked first, with a note for the version's history
+    dialog = page.locator("#mapping-publish-dialog")
+    expect(dialog).to_contain_text(f"Publish {BUILDING}/Porch?")
+    dialog.locator("textarea[name=note]").fill("the porch, mapped by robot_0")
+    dialog.locator("button[value=confirm]").click()
     expect(page.locator("#mapping-messages")).to_contain_text("Published as version 1")
     versions = page.request.get(demo.url(f"/api/buildings/{BUILDING}/maps/Porch/versions/"))
     assert versions.ok
     assert versions.json()["versions"][0]["reason"] == "mapping"
+    assert versions.json()["versions"][0]["note"] == "the porch, mapped by robot_0"
+
+
+def sessions_asked(page: Page) -> list[float]:
+    """When (monotonic seconds) ``page`` asks for the robot's mapping sessions from now on."""
+    asked: list[float] = []
+
+    def seen(request: Request) -> None:
+        if "/api/mapping/sessions/?" in request.url:
+            asked.append(time.monotonic())
+
+    page.on("request", seen)
+    return asked
+
+
+def test_an_idle_robot_page_is_told_of_mapping_sessions_and_does_not_poll(
+    context: BrowserContext, demo: Demo
+) -> None:
+    page = open_as(context, demo, "operator", f"/robots/{ROBOT}/")
+    expect(page.locator("#mapping-state")).to_have_text("no session")
+    asked = sessions_asked(page)
+    page.wait_for_timeout(IDLE_WINDOW_MS)
+    assert asked == []
+
+
+IDLE_WINDOW_MS = 8000
 
 
 @dataclass
@@ -219,3 +254,36 @@ def test_an_admin_edits_a_proposal_cell_by_cell_and_the_published_version_has_th
     assert at(r0 + 6, c0) == -1
     assert at(*cabinet) == 0  # kept as in version 1
     assert all(at(r, c) == 100 for r, c in corridor.cabinet[1:])
+
+
+def test_the_submap_page_keeps_its_cards_apart_and_a_refused_accept_is_said_in_its_card(
+    corridor_with_a_proposal: Corridor, sized: BrowserContext, demo: Demo
+) -> None:
+    corridor = corridor_with_a_proposal
+    path = f"/buildings/{BUILDING}/maps/CorridorA/"
+    page = open_as(sized, demo, "admin", path)
+    row = page.locator(f"#changes-list tr[data-proposal='{corridor.proposal}']")
+    expect(row).to_contain_text("4 cells became occupied")
+    # Visual map and Metadata are cards of their own, not inside Versions
+    assert page.locator("#versions-panel #coverage-panel").count() == 0
+    expect(page.locator("#metadata-version")).to_have_text("v1")  # a version is vN here too
+    card = page.locator("#changes-panel").bounding_box()
+    for name in ("Accept", "Reject"):
+        button = row.locator("button", has_text=name).bounding_box()
+        assert card is not None
+        assert button is not None
+        assert card["x"] <= button["x"]
+        assert button["x"] + button["width"] <= card["x"] + card["width"]
+    width = sized.pages[0].viewport_size["width"]  # type: ignore[index]
+    screenshot(page, f"submap-changes-{width}")
+
+    other = sized.new_page()  # another admin's page rejects it meanwhile
+    other.goto(demo.url(path))
+    other.locator(
+        f"#changes-list tr[data-proposal='{corridor.proposal}'] button", has_text="Reject"
+    ).click()
+    expect(other.locator(f"#changes-list tr[data-proposal='{corridor.proposal}']")).to_have_count(0)
+    row.locator("button", has_text="Accept").click()
+    page.locator("#accept-dialog button[value=confirm]").click()
+    expect(page.locator("#changes-panel .alert.error")).to_contain_text("Not accepted")
+    expect(page.locator("#versions-diff")).to_be_hidden()

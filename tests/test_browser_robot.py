@@ -133,14 +133,19 @@ def test_an_operator_takes_the_lock_and_drives_with_the_keyboard(
     page.keyboard.up("ArrowUp")
     expect(page.locator("#odom-speed")).to_have_text("0.00 m/s", timeout=10_000)
 
-    # Someone else sees who holds the lock, and asking for it is refused with the holder.
+    # Someone else sees who holds the lock; asking for it tells the holder, who keeps it.
+    # Only commands keep a lock (issue 23): the holder turns on the spot meanwhile.
+    page.keyboard.down("ArrowLeft")
     other = open_as(context.browser.new_context(), demo, "admin", f"/robots/{ROBOT}/")  # type: ignore[union-attr]
     expect(other.locator("#conn-state")).to_contain_text("Live")
     expect(other.locator("#lock-state")).to_have_text("Driven by operator")
     other.click("#lock-acquire")
+    expect(page.locator("#lock-message")).to_contain_text("admin asks for control")
+    page.click("#lock-keep")
+    expect(other.locator("#lock-message")).to_contain_text("user:operator keeps control")
     expect(other.locator("#lock-state")).to_have_text("Driven by operator")
-    expect(other.locator("#lock-message")).to_contain_text("robot_0 is driven by user:operator")
     other.context.close()
+    page.keyboard.up("ArrowLeft")
 
     # The on-screen joystick drives too: pulled back, the robot reverses away from the wall
     # it has just driven up to.
@@ -248,16 +253,17 @@ def test_a_lost_robot_shows_the_way_out_and_a_goal_with_no_sub_map_is_refused(
 def test_a_goal_the_robot_cannot_reach_says_why_on_the_page(
     context: BrowserContext, demo: Demo, agent: Path
 ) -> None:
+    """Beyond Corridor A's wall, outside the building: refused before it is sent (issue 23
+    point 2), where the robot used to drive and then abort it."""
     page = robot_page(context, demo)
     localise(page)
     page.click("#map-tools button[data-tool=goal]")
     press_and_drag(page, *BEYOND_THE_WALL)
-    expect(page.locator("#goal-state")).to_have_text("aborted", timeout=15_000)
-    reason = page.locator("#goal-reason")
-    expect(reason).to_be_visible()
-    expect(reason).to_contain_text("The robot aborted the goal: ")
-    expect(page.locator("#nav-text")).to_contain_text("aborted: ")
-    screenshot(page, "robot-goal-aborted-with-its-reason")
+    hint = page.locator("#map-hint")
+    expect(hint).to_be_visible()
+    expect(hint).to_contain_text("Not sent")
+    expect(page.locator("#goal-state")).not_to_have_text("active")
+    screenshot(page, "robot-goal-refused-with-its-reason")
 
 
 def test_space_stops_and_cancels_only_for_the_operator_holding_the_lock(

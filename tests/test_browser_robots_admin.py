@@ -30,7 +30,13 @@ def test_an_admin_registers_rotates_and_revokes_a_robot(sized: BrowserContext, d
     expect(row.locator("input[data-building=boccioni_1]")).to_be_checked()
     screenshot(page, f"robots-admin-{page.viewport_size['width']}")  # type: ignore[index]
 
+    # Rotating cuts a connected robot off: asked first; cancelled, the token stands.
     row.locator("button[data-action=rotate]").click()
+    expect(page.locator("#rotate-dialog")).to_contain_text("stops working")
+    page.locator("#rotate-dialog button[value=cancel]").click()
+    expect(token).to_have_text(first)
+    row.locator("button[data-action=rotate]").click()
+    page.locator("#rotate-dialog button[value=confirm]").click()
     expect(page.locator("#token-title")).to_contain_text("New token of tb3_7")
     expect(token).not_to_have_text(first)
 

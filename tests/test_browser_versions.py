@@ -111,7 +111,9 @@ def a_proposed_cabinet(demo: Demo) -> int:
         based_on=1,
         added=cells,
         added_passes=[2] * len(cells),
+        added_robots=[2] * len(cells),
         passes=2,
+        robots=2,
         scans=240,
     )
     return made.pk
@@ -124,6 +126,7 @@ def test_an_admin_accepts_a_proposed_change_and_the_robot_takes_it(
     row = page.locator(f"#changes-list tr[data-proposal='{a_proposed_cabinet}']")
     expect(row).to_contain_text("16 cells became occupied, 0 free")
     expect(row).to_contain_text("seen on 2 passes")
+    expect(row).to_contain_text("by 2 robots (each cell by at least 2)")
     row.locator("button", has_text="Show").click()
     expect(page.locator("#versions-diff")).to_contain_text("Proposed: 16 cells")
     screenshot(page, "submap-proposed-change")

@@ -29,7 +29,7 @@ import pytest
 import websockets
 
 from maps.domain.demo_building import PAPER_ROUTE
-from tests.fixtures_live import LiveServer, agent_process
+from tests.fixtures_live import ACCESS_LOG_ALL, LiveServer, LiveServers, agent_process
 
 pytestmark = [pytest.mark.django_db(transaction=True), pytest.mark.slow]
 
@@ -43,6 +43,13 @@ CORRIDOR_A = (10.0, 23.2, math.pi)
 LEG_DEADLINE = 200.0  # wall seconds for either trip; about a minute each, more when busy
 SUCCEEDED, TERMINAL_FAILURES = 3, {2, 4, 5, 8, 9}
 BUNDLE = re.compile(r'"GET /api/buildings/([^/]+)/maps/([^/]+)/bundle" (\d{3})')
+
+
+@pytest.fixture
+def daphne_server(daphne_servers: LiveServers) -> LiveServer:
+    """The live server, its access log with the unchanged bundle checks (304) these tests
+    count."""
+    return daphne_servers.start(env=ACCESS_LOG_ALL)
 
 
 @pytest.fixture

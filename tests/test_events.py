@@ -5,6 +5,7 @@ from __future__ import annotations
 from telemetry.domain.events import (
     BATTERY_LOW,
     SILENT_AFTER_S,
+    STARTING_GRACE_S,
     STUCK_AFTER_S,
     EventDeriver,
     Kind,
@@ -21,7 +22,12 @@ def localisation(state: str) -> dict:
 
 
 def kinds(drafts: list) -> list[str]:
-    return [d.kind for d in drafts]
+    """The kinds of ``drafts`` other than clearings (see the clearing tests below)."""
+    return [d.kind for d in drafts if d.kind is not Kind.ALERT_CLEARED]
+
+
+def cleared(drafts: list) -> set[Kind]:
+    return {kind for d in drafts for kind in d.clears}
 
 
 def test_a_robot_connecting_is_news_and_leaving_is_an_alert() -> None:
@@ -35,7 +41,7 @@ def test_a_robot_connecting_is_news_and_leaving_is_an_alert() -> None:
 def test_an_aborted_goal_is_an_alert_once_with_its_reason() -> None:
     deriver = EventDeriver()
     deriver.connected("r1", 0.0)
-    assert deriver.nav_status("r1", status(1), 1.0) == []
+    assert kinds(deriver.nav_status("r1", status(1), 1.0)) == []
     [aborted] = deriver.nav_status("r1", status(4, text="no path to the goal"), 2.0)
     assert aborted.kind == Kind.GOAL_ABORTED
     assert aborted.severity == Severity.ERROR
@@ -47,6 +53,7 @@ def test_an_aborted_goal_is_an_alert_once_with_its_reason() -> None:
 
 def test_a_robot_getting_lost_is_an_alert_on_the_change_only() -> None:
     deriver = EventDeriver()
+    deriver.localisation("r1", localisation("localised"), 0.5)
     assert kinds(deriver.localisation("r1", localisation("lost"), 1.0)) == [Kind.LOST]
     assert deriver.localisation("r1", localisation("lost"), 2.0) == []
     # found again: news, not an alert (see the relocalisation tests below)
@@ -61,7 +68,7 @@ def test_a_low_battery_is_told_once_until_it_recovers() -> None:
     assert low.kind == Kind.BATTERY_LOW
     assert low.alert
     assert deriver.battery("r1", {"percentage": 0.1}, 3.0) == []
-    assert deriver.battery("r1", {"percentage": 0.9}, 4.0) == []
+    assert kinds(deriver.battery("r1", {"percentage": 0.9}, 4.0)) == []
     assert kinds(deriver.battery("r1", {"percentage": 0.1}, 5.0)) == [Kind.BATTERY_LOW]
     assert deriver.battery("r1", {"percentage": None}, 6.0) == []
 
@@ -73,7 +80,7 @@ def test_a_connected_robot_that_says_nothing_goes_silent_once() -> None:
     assert kinds(deriver.tick(SILENT_AFTER_S + 1)) == [Kind.SILENT]
     assert deriver.tick(SILENT_AFTER_S + 2) == []
     deriver.heard("r1", SILENT_AFTER_S + 3)
-    assert deriver.tick(SILENT_AFTER_S + 4) == []
+    assert kinds(deriver.tick(SILENT_AFTER_S + 4)) == []
 
 
 def test_a_robot_with_a_goal_that_does_not_move_is_stuck() -> None:
@@ -97,11 +104,11 @@ def test_a_moving_robot_or_one_without_a_goal_is_not_stuck() -> None:
     deriver.nav_status("r1", status(1), 0.0)
     for t in range(1, int(STUCK_AFTER_S) * 2):
         deriver.pose("r1", "b/A", 0.1 * t, 0.0, float(t))
-        assert deriver.tick(float(t)) == []
+        assert kinds(deriver.tick(float(t))) == []
     deriver.nav_status("r1", status(3), 100.0)
     for t in range(100, 100 + int(STUCK_AFTER_S) * 2):
         deriver.pose("r1", "b/A", 0.0, 0.0, float(t))
-        assert deriver.tick(float(t)) == []
+        assert kinds(deriver.tick(float(t))) == []
 
 
 def test_a_dead_man_stop_names_whoever_was_driving() -> None:
@@ -164,7 +171,7 @@ def test_a_lost_robot_found_again_or_placed_by_hand_is_relocalised() -> None:
     deriver = EventDeriver()
     deriver.localisation("r1", placed("localised", "b/Hall", "tag 1"), 1.0)
     assert kinds(deriver.localisation("r1", placed("lost"), 2.0)) == [Kind.LOST]
-    [found] = deriver.localisation("r1", placed("localised", "b/Hall", "tag 1"), 3.0)
+    [found, _cleared] = deriver.localisation("r1", placed("localised", "b/Hall", "tag 1"), 3.0)
     assert (found.kind, found.data["source"]) == (Kind.RELOCALISED, "tag 1")
     [by_hand] = deriver.localisation("r1", placed("localised", "b/Lab", "initial pose"), 4.0)
     assert by_hand.kind == Kind.RELOCALISED
@@ -177,3 +184,72 @@ def test_taking_and_releasing_the_teleop_lock_name_the_holder() -> None:
     [released] = deriver.teleop("r1", Kind.TELEOP_RELEASED, "user:op", 2.0)
     assert (taken.actor, taken.message) == ("user:op", "user:op took the teleop lock of r1")
     assert (released.kind, released.actor) == (Kind.TELEOP_RELEASED, "user:op")
+
+
+def test_alerts_clear_themselves_when_their_condition_ends() -> None:
+    deriver = EventDeriver()
+    deriver.connected("r1", 0.0)
+    deriver.localisation("r1", placed("localised", "b/Hall", "tag 1"), 1.0)
+    deriver.localisation("r1", placed("lost"), 2.0)
+    assert cleared(deriver.localisation("r1", placed("localised", "b/Hall", "tag 1"), 3.0)) == {
+        Kind.LOST
+    }
+    deriver.battery("r1", {"percentage": 0.1}, 4.0)
+    [charged] = deriver.battery("r1", {"percentage": 0.5}, 5.0)
+    assert (charged.kind, charged.clears, charged.alert) == (
+        Kind.ALERT_CLEARED,
+        {Kind.BATTERY_LOW},
+        False,
+    )
+    assert deriver.battery("r1", {"percentage": 0.6}, 6.0) == []
+    assert cleared(deriver.connected("r1", 7.0)) == {Kind.DISCONNECTED, Kind.SILENT}
+
+
+def test_a_silent_robot_heard_again_and_a_stuck_one_moving_again_are_cleared() -> None:
+    deriver = EventDeriver()
+    deriver.connected("r1", 0.0)
+    assert kinds(deriver.tick(SILENT_AFTER_S + 1)) == [Kind.SILENT]
+    deriver.pose("r1", "b/A", 0.0, 0.0, SILENT_AFTER_S + 2)
+    assert cleared(deriver.tick(SILENT_AFTER_S + 3)) == {Kind.SILENT}
+    deriver.nav_status("r1", status(1), 10.0)
+    assert kinds(deriver.tick(10.0 + STUCK_AFTER_S + 1)) == [Kind.SILENT, Kind.STUCK]
+    deriver.pose("r1", "b/A", 1.0, 0.0, 50.0)
+    assert cleared(deriver.tick(50.5)) == {Kind.SILENT, Kind.STUCK}
+
+
+def test_a_new_goal_clears_an_aborted_one() -> None:
+    deriver = EventDeriver()
+    deriver.connected("r1", 0.0)
+    deriver.nav_status("r1", status(1, goal="g1"), 1.0)
+    deriver.nav_status("r1", status(4, goal="g1"), 2.0)
+    assert cleared(deriver.nav_status("r1", status(4, goal="g1"), 2.5)) == set()
+    assert cleared(deriver.nav_status("r1", status(1, goal="g2"), 3.0)) == {Kind.GOAL_ABORTED}
+    # another goal failing replaces the last failure: one open alert, the newest
+    [failed] = deriver.nav_status("r1", status(5, goal="g3"), 4.0)
+    assert (failed.kind, failed.clears) == (Kind.GOAL_ABORTED, {Kind.GOAL_ABORTED})
+
+
+def test_a_robot_lost_before_its_first_localisation_is_starting_not_lost() -> None:
+    deriver = EventDeriver()
+    deriver.connected("r1", 0.0)
+    assert kinds(deriver.localisation("r1", placed("lost"), 0.1)) == []
+    deriver.heard("r1", STARTING_GRACE_S - 1)
+    assert kinds(deriver.tick(STARTING_GRACE_S - 1)) == []
+    deriver.localisation("r1", placed("localised", "b/Hall", "tag 0"), STARTING_GRACE_S - 0.5)
+    assert kinds(deriver.tick(STARTING_GRACE_S + 1)) == []
+
+
+def test_a_robot_that_never_localises_after_connecting_is_lost_once() -> None:
+    deriver = EventDeriver()
+    deriver.connected("r1", 0.0)
+    deriver.localisation("r1", placed("lost"), 0.1)
+    for t in range(1, int(STARTING_GRACE_S) + 5):
+        deriver.heard("r1", float(t))
+        drafts = deriver.tick(float(t))
+        if drafts:
+            break
+    assert kinds(drafts) == [Kind.LOST]
+    assert t > STARTING_GRACE_S
+    assert kinds(deriver.tick(float(t) + 1)) == []
+    found = deriver.localisation("r1", placed("localised", "b/Hall", "tag 0"), t + 2.0)
+    assert cleared(found) == {Kind.LOST}

@@ -11,8 +11,11 @@ import asyncio
 
 import cbor2
 import pytest
+import websockets
+from channels.db import database_sync_to_async
 
 from tests.conftest import make_robot
+from tests.fixtures_live import session_cookie
 from tests.hostile import (
     LiveRosbridge,
     cbor_frame,
@@ -161,3 +164,37 @@ async def test_a_frame_of_millions_of_empty_arrays_is_refused_before_it_is_built
     assert await robot.answers()
     assert server_memory(daphne_server) - before < MEMORY_BOUND
     await robot.close()
+
+
+async def test_one_viewers_many_sockets_hold_no_more_than_their_share_of_fragments(
+    daphne_servers, tokens, viewer
+):
+    server = daphne_servers.start(
+        env={
+            "CLOUDNAV_ROSBRIDGE_FRAGMENT_BYTES": str(2**20),
+            "CLOUDNAV_ROSBRIDGE_FRAGMENT_BYTES_TOTAL": str(4 * 2**20),
+            "CLOUDNAV_ROSBRIDGE_FRAGMENT_BYTES_PER_CLIENT": str(2 * 2**20),
+        }
+    )
+    piece = "x" * (128 * 2**10)
+    cookie = await database_sync_to_async(session_cookie)(viewer)
+    handshake = {"Cookie": cookie.decode(), "Origin": server.url}
+    url = server.rosbridge_url()
+    sockets = [
+        LiveRosbridge(await websockets.connect(url, additional_headers=handshake)) for _ in range(4)
+    ]
+    refusals = []
+    for index, socket in enumerate(sockets):
+        await socket.send({"op": "set_level", "level": "error"})
+        for num in range(7):  # 0.875 MiB each: the third socket passes the viewer's 2 MiB
+            await socket.send(fragment(f"v{index}", num, 1000, piece))
+        refusals.append(await refused(socket, wait=1.0))
+    assert refusals[:2] == [None, None]
+    assert "this client's connections" in (refusals[2] or "")
+    robot = await LiveRosbridge.connect(server, tokens["r1"])
+    for num in range(7):  # the robot still finds room in the server's budget
+        await robot.send(fragment("map", num, 1000, piece))
+    assert await refused(robot, wait=1.0) is None
+    for client in (*sockets, robot):
+        assert await client.answers()
+        await client.close()

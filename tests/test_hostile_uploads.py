@@ -294,3 +294,39 @@ def application():
     from cloudnav_web.asgi import application
 
     return application
+
+
+# ---------------------------------------------------------------- slow headers
+
+
+def open_until_closed(sock: socket.socket, deadline: float) -> float:
+    """Send a header byte each 0.5 s until the server closes ``sock`` (or ``deadline``
+    seconds pass); return how long it stayed open."""
+    began = time.monotonic()
+    sock.settimeout(0.5)
+    while time.monotonic() - began < deadline:
+        try:
+            sock.sendall(b"X")
+            if sock.recv(1024) == b"":
+                break
+        except TimeoutError:
+            continue
+        except OSError:  # reset by the server
+            break
+    return time.monotonic() - began
+
+
+def test_a_client_sending_its_headers_slowly_is_cut_off(daphne_servers):
+    server = daphne_servers.start(env={"CLOUDNAV_HEADER_SECONDS": "2"})
+    with socket.create_connection((server.host, server.port), timeout=5) as slow:
+        slow.sendall(b"GET /api/ HTTP/1.1\r\nHost: localhost\r\nX-Slow: ")
+        assert open_until_closed(slow, deadline=15) < 10
+    # Quick clients are served as before, on a kept-alive connection too.
+    connection = http.client.HTTPConnection(server.host, server.port, timeout=10)
+    for _ in range(2):
+        connection.request("GET", "/api/")
+        answer = connection.getresponse()
+        answer.read()
+        assert answer.status < 500  # any answer: it was served
+        time.sleep(0.1)
+    connection.close()

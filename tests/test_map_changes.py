@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import itertools
 import math
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 import pytest
@@ -78,6 +80,9 @@ def test_two_passes_through_a_changed_room_propose_the_change(
     assert len(removed & {(r, c) for r in range(30, 40) for c in range(30, 40)}) >= 80
     assert len(shown["added"]) >= 40
     assert len(shown["added_passes"]) == len(shown["added"])
+    assert shown["robots"] == 1  # both passes were r1's
+    assert shown["added_robots"] == [1] * len(shown["added"])
+    assert shown["removed_robots"] == [1] * len(shown["removed"])
 
 
 def test_an_admin_accepts_the_cells_kept_as_a_new_version(
@@ -120,3 +125,107 @@ def test_only_admins_decide_and_outsiders_see_nothing(
 
 def test_it_rejects_outsider(proposal: ChangeProposal, outsider: User) -> None:
     assert client_for(outsider).get(CHANGES).status_code == 404
+
+
+def drive_unchanged(
+    runner: UpkeepRunner,
+    hub: FakeHub,
+    seed: int,
+    start: float,
+    pose_first: bool = True,
+    through: Callable[[int, str], bool] | None = None,
+) -> float:
+    """r1 drives a loop in the unchanged lab at 1 m/s scanning at 5 Hz (20 cm between
+    scans), stamping each scan and the pose it gives for it alike, from ``start`` (its own
+    clock); ``pose_first`` as the simulated robot sends them, else the scan first (a ROS
+    robot's AMCL publishes the pose of a scan after it). ``through(i, topic)``: whether the
+    i-th message on ``topic`` gets through (a congested robot drops telemetry). Returns
+    the clock at the end."""
+    laser = Laser(world_from_grid(STORED, (0.0, 0.0), RES), LaserSpec(), seed=seed)
+    corners = [(1.2, 1.2), (4.8, 1.2), (4.8, 4.8), (1.2, 4.8), (1.2, 1.2)]
+    stamp = start
+    index = 0
+    for (ax, ay), (bx, by) in itertools.pairwise(corners):
+        heading = math.atan2(by - ay, bx - ax)
+        for t in np.linspace(0, 1, 18, endpoint=False):
+            pose = (ax + t * (bx - ax), ay + t * (by - ay), heading)
+            stamp += 0.2
+            index += 1
+            messages = [
+                ("/r1/pose", pose_message(pose, stamp)),
+                ("/r1/scan", laser.message(laser.scan(pose), stamp)),
+            ]
+            for topic, message in messages if pose_first else messages[::-1]:
+                if through is None or through(index, topic):
+                    hub.send(topic, message)
+    runner.process(list(runner.queue))
+    runner.queue.clear()
+    return stamp
+
+
+def pose_message(pose: tuple[float, float, float], stamp: float) -> dict[str, Any]:
+    return dict(pose_stamped("boccioni_1/Lab", pose, stamp))
+
+
+def test_a_scan_is_placed_at_the_pose_of_its_own_stamp_even_when_that_pose_comes_after_it(
+    lab: SubMap,
+) -> None:
+    hub = FakeHub("r1")
+    runner = UpkeepRunner(hub)
+    runner.sync_taps()
+    clock = 1000.0
+    for seed in (1, 2):
+        clock = drive_unchanged(runner, hub, seed, clock, pose_first=False)
+        runner.maps["boccioni_1/Lab"].evidence.end_pass()
+    runner.save()
+    held = runner.maps["boccioni_1/Lab"].evidence
+    assert held.scans >= 90
+    assert not ChangeProposal.objects.exists()  # nothing changed: nothing proposed
+    assert runner.unpaired == 0
+
+
+def lost_on_a_congested_link(index: int, topic: str) -> bool:
+    """The i-th pose gets through unless i % 3 == 2, the i-th scan unless i % 3 == 1:
+    the scans of those ticks come with no pose of theirs, after a pose of a tick before."""
+    return index % 3 != (2 if topic == "/r1/pose" else 1)
+
+
+def test_a_scan_whose_pose_never_came_is_not_used_at_another_pose(lab: SubMap) -> None:
+    hub = FakeHub("r1")
+    runner = UpkeepRunner(hub)
+    runner.sync_taps()
+    clock = 1000.0
+    for seed in (1, 2):  # of three poses and scans, a congested link loses one of each
+        clock = drive_unchanged(runner, hub, seed, clock, through=lost_on_a_congested_link)
+        runner.maps["boccioni_1/Lab"].evidence.end_pass()
+    runner.save()
+    assert not ChangeProposal.objects.exists()  # nothing changed: nothing proposed
+    assert runner.unpaired >= 40  # the scans whose pose was lost
+    assert runner.maps["boccioni_1/Lab"].evidence.scans >= 40
+
+
+def test_a_robots_pass_ends_when_it_leaves_and_after_a_minute_of_its_own_clock(
+    lab: SubMap,
+) -> None:
+    hub = FakeHub("r1")
+    runner = UpkeepRunner(hub)
+    runner.sync_taps()
+    clock = drive_unchanged(runner, hub, 1, 1000.0)  # 14.4 s of the robot's clock
+    held = runner.maps["boccioni_1/Lab"]
+    assert held.evidence.passes == 0
+    elsewhere = dict(pose_stamped("boccioni_1/CorridorA", (0.0, 0.0, 0.0), clock + 0.1))
+    hub.send("/r1/pose", elsewhere)
+    hub.send("/r1/scan", runner_scan(clock + 0.1))
+    runner.process(list(runner.queue))
+    runner.queue.clear()
+    assert held.evidence.passes == 1  # it left the lab
+    clock = drive_unchanged(runner, hub, 2, clock + 100.0)  # back, much later
+    assert held.evidence.passes == 1  # a new pass, not ended by the old one's start
+    for seed in range(3, 7):
+        clock = drive_unchanged(runner, hub, seed, clock)
+    assert held.evidence.passes == 2  # 72 s of its own clock in the lab
+
+
+def runner_scan(stamp: float) -> dict[str, Any]:
+    laser = Laser(world_from_grid(STORED, (0.0, 0.0), RES), LaserSpec(), seed=0)
+    return dict(laser.message(laser.scan((1.0, 1.0, 0.0)), stamp))

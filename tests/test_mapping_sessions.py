@@ -5,6 +5,8 @@ robot, a robot that disconnects mid-session, a publish on a version no longer cu
 from __future__ import annotations
 
 import asyncio
+import functools
+import json
 import math
 from datetime import UTC, datetime
 from typing import Any
@@ -13,7 +15,7 @@ import pytest
 from asgiref.sync import sync_to_async
 from django.contrib.auth.models import User
 
-from benchmarks.mapping import drive_tour
+from benchmarks.mapping import TourScan, drive_tour
 from maps.mapping import runner as mapping_runner
 from maps.mapping.runner import MappingRunner
 from maps.models import Building, MappingSession, SubMap
@@ -99,10 +101,15 @@ def test_scans_beyond_the_queue_drop_the_oldest() -> None:
     assert worker.queue[0][1] == {"index": 100 - mapping_runner.QUEUE_SCANS}
 
 
-def tour_messages(seed: int = 0) -> list[tuple[dict[str, Any], dict[str, Any]]]:
+@functools.cache
+def toured(seed: int = 0) -> list[TourScan]:
+    """The scans of the benchmark's tour of the seed's new room (driven once a run)."""
     changes = plan_changes(seed, ChangeConfig(rooms=1))
-    scans = drive_tour(seed, changes.rooms[0], changed_demo_world(changes))
-    return [({"pose": {"pose": pose_2d(*s.odom)}}, s.message) for s in scans]
+    return drive_tour(seed, changes.rooms[0], changed_demo_world(changes))
+
+
+def tour_messages(seed: int = 0) -> list[tuple[dict[str, Any], dict[str, Any]]]:
+    return [({"pose": {"pose": pose_2d(*s.odom)}}, s.message) for s in toured(seed)]
 
 
 @pytest.mark.django_db(transaction=True)
@@ -112,7 +119,8 @@ async def test_a_robot_maps_a_room_and_an_admin_publishes_it(monkeypatch) -> Non
     client = await sync_to_async(client_for)(admin)
     messages = tour_messages()
     hub = FakeHub("r1")
-    runner = MappingRunner(hub)
+    told: list[tuple[str, str]] = []
+    runner = MappingRunner(hub, tell=lambda name, msg: told.append((name, msg["data"])))
     await runner.sync()
     assert set(hub.taps) == {"/r1/scan", "/r1/odom"}
     worker = runner.workers[session.pk]
@@ -135,6 +143,13 @@ async def test_a_robot_maps_a_room_and_an_admin_publishes_it(monkeypatch) -> Non
     assert finished.json()["state"] == "finished"
     await runner.sync()
     assert hub.taps == {}
+    # pages were told as the session started, saved its map and stopped (no polling)
+    said = [json.loads(data) for name, data in told if name == "/r1/mapping"]
+    events = [news["event"] for news in said]
+    assert events[0] == "started"
+    assert events[-1] == "stopped"
+    assert "saved" in events
+    assert {news["session"] for news in said} == {session.pk}
     published = await sync_to_async(client.post)(
         f"{SESSIONS}{session.pk}/publish", {"note": "the new room"}, format="json"
     )
@@ -208,8 +223,7 @@ def _mapping_setup() -> tuple[MappingSession, User, Building]:
     online(robot)
     from maps.mapping import sessions
 
-    changes = plan_changes(0, ChangeConfig(rooms=1))
-    start_pose = drive_tour(0, changes.rooms[0], changed_demo_world(changes))[0].truth
+    start_pose = toured(0)[0].truth
     session = sessions.start(robot, building, "RoomX", admin)
     MappingSession.objects.filter(pk=session.pk).update(
         start_x=start_pose[0], start_y=start_pose[1], start_yaw=start_pose[2]
@@ -250,3 +264,92 @@ async def _until(check: Any, seconds: float = 60.0) -> None:
     while not await sync_to_async(check)():
         assert asyncio.get_running_loop().time() < deadline, "never happened"
         await asyncio.sleep(0.1)
+
+
+@pytest.mark.django_db(transaction=True)
+async def test_a_bad_scan_is_refused_and_the_worker_keeps_mapping(monkeypatch) -> None:
+    monkeypatch.setattr(mapping_runner, "SAVE_EVERY", 0.2)
+    session, _, _ = await sync_to_async(_mapping_setup)()
+    messages = tour_messages()
+    hub = FakeHub("r1")
+    runner = MappingRunner(hub)
+    await runner.sync()
+    worker = runner.workers[session.pk]
+    for index, (odom, scan) in enumerate(messages[:120]):
+        hub.send("/r1/odom", odom)
+        if index == 10:
+            scan = {**scan, "ranges": [{"a": 1}, *scan["ranges"][1:]]}
+        hub.send("/r1/scan", scan)
+        await _drained(worker)
+    await _until(lambda: _session(session.pk).stats.get("matched", 0) > 20)
+    live = await sync_to_async(_session)(session.pk)
+    assert live.stats["bad_scans"] == 1
+    assert "not all numbers" in live.stats["refusal"]
+    assert live.state == "running"
+    assert not worker.stopped
+
+
+@pytest.mark.django_db(transaction=True)
+async def test_odometry_far_outside_the_session_is_refused_said_and_costs_nothing(
+    monkeypatch,
+) -> None:
+    monkeypatch.setattr(mapping_runner, "SAVE_EVERY", 0.2)
+    session, admin, _ = await sync_to_async(_mapping_setup)()
+    client = await sync_to_async(client_for)(admin)
+    messages = tour_messages()
+    hub = FakeHub("r1")
+    runner = MappingRunner(hub)
+    await runner.sync()
+    worker = runner.workers[session.pk]
+    far = {"pose": {"pose": pose_2d(600.0, 600.0, 0.0)}}
+    for index, (odom, scan) in enumerate(messages[:120]):
+        hub.send("/r1/odom", far if 60 <= index < 80 else odom)
+        hub.send("/r1/scan", scan)
+        await _drained(worker)
+    await _until(lambda: _session(session.pk).stats.get("refused", 0) == 20)
+    live = await sync_to_async(_session)(session.pk)
+    assert "a session maps within 50 m" in live.stats["refusal"]
+    width, height = (await sync_to_async(client.get)(f"{SESSIONS}{session.pk}/")).json()["size"]
+    assert width * height < 1000 * 1000
+    grid = await sync_to_async(client.get)(f"{SESSIONS}{session.pk}/grid")
+    assert grid.status_code == 200
+    assert len(grid.content) < 4 * 2**20
+
+
+@pytest.mark.django_db(transaction=True)
+async def test_a_session_with_no_keyframe_at_its_first_save_keeps_running(monkeypatch) -> None:
+    monkeypatch.setattr(mapping_runner, "SAVE_EVERY", 0.2)
+    session, admin, _ = await sync_to_async(_mapping_setup)()
+    client = await sync_to_async(client_for)(admin)
+    hub = FakeHub("r1")
+    runner = MappingRunner(hub)
+    await runner.sync()
+    worker = runner.workers[session.pk]
+    odom, scan = tour_messages()[0]
+    hub.send("/r1/odom", odom)
+    hub.send("/r1/scan", {**scan, "ranges": [None] * len(scan["ranges"])})
+    await _until(lambda: _session(session.pk).stats.get("skipped", 0) == 1)
+    assert not worker.stopped
+    grid = await sync_to_async(client.get)(f"{SESSIONS}{session.pk}/grid")
+    assert grid.status_code == 409
+    assert "No map yet" in grid.json()["detail"]
+    await runner.sync()
+    assert (await sync_to_async(_session)(session.pk)).state == "running"
+
+
+@pytest.mark.django_db(transaction=True)
+async def test_a_session_whose_worker_stops_says_so() -> None:
+    session, _, _ = await sync_to_async(_mapping_setup)()
+    hub = FakeHub("r1")
+    runner = MappingRunner(hub)
+    await runner.sync()
+    worker = runner.workers[session.pk]
+    assert worker._task is not None
+    worker._task.cancel()  # whatever ended it: the session must not stay "running"
+    await _until(lambda: worker.stopped)
+    await runner.sync()
+    stopped = await sync_to_async(_session)(session.pk)
+    assert stopped.state == "interrupted"
+    assert "mapping stopped" in stopped.reason
+    assert runner.workers == {}
+    assert hub.taps == {}

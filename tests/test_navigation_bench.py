@@ -49,6 +49,23 @@ def test_two_robots_meeting_head_on_in_a_corridor_pass_each_other(planner: Local
     assert result.collisions == 0
 
 
+@pytest.mark.parametrize("planner", ["dwa", "teb"])
+def test_a_camera_only_robot_lets_a_person_cross_in_front_of_it_and_arrives(
+    planner: LocalPlanner,
+) -> None:
+    result = navigation.trial("crossing", RobotConfig(local_planner=planner, sensors="rgbd"), 3)
+    assert result.success
+    assert result.collisions == 0
+    assert result.min_clearance > 0.05
+
+
+@pytest.mark.parametrize("planner", ["dwa", "teb"])
+def test_two_camera_only_robots_meeting_head_on_pass_each_other(planner: LocalPlanner) -> None:
+    result = navigation.trial("head_on", RobotConfig(local_planner=planner, sensors="rgbd"), 5)
+    assert result.success
+    assert result.collisions == 0
+
+
 def test_the_bench_prints_one_json_object_with_the_figures_asked_for() -> None:
     options = {
         "seed": 2,

@@ -201,3 +201,34 @@ async def test_an_export_holds_everything_recorded_up_to_the_request_while_the_r
         if channel.topic == "/r1/pose"
     ]
     assert poses == [i * 0.5 for i in range(20)]
+
+
+async def test_a_file_a_killed_server_was_writing_is_repaired_when_the_next_one_starts(
+    daphne_servers, token, tmp_path, viewer
+):
+    root = tmp_path / "recordings"
+    first = daphne_servers.start(env={"CLOUDNAV_RECORDING_DIR": str(root)})
+    cookie = (await asyncio.to_thread(session_cookie, viewer)).decode()
+    began = time.time()
+    async with websockets.connect(first.rosbridge_url(token)) as ws:
+        for i in range(20):
+            await ws.send(json.dumps({"op": "publish", "topic": "pose", "msg": pose(i)}))
+        await ws.send(json.dumps({"op": "call_service", "id": "t", "service": "rosapi/get_time"}))
+        while json.loads(await asyncio.wait_for(ws.recv(), 10)).get("id") != "t":
+            pass
+        url = f"{first.url}/api/robots/r1/recording.mcap?start={began - 5}&end={time.time() + 5}"
+        async with httpx.AsyncClient(timeout=DEADLINE) as http:  # the poses reach the file
+            assert (await http.get(url, headers={"Cookie": cookie})).status_code == 200
+        first.process.kill()  # kill -9 mid-file: no summary, no footer
+        first.process.wait(10)
+    [left] = files.files_of(root, "r1")
+    assert not files.finished(left.path)
+    second = daphne_servers.start(env={"CLOUDNAV_RECORDING_DIR": str(root)})
+    async with websockets.connect(second.rosbridge_url(token)):  # its recorder starts
+        deadline = time.monotonic() + DEADLINE
+        while not files.finished(left.path):
+            assert time.monotonic() < deadline, second.log()
+            await asyncio.sleep(0.05)
+    _profile, got = read_back(left.path)  # by its index
+    poses = [ros.pose.position.x for topic, *_rest, ros in got if topic == "/r1/pose"]
+    assert poses == [i * 0.5 for i in range(20)]

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import fcntl
 import os
 import time
 from pathlib import Path
@@ -127,7 +128,9 @@ def test_retention_deletes_files_past_their_days_then_the_oldest_past_the_budget
     writing = write_file(tmp_path, "r1", int(now - 60), 400, 1)
     kept_elsewhere = write_file(tmp_path, "r9", int(now - 10 * 86400), 100, 9 * 86400)
     retention = Retention("b", frozenset({"r1", "r2"}), days=7, budget=900)
-    gone = prune(tmp_path, retention, {writing}, now)
+    with open(writing, "rb") as held:  # as its writer holds it
+        fcntl.flock(held.fileno(), fcntl.LOCK_EX)
+        gone = prune(tmp_path, retention, now)
     assert gone == [ancient, older_r2, old]
     assert new.exists()
     assert writing.exists()

@@ -90,7 +90,11 @@ async def test_a_goal_sent_from_another_process_is_in_the_robots_recording(
         await sync(robot)
         headers = {"Cookie": cookie, "Origin": there.url}
         async with websockets.connect(there.rosbridge_url(), additional_headers=headers) as op:
-            goal = {**POSE, "header": {"frame_id": "boccioni_1/Hall"}}
+            # Inside the seeded 2 x 1.5 m Hall: goals are checked against their sub-map.
+            goal = {
+                "header": {"frame_id": "boccioni_1/Hall"},
+                "pose": {"position": {"x": 1, "y": 0.75}},
+            }
             advertise = {
                 "op": "advertise",
                 "topic": "/r1/goal",

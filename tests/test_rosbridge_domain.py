@@ -55,17 +55,19 @@ def test_names_are_made_absolute(name, namespace, expected):
     assert names.absolute(name, namespace) == expected
 
 
-@pytest.mark.parametrize("name", ["", "~private", "a//b", "9lives", "has space", "a/-b", 5])
+@pytest.mark.parametrize(
+    "name", ["", "~private", "a//b", "9lives", "has space", "a/-b", 5, "/r1/pose\n", "pose\n"]
+)
 def test_invalid_names_are_refused(name):
     with pytest.raises(InvalidName):
         names.absolute(name)
 
 
-def test_group_names_are_valid_for_the_channel_layer():
-    assert names.topic_group("/r1/camera/image/compressed") == "rb.t.r1.camera.image.compressed"
-    long = names.topic_group("/" + "a" * 200)
-    assert len(long) < 100
-    assert long != names.topic_group("/" + "a" * 199)
+def test_each_topic_has_its_own_redis_channel_that_names_it_back():
+    channel = names.topic_channel("/r1/camera/image/compressed", 7)
+    assert channel == "cloudnav:rb:7:topic:/r1/camera/image/compressed"
+    assert names.topic_of_channel(channel) == "/r1/camera/image/compressed"
+    assert names.topic_channel("/r1/pose", 7) != names.topic_channel("/r1/pose", 8)
 
 
 @pytest.mark.parametrize("value", [{"sec": 3, "nanosec": 5}, {"secs": 3, "nsecs": 5}])

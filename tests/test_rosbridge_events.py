@@ -66,3 +66,99 @@ async def test_a_low_battery_is_an_alert(rosbridge, robot):
     [low] = await events_of("battery_low")
     assert low.alert
     assert low.data["percentage"] == pytest.approx(0.12)
+
+
+def whereabouts(state: str, map_id: str = "", source: str = "") -> dict:
+    values = {"state": state, "map_id": map_id, "source": source}
+    return {
+        "level": 0 if state == "localised" else 1,
+        "name": "localisation",
+        "message": state,
+        "hardware_id": "",
+        "values": [{"key": key, "value": value} for key, value in values.items()],
+    }
+
+
+async def open_alerts(kind: str) -> list[Event]:
+    def rows() -> list[Event]:
+        return list(Event.objects.filter(kind=kind, alert=True, cleared_at__isnull=True))
+
+    return await database_sync_to_async(rows)()
+
+
+async def test_a_robot_lost_before_its_first_tag_is_starting_and_raises_nothing(rosbridge, robot):
+    _, token = robot
+    client = await rosbridge(token=token)
+    await client.send(op="publish", topic="localisation", msg=whereabouts("lost"))
+    corridor = "boccioni_1/CorridorA"
+    await client.send(
+        op="publish", topic="localisation", msg=whereabouts("entering", corridor, "tag 0")
+    )
+    await client.send(
+        op="publish", topic="localisation", msg=whereabouts("localised", corridor, "tag 0")
+    )
+    await events_of("tag_read")
+    await client.close()
+    await events_of("robot_disconnected")
+    assert await open_alerts("robot_lost") == []
+
+
+async def test_an_alert_clears_itself_when_its_condition_ends_and_stays_in_the_events(
+    rosbridge, robot
+):
+    _, token = robot
+    client = await rosbridge(token=token)
+    corridor = "boccioni_1/CorridorA"
+    await client.send(
+        op="publish", topic="localisation", msg=whereabouts("localised", corridor, "tag 0")
+    )
+    await client.send(op="publish", topic="localisation", msg=whereabouts("lost"))
+    [lost] = await events_of("robot_lost")
+    assert lost.cleared_at is None
+    await client.send(
+        op="publish", topic="localisation", msg=whereabouts("localised", corridor, "tag 0")
+    )
+    [clearing] = await events_of("alert_cleared")
+    assert (clearing.alert, clearing.data) == (False, {"alert": "robot_lost"})
+    [kept] = await events_of("robot_lost")
+    assert kept.cleared_at == clearing.time
+    assert await open_alerts("robot_lost") == []
+
+
+async def test_the_same_condition_never_raises_twice_across_reconnections(rosbridge, robot):
+    _, token = robot
+    for _ in range(3):
+        client = await rosbridge(token=token)
+        await client.send(op="publish", topic="battery", msg={"percentage": 0.12})
+        await events_of("battery_low")
+        await client.close()
+    await events_of("robot_disconnected")
+    client = await rosbridge(token=token)
+    await client.send(op="publish", topic="battery", msg={"percentage": 0.8})
+    [charged] = await events_of("alert_cleared")
+    assert charged.data == {"alert": "battery_low"}
+    assert len(await events_of("battery_low")) == 1
+    assert await open_alerts("battery_low") == []
+    # each disconnection is an alert until the robot is back
+    await wait_for(lambda: Event.objects.filter(kind="robot_connected").count() == 4)
+    assert len(await events_of("robot_disconnected")) == 3
+    assert await open_alerts("robot_disconnected") == []
+
+
+async def wait_for(condition, wait: float = 5.0) -> None:
+    deadline = time.monotonic() + wait
+    while not await database_sync_to_async(condition)():
+        assert time.monotonic() < deadline, "the condition never held"
+        await asyncio.sleep(0.05)
+
+
+async def test_a_later_goal_failing_replaces_the_open_alert_of_the_last(rosbridge, robot):
+    _, token = robot
+    client = await rosbridge(token=token)
+    for goal in ("g1", "g2"):
+        status = {"goal_id": {"id": goal}, "status": 4, "text": f"no path for {goal}"}
+        msg = {"header": {"frame_id": ""}, "status_list": [status]}
+        await client.send(op="publish", topic="nav_status", msg=msg)
+    await wait_for(lambda: Event.objects.filter(kind="goal_aborted").count() == 2)
+    [still_open] = await open_alerts("goal_aborted")
+    assert still_open.data["goal"] == "g2"

@@ -3,6 +3,10 @@
 Each behaviour is tried by admin, operator, viewer, outsider, an unregistered robot, a robot
 of another building, a robot of the same building, and the robot itself where it matters.
 Outsiders and unregistered robots never get a connection at all.
+
+The core behaviours run in the embedded mode and again across two server processes in
+scaled mode (``ACROSS_PROCESSES``: the robot on one process, everyone else on the other):
+the same rules hold, whichever process answers.
 """
 
 from __future__ import annotations
@@ -11,7 +15,7 @@ from types import SimpleNamespace
 
 import pytest
 
-from tests.conftest import make_building, make_robot
+from tests.conftest import make_building, make_robot, make_submap
 from tests.fixtures_live import Refused
 
 pytestmark = pytest.mark.django_db(transaction=True)
@@ -19,11 +23,13 @@ pytestmark = pytest.mark.django_db(transaction=True)
 REFUSED = "refused"
 ALL = ["admin", "operator", "viewer", "outsider", "unregistered", "foreign_robot", "peer_robot"]
 TWIST = {"linear": {"x": 0.2, "y": 0.0, "z": 0.0}, "angular": {"x": 0.0, "y": 0.0, "z": 0.0}}
-GOAL = {"header": {"frame_id": "boccioni_1/CorridorA"}, "pose": {"position": {"x": 1, "y": 2}}}
+# In the middle of the sub-map the fleet's building has (goals are checked where they are sent).
+GOAL = {"header": {"frame_id": "boccioni_1/CorridorA"}, "pose": {"position": {"x": 1, "y": 0.75}}}
 
 
 @pytest.fixture
 def fleet(building, admin, operator, viewer, outsider):
+    make_submap(building, code="CorridorA")
     other = make_building(code="elsewhere", name="Elsewhere")
     tokens = {
         "r1": make_robot(name="r1", buildings=[building])[1],
@@ -35,12 +41,37 @@ def fleet(building, admin, operator, viewer, outsider):
     return SimpleNamespace(tokens=tokens, people=people)
 
 
+ACROSS_PROCESSES = pytest.mark.parametrize(
+    "mode",
+    ["embedded", pytest.param("two processes", marks=[pytest.mark.scaled, pytest.mark.live])],
+    indirect=True,
+)
+
+
 @pytest.fixture
-def connect_as(rosbridge, fleet):
+def mode(request):
+    return getattr(request, "param", "embedded")
+
+
+@pytest.fixture
+def connect_as(request, mode, fleet):
+    if mode == "embedded":
+        rosbridge = request.getfixturevalue("rosbridge")
+
+        async def place(who, **credentials):
+            del who  # one process: everyone connects to it
+            return await rosbridge(**credentials)
+
+    else:
+        across = request.getfixturevalue("rosbridge_across_processes")
+
+        async def place(who, **credentials):
+            return await across(0 if who == "r1" else 1, **credentials)
+
     async def connect(who):
         if who in fleet.people:
-            return await rosbridge(user=fleet.people[who])
-        return await rosbridge(token=fleet.tokens[who])
+            return await place(who, user=fleet.people[who])
+        return await place(who, token=fleet.tokens[who])
 
     return connect
 
@@ -58,6 +89,7 @@ def expect(**allowed):
     return [(who, allowed.get(who, REFUSED)) for who in ALL]
 
 
+@ACROSS_PROCESSES
 @pytest.mark.parametrize(
     ("who", "expected"),
     expect(admin=True, operator=True, viewer=True, foreign_robot=False, peer_robot=True),
@@ -75,6 +107,7 @@ async def test_subscribing_to_a_robot(connect_as, who, expected):
     assert await outcome(connect_as, who, attempt) == expected
 
 
+@ACROSS_PROCESSES
 @pytest.mark.parametrize(
     ("who", "expected"),
     expect(admin=True, operator=True, viewer=False, foreign_robot=False, peer_robot=False),
@@ -130,6 +163,7 @@ async def test_only_admins_publish_shared_topics(connect_as):
     assert await operator.quiet()
 
 
+@ACROSS_PROCESSES
 @pytest.mark.parametrize(
     ("who", "expected"),
     expect(admin=True, operator=True, viewer=False, foreign_robot=False, peer_robot=False),
@@ -169,6 +203,7 @@ async def test_nobody_advertises_in_the_servers_namespaces(connect_as, who):
     assert response["result"] is True
 
 
+@ACROSS_PROCESSES
 @pytest.mark.parametrize(
     ("who", "expected"),
     expect(admin=True, operator=True, viewer=False, foreign_robot=False, peer_robot=False),
@@ -181,6 +216,7 @@ async def test_taking_a_robots_teleop_lock(connect_as, who, expected):
     assert await outcome(connect_as, who, attempt) == expected
 
 
+@ACROSS_PROCESSES
 @pytest.mark.parametrize(
     ("who", "expected"),
     expect(admin=True, operator=True, viewer=True, foreign_robot=False, peer_robot=True),
@@ -241,6 +277,7 @@ async def test_advertising_a_service_in_a_robots_namespace(connect_as, who, expe
     assert await outcome(connect_as, who, attempt) == expected
 
 
+@ACROSS_PROCESSES
 @pytest.mark.parametrize(
     ("who", "expected"),
     expect(admin=True, operator=True, viewer=True, foreign_robot=False, peer_robot=True),

@@ -1,7 +1,8 @@
 """Scaled mode: two server processes sharing Redis and PostgreSQL behave as one server.
 
 A robot on one process and an operator on the other see each other's topics, services,
-actions, latched messages, parameters and teleop locks.
+actions, latched messages, parameters and teleop locks, whatever the order in which they
+subscribe, connect and reconnect, and whichever process restarts.
 """
 
 from __future__ import annotations
@@ -10,13 +11,18 @@ import asyncio
 import json
 import time
 from contextlib import AsyncExitStack
+from typing import Any
 
 import pytest
 import websockets
 
 pytestmark = pytest.mark.scaled
 
-POSE = {"header": {"frame_id": "boccioni_1/Hall"}, "pose": {"position": {"x": 1, "y": 2}}}
+# In the middle of the fleet's sub-map (goals are checked against it where they are sent).
+POSE: dict[str, Any] = {
+    "header": {"frame_id": "boccioni_1/Hall"},
+    "pose": {"position": {"x": 1, "y": 0.75}},
+}
 GO = {"linear": {"x": 0.3, "y": 0.0, "z": 0.0}, "angular": {"x": 0.0, "y": 0.0, "z": 0.0}}
 ZERO = {"linear": {"x": 0.0, "y": 0.0, "z": 0.0}, "angular": {"x": 0.0, "y": 0.0, "z": 0.0}}
 WAIT = 5.0
@@ -41,6 +47,21 @@ class Client:
     async def sync(self):
         await self.call("/rosapi/get_time", id="sync")
 
+    async def poses(self, count, wait=WAIT):
+        """Return the sequence numbers of the next ``count`` poses."""
+        return [(await self.receive(wait))["msg"]["header"]["seq"] for _ in range(count)]
+
+
+def pose(seq):
+    return {**POSE, "header": {**POSE["header"], "seq": seq}}
+
+
+async def publish_poses(robot, seqs, period=0.1):
+    """Publish one pose per ``period`` seconds (a robot's 10 Hz), numbered ``seqs``."""
+    for seq in seqs:
+        await robot.send(op="publish", topic="pose", msg=pose(seq))
+        await asyncio.sleep(period)
+
 
 @pytest.fixture
 def cluster(scaled_servers):
@@ -52,7 +73,7 @@ async def connect(cluster):
     async with AsyncExitStack() as stack:
 
         async def open_as(who, server):
-            live = cluster.servers[server]
+            live = cluster.servers[server]  # looked up now: a replaced process's successor
             if who in cluster.tokens:
                 url, headers = live.rosbridge_url(cluster.tokens[who]), {}
             else:
@@ -184,3 +205,83 @@ async def test_one_teleop_lock_across_processes_and_the_watchdog_stops_the_robot
     await first.send(op="publish", topic="/r1/cmd_vel", msg=GO)
     assert (await robot.receive())["msg"] == GO
     assert (await robot.receive(wait=3.0))["msg"] == ZERO
+
+
+LULL = 7.0  # longer than redis-py's 5 s socket timeout and channels_redis' 5 s blocking pop
+
+
+async def test_traffic_still_crosses_after_a_lull_longer_than_redis_timeouts(connect):
+    robot, operator = await connect("r1", 0), await connect("operator", 1)
+    await operator.send(op="subscribe", topic="/r1/pose")
+    await robot.send(op="advertise_service", service="dock", type="std_srvs/SetBool")
+    await operator.sync()
+    await robot.sync()
+    await asyncio.sleep(LULL)  # the lull itself is what is tested: no traffic at all
+    await robot.send(op="publish", topic="pose", msg=POSE)
+    assert (await operator.receive())["msg"] == POSE
+    await operator.send(op="call_service", id="after", service="/r1/dock", args={"data": True})
+    assert (await robot.receive())["id"] == "service_request:dock:1"
+
+
+async def test_a_subscription_made_before_the_robot_connects_gets_every_pose(connect):
+    operator = await connect("operator", 1)
+    await operator.send(op="subscribe", topic="/r1/pose")
+    await operator.sync()
+    robot = await connect("r1", 0)
+    await robot.send(op="advertise", topic="pose", type="geometry_msgs/PoseStamped")
+    await publish_poses(robot, range(30))
+    assert await operator.poses(30) == list(range(30))
+
+
+async def test_a_robot_that_reconnects_to_another_process_is_seen_again(connect):
+    operator = await connect("operator", 1)
+    await operator.send(op="subscribe", topic="/r1/pose")
+    await operator.sync()
+    for place, seqs in ((0, range(0, 3)), (1, range(3, 6)), (0, range(6, 9))):
+        robot = await connect("r1", place)
+        await publish_poses(robot, seqs)
+        assert await operator.poses(3) == list(seqs)
+        await robot.socket.close()
+
+
+async def test_operators_resume_within_a_second_when_the_robots_process_restarts(cluster, connect):
+    operator = await connect("operator", 1)
+    await operator.send(op="subscribe", topic="/r1/pose")
+    await operator.sync()
+    robot = await connect("r1", 0)
+    await publish_poses(robot, [0])
+    assert await operator.poses(1) == [0]
+    cluster.replace(0)  # killed with robot still connected, and started again
+    robot = await connect("r1", 0)
+    await robot.sync()
+    await robot.send(op="publish", topic="pose", msg=pose(1))
+    assert await operator.poses(1, wait=1.0) == [1]  # no resubscription
+
+
+async def test_a_restarted_redis_is_filled_again_from_the_live_connections(
+    scaled_servers, private_redis
+):
+    cluster = scaled_servers(2, env={"REDIS_URL": private_redis.url})
+    robot = Client(await websockets.connect(cluster.servers[0].rosbridge_url(cluster.tokens["r1"])))
+    viewer = Client(
+        await websockets.connect(cluster.servers[1].rosbridge_url(cluster.tokens["r2"]))
+    )
+    await viewer.send(op="subscribe", topic="/r1/pose")
+    await robot.send(op="publish", topic="map_id", msg={"data": "boccioni_1/Hall"})
+    await robot.send(op="advertise", topic="battery", type="sensor_msgs/BatteryState")
+    await viewer.sync()
+    await robot.sync()
+    private_redis.restart(down=2.0)
+    deadline = time.monotonic() + 20.0  # a heartbeat (5 s) finds Redis empty and refills it
+    while True:  # calls made while Redis is away are answered, and fail
+        listed = await viewer.call("/rosapi/topics")
+        if listed["result"] and "/r1/battery" in listed["values"]["topics"]:
+            break
+        assert time.monotonic() < deadline, "the robot's topics never came back"
+        await asyncio.sleep(0.2)
+    await viewer.send(op="subscribe", topic="/r1/map_id")
+    assert (await viewer.receive())["msg"] == {"data": "boccioni_1/Hall"}
+    await robot.send(op="publish", topic="pose", msg=pose(7))
+    assert await viewer.poses(1) == [7]
+    await robot.socket.close()
+    await viewer.socket.close()

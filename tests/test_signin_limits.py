@@ -6,6 +6,7 @@ from __future__ import annotations
 import base64
 
 import pytest
+from django.conf import settings
 from django.test import Client
 from rest_framework.test import APIClient
 
@@ -43,6 +44,21 @@ def test_the_login_page_refuses_after_too_many_failures_even_the_right_password(
         assert sign_in("wrong") == 200  # the form again, with its error
     assert sign_in("wrong") == 429
     assert sign_in("right-password") == 429
+
+
+def test_a_locked_out_sign_in_gets_a_page_that_says_so_and_for_how_long(user):
+    for _ in range(LIMIT):
+        sign_in("wrong")
+    response = Client().post(
+        "/accounts/login/", {"username": "alice", "password": "x"}, REMOTE_ADDR="10.0.0.1"
+    )
+    assert response.status_code == 429
+    page = response.content.decode()
+    assert "Too many failed sign-ins" in page
+    assert 'class="card login-card" id="locked-out"' in page
+    assert "<strong>alice</strong>" in page
+    assert f"for {settings.AXES_COOLOFF_TIME.total_seconds() // 60:.0f} minutes" in page
+    assert 'href="/accounts/login/"' in page
 
 
 def test_another_address_is_not_locked_out(user):

@@ -12,6 +12,7 @@ import pytest
 from benchmarks.mapping import compare_with_truth, drive_tour
 from maps.domain.demo_building import demo_building
 from maps.domain.slam import Mapper, Scan, SlamParams
+from maps.exceptions import OutsideExtent
 from robots.agent.sim.changes import ChangeConfig, changed_demo_world, changed_grid, plan_changes
 
 
@@ -75,3 +76,48 @@ def test_a_mapper_resumes_from_its_saved_state(tour) -> None:
     assert math.dist(again.pose[:2], scans[-1].truth[:2]) < 0.2
     with pytest.raises(ValueError, match="not a saved mapping state"):
         Mapper.resumed(b"junk")
+
+
+def _wall_scan() -> Scan:
+    """A scan of a room's walls 2 m around the robot, 180 beams."""
+    angles = np.linspace(-math.pi, math.pi, 180, endpoint=False)
+    return Scan(angles, np.full(180, 2.0))
+
+
+def test_odometry_outside_the_sessions_extent_is_refused_and_the_map_stays_bounded() -> None:
+    mapper = Mapper(SlamParams(), start=(1.0, 2.0, 0.0))
+    mapper.add((0.0, 0.0, 0.0), _wall_scan())
+    before = mapper.grid()[0].shape
+    with pytest.raises(OutsideExtent, match=r"\(601.0, 602.0\).*within 50 m"):
+        mapper.add((600.0, 600.0, 0.0), _wall_scan())
+    assert mapper.grid()[0].shape == before
+    assert mapper.stats.refused == 1
+    mapper.add((0.0, 0.0, 1.0), _wall_scan())  # back where it is: mapped again
+    assert mapper.stats.keyframes == 2
+    assert math.dist(mapper.pose[:2], (1.0, 2.0)) < 0.2
+    assert abs(mapper.pose[2] - 1.0) < 0.1
+
+
+def test_a_resumed_mapper_keeps_the_extent_of_the_session() -> None:
+    mapper = Mapper(SlamParams(), start=(30.0, 0.0, 0.0))
+    mapper.add((0.0, 0.0, 0.0), _wall_scan())
+    mapper.add((-20.0, 0.0, 0.0), _wall_scan())  # 20 m west of where the session started
+    again = Mapper.resumed(mapper.state())
+    again.add((0.0, 0.0, 0.0), _wall_scan())
+    with pytest.raises(OutsideExtent):
+        again.add((-35.0, 0.0, 0.0), _wall_scan())  # 55 m from the start, 35 m from here
+
+
+@pytest.mark.parametrize(
+    ("field", "value"),
+    [
+        ("ranges", [{"a": 1}, 1.0, 1.0]),
+        ("ranges", ["1.0", 1.0, 1.0]),
+        ("ranges", [True, 1.0, 1.0]),
+        ("angle_increment", 1e308),  # the third beam's angle overflows
+    ],
+)
+def test_a_scan_with_values_that_are_not_numbers_is_refused(field: str, value: object) -> None:
+    message = {"angle_min": -1.0, "angle_increment": 0.01, "ranges": [1.0, 1.0, 1.0]}
+    with pytest.raises(ValueError, match="scan"):
+        Scan.from_message({**message, field: value})

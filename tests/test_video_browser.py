@@ -5,6 +5,10 @@ own 5 frames/s camera at its rate, with the figures of the stream it plays."""
 
 from __future__ import annotations
 
+import asyncio
+import itertools
+import re
+import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -12,6 +16,9 @@ from pathlib import Path
 import pytest
 from playwright.sync_api import BrowserContext, Page, expect
 
+from robots.agent.client import RosbridgeClient
+from telemetry.domain.camera_feed import camera_frames
+from telemetry.domain.messages import compressed_image
 from tests.browser_support import ROBOT, Demo, open_as, screenshot
 from tests.fixtures_live import agent_process
 
@@ -139,3 +146,45 @@ def test_the_robot_pages_vp8_player_shows_the_robots_5_fps_camera_at_its_rate(
     expect(stats).to_contain_text("vp8 100kbit/s")
     expect(stats.locator("dt").first).to_have_text("Server sends")
     screenshot(page, "video-robot-page-vp8-rate")
+
+
+CLOCK_BEHIND_S = 609.6  # the robot's clock of the issue: ten minutes behind the server's
+
+
+@pytest.fixture
+def camera_behind(demo: Demo) -> Iterator[None]:
+    """``robot_0``'s camera at 5 frames/s, stamped by a clock CLOCK_BEHIND_S behind."""
+    stop = threading.Event()
+    jpegs = camera_frames(320, 240, quality=70, count=10)
+
+    async def run() -> None:
+        client = RosbridgeClient(demo.server.rosbridge_url(), demo.tokens[ROBOT])
+        client.advertise("camera/image/compressed", "sensor_msgs/CompressedImage")
+        task = asyncio.create_task(client.run())
+        await asyncio.wait_for(client.wait_connected(), 10)
+        for i in itertools.count():
+            if stop.is_set():
+                break
+            stamp = time.time() - CLOCK_BEHIND_S
+            msg = compressed_image("camera", jpegs[i % len(jpegs)], stamp)
+            await client.publish("camera/image/compressed", msg)
+            await asyncio.sleep(0.2)
+        await client.close()
+        await task
+
+    thread = threading.Thread(target=asyncio.run, args=(run(),))
+    thread.start()
+    yield
+    stop.set()
+    thread.join(20)
+
+
+def test_a_camera_stamping_by_a_clock_off_the_servers_shows_the_offset_not_a_delay(
+    context: BrowserContext, demo: Demo, camera_behind: None
+) -> None:
+    page = open_as(context, demo, "viewer", f"/stream_viewer?topic={TOPIC}&type=mjpeg")
+    stats = page.locator("#stream-stats")
+    said = re.compile(r"delay — \(the camera's clock is 61[01] s behind the server's\)")
+    expect(stats).to_contain_text(said, timeout=30_000)
+    assert "null" not in (stats.text_content() or "")
+    screenshot(page, "video-viewer-clock-offset")

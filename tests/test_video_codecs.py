@@ -234,4 +234,18 @@ def test_stream_statistics_give_rates_and_delay_percentiles():
     assert figures["delay_p50_ms"] == pytest.approx(10.0)
     assert figures["delay_p99_ms"] == pytest.approx(110.0)
     assert figures["relay_p99_ms"] == pytest.approx(2.0)
+    assert figures["clock_offset_ms"] is None
     assert percentile([], 50) is None
+
+
+def test_stamps_of_a_clock_far_off_the_servers_give_its_offset_not_a_delay():
+    stats = StreamStats(started=0.0)
+    for i in range(20):
+        now = 1.0 + i / 10
+        stamp = now - 609.6  # the robot's clock runs ten minutes behind
+        stats.sent(now, [(stamp, now - 0.002)], 1000)
+    figures = stats.snapshot(3.0)
+    assert figures["delay_p50_ms"] is None
+    assert figures["delay_p99_ms"] is None
+    assert figures["clock_offset_ms"] == pytest.approx(609598.0)
+    assert figures["relay_p99_ms"] == pytest.approx(2.0)

@@ -4,6 +4,7 @@ retrieval of held-out views, pose from matches, and no confident answer elsewher
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -204,6 +205,39 @@ def test_views_of_another_building_are_never_answered(
         answer = relocalise(index, [query(extractor, camera, pose)], Intrinsics(), Mount())
         assert not answer.localised, pose
         assert answer.reason
+
+
+FOREIGN_VIEW = Path(__file__).parent / "data" / "foreign_view_seed2.npz"
+"""What ``bench relocalise --seed 2`` found (issue 23 point 17): its survey's keyframes
+that retrieval passes on for the 293rd view of the other building (at 26.65, 4.60, facing
+131 degrees), and that view's ORB features, all as the pipeline made them."""
+
+
+def foreign_view() -> tuple[KeyframeIndex, QueryFrame, tuple[float, float, float]]:
+    with np.load(FOREIGN_VIEW) as stored:
+        index = KeyframeIndex(default_vocabulary().size)
+        for n, (number, submap) in enumerate(zip(stored["ids"], stored["submaps"], strict=True)):
+            keyframe = Keyframe.from_bytes(stored[f"keyframe_{n}"].tobytes())
+            index.add(int(number), str(submap), keyframe)
+        frame = QueryFrame(
+            stored["query_pixels"], stored["query_descriptors"], stored["query_words"]
+        )
+        x, y, yaw = (float(v) for v in stored["truth"])
+    return index, frame, (x, y, yaw)
+
+
+def test_inliers_all_on_one_small_thing_place_no_one() -> None:
+    """The view of another building matched one tag-sized patch of Corridor C's keyframes
+    (a marker's squares look alike everywhere): 61 inliers within 15 cm, a level pose
+    3.4 m from the truth, claiming 8 cm. Inliers must spread over the image."""
+    index, frame, truth = foreign_view()
+    unchecked = relocalise(index, [frame], Intrinsics(), Mount(), params=Params(min_cells=0))
+    assert unchecked.localised
+    assert math.hypot(unchecked.pose[0] - truth[0], unchecked.pose[1] - truth[1]) > 3.0
+    assert math.sqrt(unchecked.covariance[0, 0] + unchecked.covariance[1, 1]) < 0.1
+    answer = relocalise(index, [frame], Intrinsics(), Mount())
+    assert not answer.localised
+    assert "one small part of the image (2 of its 48 cells)" in answer.reason
 
 
 def test_a_blank_image_is_not_localised(index: KeyframeIndex, extractor: FeatureExtractor) -> None:

@@ -12,6 +12,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from channels.db import database_sync_to_async
 from django.core.management import call_command
 
 from maps.models import Building, Keyframe
@@ -26,6 +27,7 @@ from telemetry.domain.messages import (
     depth_image,
 )
 from tests.conftest import client_for, make_building, make_robot, make_user
+from tests.test_visual_input import progressive_jpeg
 
 pytestmark = pytest.mark.django_db(transaction=True)
 
@@ -162,6 +164,35 @@ def test_a_robot_may_not_ask_about_another_building(token: str, camera: Camera) 
     assert client_for(None).post("/api/relocalise", body, format="json").status_code in (401, 403)
 
 
+def test_a_person_with_no_building_is_refused(token: str, camera: Camera) -> None:
+    """Issue 23 point 13: they got answers (a search of no keyframes)."""
+    body = {"images": [keyframe_body(camera, WAKE_UP)["image"]]}
+    for person in (make_user("outsider"), make_user("lonely", "operator")):
+        answer = client_for(person).post("/api/relocalise", body, format="json")
+        assert answer.status_code == 403, answer.content
+        assert "no building" in answer.json()["detail"]
+        named = client_for(person).post(
+            "/api/relocalise", {**body, "building": "boccioni_1"}, format="json"
+        )
+        assert named.status_code == 403, named.content
+
+
+def test_a_viewer_may_not_relocalise_but_an_operator_may(surveyed: str, camera: Camera) -> None:
+    """Relocalisation places a robot: its robots and those who may drive it ask; a viewer
+    has no robot to place, and each question costs the server tens of milliseconds."""
+    building = Building.objects.get(code="boccioni_1")
+    viewer, operator = make_user("vera", "viewer"), make_user("otto", "operator")
+    building.members.add(viewer, operator)
+    image = compressed_image(
+        "camera", encode_jpeg(Camera(demo_world(seed=0), seed=9).render(WAKE_UP)), 2.0
+    )
+    refused = client_for(viewer).post("/api/relocalise", {"images": [image]}, format="json")
+    assert refused.status_code == 403, refused.content
+    answer = client_for(operator).post("/api/relocalise", {"images": [image]}, format="json")
+    assert answer.status_code == 200, answer.content
+    assert answer.json()["map_id"] == "boccioni_1/CorridorA"
+
+
 def jpeg_of(pixels: np.ndarray) -> CompressedImage:
     return compressed_image("camera", encode_jpeg(pixels), 1.0)
 
@@ -202,6 +233,13 @@ def jpeg_of(pixels: np.ndarray) -> CompressedImage:
         (lambda b: {**b, "pose": {"x": 500.0, "y": 3.0, "yaw": 0.0}}, "not on the free floor"),
         (lambda b: {**b, "pose": {"x": "NaN", "y": 3.0, "yaw": 0.0}}, "finite"),
         (lambda b: {k: v for k, v in b.items() if k != "depth"}, "depth"),
+        # Issue 23 point 16: these were answered 500.
+        (lambda b: {**b, "depth": {**raw_depth(), "height": -480, "width": -640}}, "depth"),
+        (lambda b: {**b, "pose": {"x": 1e308, "y": 3.0, "yaw": 0.0}}, "within"),
+        (lambda b: {**b, "mount": {"forward": 1e308, "height": 0.25}}, "mount"),
+        (lambda b: {**b, "camera_info": {"K": [525, 0, 1e308, 0, 525, 239.5, 0, 0, 1]}}, "K"),
+        # Issue 23 point 13: decoding it took 14 s of CPU.
+        (lambda b: {**b, "image": many_scans()}, "scans"),
     ],
 )
 def test_bad_keyframes_get_a_clear_error_and_store_nothing(
@@ -216,6 +254,32 @@ def test_bad_keyframes_get_a_clear_error_and_store_nothing(
     assert not keyframe_dir.exists() or not list(keyframe_dir.rglob("*.npz"))
 
 
+def raw_depth() -> dict[str, Any]:
+    return dict(depth_image("camera", np.ones((480, 640), np.float32), 1.0))
+
+
+def many_scans() -> CompressedImage:
+    return compressed_image("camera", progressive_jpeg(50_000), 1.0)
+
+
+@pytest.mark.parametrize(
+    ("change", "field"),
+    [
+        (lambda b: {**b, "depth": {**raw_depth(), "height": -480, "width": -640}}, "depth"),
+        (lambda b: {**b, "pose": {"x": 1e308, "y": 3.0, "yaw": 0.0}}, "pose"),
+        (lambda b: {**b, "image": many_scans()}, "image"),
+    ],
+)
+def test_a_bad_keyframe_is_answered_with_the_field_at_fault(
+    token: str, camera: Camera, change: Any, field: str
+) -> None:
+    body = change(keyframe_body(camera, (5.0, 23.2, 0.0)))
+    answer = client_for(token).post(URL, body, format="json")
+    assert answer.status_code == 400, answer.content
+    assert list(answer.json()) == ["detail", field]
+    assert answer.json()["detail"] == f"{field}: {answer.json()[field][0]}"
+
+
 def test_a_bad_relocalisation_request_is_refused(token: str, camera: Camera) -> None:
     client = client_for(token)
     good = keyframe_body(camera, WAKE_UP)
@@ -228,6 +292,12 @@ def test_a_bad_relocalisation_request_is_refused(token: str, camera: Camera) -> 
                 "depth": depth_image("camera", np.ones((10, 10), np.float32), 1),
             },
             "does not match",
+        ),
+        ({"images": [good["image"], many_scans()]}, "images[1]: a JPEG of 50000 scans"),
+        ({"images": [good["image"]], "mount": {"forward": 1e308, "height": 0.25}}, "mount"),
+        (
+            {"images": [good["image"]], "camera_info": {"K": [1e-300, 0, 320, 0, 1, 240, 0, 0, 1]}},
+            "camera_info",
         ),
     ]:
         response = client.post("/api/relocalise", body, format="json")
@@ -270,3 +340,19 @@ async def test_relocalise_is_a_rosbridge_service(rosbridge: Any, surveyed: str) 
         args={"images": [image], "building": "other_1"},
     )
     assert (await robot.receive(60))["result"] is False
+
+
+async def test_a_viewer_may_not_relocalise_over_rosbridge(rosbridge: Any, surveyed: str) -> None:
+    viewer = await database_sync_to_async(make_user)("vera", "viewer")
+    building = await Building.objects.aget(code="boccioni_1")
+    await database_sync_to_async(building.members.add)(viewer)
+    image = compressed_image(
+        "camera", encode_jpeg(Camera(demo_world(seed=0), seed=9).render(WAKE_UP)), 2.0
+    )
+    socket = await rosbridge(user=viewer)
+    await socket.send(
+        op="call_service", id="where", service="/cloudnav/relocalise", args={"images": [image]}
+    )
+    refused = await socket.receive(60)
+    assert refused["result"] is False, refused
+    assert "no building" in refused["values"]

@@ -135,6 +135,17 @@ async def test_an_aiortc_viewer_decodes_the_camera_and_delete_ends_it(site, code
     assert await viewer.delete() == 404
 
 
+async def test_a_session_that_ended_on_its_own_is_deleted_without_a_404(site):
+    # A page changing its camera's mode DELETEs a session the server may have ended already
+    # (the peer failed or left): that DELETE is done, not 404.
+    viewer = await WhepViewer.open(site.url, f"topic={TOPIC}&type=vp8", site.headers)
+    assert await decoded(viewer, 3) == [(320, 240)] * 3
+    await viewer.peer.close()  # the viewer's peer leaves first, with no DELETE
+    await until(lambda: not site.rtc_streams(), "the server to end the session", WAIT)
+    assert await viewer.delete() == 200
+    assert await viewer.delete() == 404  # once: it is gone now
+
+
 async def test_an_h264_camera_is_relayed_without_decoding(h264_site):
     site = h264_site
     viewer = await WhepViewer.open(site.url, f"topic={TOPIC}&type=h264", site.headers)

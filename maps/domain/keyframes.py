@@ -29,7 +29,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from maps.domain.vocabulary import Vocabulary
-from maps.exceptions import KeyframeError
+from maps.exceptions import KeyframeError, said
 
 Image = NDArray[np.uint8]
 Depth = NDArray[np.float32]
@@ -43,6 +43,9 @@ DEPTH_EDGE = 0.05
 edge (a door frame's side, a wall's end) and its depth could belong to either side."""
 MIN_POINTS = 20
 """A keyframe with fewer 3D points than this is not worth keeping."""
+MIN_FOCAL, MAX_FOCAL = 1.0, 100_000.0
+"""Pixels: focal lengths outside these belong to no camera (a pinhole's field of view
+from nearly 180 degrees to a few thousandths of one at 640 px)."""
 
 
 @dataclass(frozen=True)
@@ -63,9 +66,13 @@ class Intrinsics:
     def from_k(cls, k: list[float] | tuple[float, ...], width: int, height: int) -> Intrinsics:
         """From a ``CameraInfo``'s row-major ``K``; raises KeyframeError if it is not one."""
         if len(k) != 9 or not all(math.isfinite(v) for v in k):
-            raise KeyframeError("camera K must be 9 finite numbers")
-        if k[0] <= 0 or k[4] <= 0:
-            raise KeyframeError("camera K must have positive focal lengths")
+            raise KeyframeError("camera_info", "K must be 9 finite numbers")
+        if not (MIN_FOCAL <= k[0] <= MAX_FOCAL and MIN_FOCAL <= k[4] <= MAX_FOCAL):
+            raise KeyframeError(
+                "camera_info", f"K's focal lengths must be within [{MIN_FOCAL}, {MAX_FOCAL}] px"
+            )
+        if not (0 <= k[2] <= width and 0 <= k[5] <= height):
+            raise KeyframeError("camera_info", "K's principal point must lie in the image")
         return cls(width, height, float(k[0]), float(k[4]), float(k[2]), float(k[5]))
 
 
@@ -107,14 +114,17 @@ class Keyframe:
         try:
             with np.load(io.BytesIO(data), allow_pickle=False) as stored:
                 pose = tuple(float(v) for v in stored["pose"])
-                return cls(
+                keyframe = cls(
                     (pose[0], pose[1], pose[2]),
                     np.asarray(stored["descriptors"], np.uint8),
                     np.asarray(stored["points"], np.float32),
                     np.asarray(stored["words"], np.float32),
                 )
         except (OSError, ValueError, KeyError, IndexError) as error:
-            raise KeyframeError(f"a keyframe file that cannot be read: {error}") from None
+            raise KeyframeError("keyframe", f"a file that cannot be read: {said(error)}") from None
+        if not all(np.isfinite(a).all() for a in (keyframe.pose, keyframe.points, keyframe.words)):
+            raise KeyframeError("keyframe", "a file whose pose, points or words are not finite")
+        return keyframe
 
 
 class FeatureExtractor:
@@ -148,18 +158,22 @@ class FeatureExtractor:
         """
         if image.shape[:2] != depth.shape[:2]:
             raise KeyframeError(
+                "depth",
                 f"the depth image is {depth.shape[1]}x{depth.shape[0]}, "
-                f"the colour image {image.shape[1]}x{image.shape[0]}: they must match"
+                f"the colour image {image.shape[1]}x{image.shape[0]}: they must match",
             )
         pixels, descriptors = self.detect(image)
         usable, metres = _usable_depth(pixels, depth)
         if int(usable.sum()) < MIN_POINTS:
             raise KeyframeError(
+                "depth",
                 f"only {int(usable.sum())} features have a usable depth (at least "
-                f"{MIN_POINTS} are needed): a blank or too distant view"
+                f"{MIN_POINTS} are needed): a blank or too distant view",
             )
         intrinsics = intrinsics or Intrinsics(image.shape[1], image.shape[0])
         points = back_project(pixels[usable], metres[usable], pose, intrinsics, mount or Mount())
+        if not np.isfinite(points).all():
+            raise KeyframeError("pose", "the keyframe's 3D points are not all finite numbers")
         descriptors = descriptors[usable]
         return Keyframe(pose, descriptors, points, self.vocabulary.bag(descriptors))
 

@@ -28,7 +28,7 @@ import numpy.typing as npt
 import yaml
 from PIL import Image
 
-from maps.exceptions import MapFileError
+from maps.exceptions import MapFileError, said
 from telemetry.domain.messages import header, pose_2d
 
 MapMode = Literal["trinary", "scale", "raw"]
@@ -260,9 +260,9 @@ def _open_header(data: bytes) -> Image.Image:
     try:
         return Image.open(io.BytesIO(data), formats=IMAGE_FORMATS)
     except (Image.DecompressionBombError, Image.DecompressionBombWarning) as exc:
-        raise MapFileError("image", f"has too many pixels: {exc}") from exc
+        raise MapFileError("image", f"has too many pixels: {said(exc)}") from exc
     except Exception as exc:  # Pillow's plugins raise many types on hostile headers.
-        raise MapFileError("image", f"is not a readable image: {exc}") from exc
+        raise MapFileError("image", f"is not a readable image: {said(exc)}") from exc
 
 
 def _check_pixel_count(size: tuple[int, int], max_pixels: int) -> None:
@@ -279,7 +279,7 @@ def _decode(image: Image.Image) -> None:
     try:
         image.load()
     except Exception as exc:  # Decoders report truncation and corruption in many types.
-        raise MapFileError("image", f"cannot be decoded: {exc}") from exc
+        raise MapFileError("image", f"cannot be decoded: {said(exc)}") from exc
 
 
 # Conversion
@@ -571,7 +571,7 @@ def _open_zip(data: bytes) -> zipfile.ZipFile:
     try:
         return zipfile.ZipFile(io.BytesIO(data))
     except Exception as exc:  # zipfile reports damaged directories in several types.
-        raise MapFileError("archive", f"is not a zip file: {exc}") from exc
+        raise MapFileError("archive", f"is not a zip file: {said(exc)}") from exc
 
 
 def _checked_members(archive: zipfile.ZipFile, max_total_bytes: int) -> dict[str, zipfile.ZipInfo]:
@@ -631,7 +631,9 @@ def _read_member(archive: zipfile.ZipFile, info: zipfile.ZipInfo, limit: int) ->
         with archive.open(info) as member:
             data = member.read(limit + 1)
     except Exception as exc:  # Encryption, bad CRCs and codecs each raise their own type.
-        raise MapFileError("archive", f"member {info.filename!r} cannot be read: {exc}") from exc
+        raise MapFileError(
+            "archive", f"member {info.filename!r} cannot be read: {said(exc)}"
+        ) from exc
     if len(data) > limit:
         raise MapFileError("archive", f"member {info.filename!r} inflates past {limit} bytes")
     return data

@@ -86,6 +86,16 @@ class NoPathError(PlanningError):
     """No path joins the start and the goal."""
 
 
+class PoseRefused(PlanningError):
+    """A goal, waypoint or initial pose no robot could stand at (``GoalCheck.check``)."""
+
+    def __init__(self, what: str, point: Point, reason: str) -> None:
+        super().__init__(f"The {what} ({point[0]:.2f}, {point[1]:.2f}) is {reason}.")
+        self.what = what
+        self.point = point
+        self.reason = reason
+
+
 # ---------------------------------------------------------------------------------------
 # Costmaps
 
@@ -180,6 +190,85 @@ def _clearance_in_cells(
     # The exact Euclidean transform (Felzenszwalb's, in OpenCV) costs ~5 ms a megacell.
     cells = cv2.distanceTransform((~obstacle).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
     return np.asarray(cells, dtype=np.float32)
+
+
+# ---------------------------------------------------------------------------------------
+# Checking goals where they are sent
+
+
+ENTRY_REACH = 0.5
+"""Metres: how far from an entry point (given by the caller: in front of a tag) the free
+cells a robot enters by may lie."""
+
+
+@dataclass(frozen=True, eq=False)
+class GoalCheck:
+    """A sub-map made ready to check poses on, once per version (``goal_check``).
+
+    ``labels`` numbers the 8-connected regions of free (unblocked) cells; ``reachable``
+    holds the labels of the regions a robot can enter (those within ``ENTRY_REACH`` of an
+    entry point), or is None when the sub-map has no entry point (every free region
+    counts).
+    """
+
+    grid: npt.NDArray[np.int8]
+    costmap: Costmap
+    labels: npt.NDArray[np.int32]
+    reachable: frozenset[int] | None
+
+    def check(self, point: Point, what: str = "goal", tolerance: float = DEFAULT_TOLERANCE) -> None:
+        """Raise PoseRefused unless a robot could stand at ``point``: inside the grid, on a
+        known, unoccupied cell, with a cell its centre fits in within ``tolerance`` (the
+        robot's own planner snaps that far), in a region it can enter."""
+        if not (math.isfinite(point[0]) and math.isfinite(point[1])):
+            raise PoseRefused(what, (math.nan, math.nan), "not a finite point")
+        cell = cell_of(point, self.costmap.origin, self.costmap.resolution)
+        if not contains(self.grid.shape, cell):
+            raise PoseRefused(what, point, "outside the map")
+        value = int(self.grid[cell])
+        if value < 0:
+            raise PoseRefused(what, point, "in unknown space")
+        if value >= OCCUPIED_THRESHOLD:
+            raise PoseRefused(what, point, "in an obstacle")
+        free = cell if not self.costmap.blocked[cell] else None
+        reach = int(tolerance / self.costmap.resolution)
+        free = free or _nearest_free(self.costmap.blocked, cell, reach)
+        if free is None:
+            raise PoseRefused(
+                what, point, f"too near obstacles: no room for the robot within {tolerance} m"
+            )
+        if self.reachable is not None and int(self.labels[free]) not in self.reachable:
+            raise PoseRefused(
+                what, point, "in a place no robot can reach from where it enters the map"
+            )
+
+
+def goal_check(grid: npt.NDArray[np.int8], costmap: Costmap, entries: Sequence[Point]) -> GoalCheck:
+    """Return ``grid`` (inflated as ``costmap``) ready to check poses on; ``entries`` are
+    points where robots enter it, such as in front of the tags standing in it (none:
+    every free region counts as reachable)."""
+    count, labels = cv2.connectedComponents((~costmap.blocked).astype(np.uint8), connectivity=8)
+    del count
+    reachable = None
+    if entries:
+        reach = int(ENTRY_REACH / costmap.resolution)
+        found: set[int] = set()
+        for point in entries:
+            cell = cell_of(point, costmap.origin, costmap.resolution)
+            near = _free_cells_near(costmap.blocked, cell, reach)
+            found.update(int(labels[c]) for c in near)
+        reachable = frozenset(found)
+    return GoalCheck(grid, costmap, np.asarray(labels, dtype=np.int32), reachable)
+
+
+def _free_cells_near(blocked: BoolGrid, cell: Cell, reach: int) -> list[Cell]:
+    """Return the free cells within ``reach`` cells of ``cell`` (clipped to the grid)."""
+    row, col = cell
+    top, left = max(row - reach, 0), max(col - reach, 0)
+    window = blocked[top : max(row + reach + 1, 0), left : max(col + reach + 1, 0)]
+    rows, cols = np.nonzero(~window)
+    near = (rows + top - row) ** 2 + (cols + left - col) ** 2 <= reach * reach
+    return [(int(r) + top, int(c) + left) for r, c in zip(rows[near], cols[near], strict=True)]
 
 
 # ---------------------------------------------------------------------------------------

@@ -21,7 +21,8 @@ feature matching, then ``solvePnPRansac`` and a planar refinement.
    camera is level at its height.
 
 "Not localised", with the reason, whenever the evidence is weak: too few matches or
-inliers (counted once per query pixel), a free pose that is no robot's camera, or a
+inliers (counted once per query pixel), inliers all on one small part of the image (one
+thing, whose look may repeat anywhere), a free pose that is no robot's camera, or a
 covariance too wide. Images of a place the keyframes do not show find only chance
 matches, which no level pose at the camera's height explains together.
 
@@ -57,6 +58,13 @@ class Params:
     min_matches: int = 20
     min_inliers: int = 40
     """Distinct query pixels among the inliers needed for an answer."""
+    grid: tuple[int, int] = (8, 6)
+    """Cells across and down the image (80 px squares at 640x480) ``min_cells`` counts."""
+    min_cells: int = 4
+    """Cells of ``grid`` the inliers must fall in: inliers all on one small thing (a tag,
+    a sign: one or two cells where a robot sees it) fit a level pose as well as a whole
+    wall does and give as tight a covariance, but that thing's look repeats elsewhere
+    (every tag's marker, another building's), so it places no one."""
     max_tilt: float = math.radians(8.0)
     """A free (6-DoF) pose of the inliers tilted more than this is no robot's camera."""
     max_height_error: float = 0.15
@@ -264,6 +272,15 @@ def _solve(
     count = np.unique(query[kept]).size
     if count < params.min_inliers:
         return Answer(False, f"too few inliers after refinement ({count})", code, inliers=count)
+    cells = _cells(pixels[kept], intrinsics, params.grid)
+    if cells < params.min_cells:
+        return Answer(
+            False,
+            f"the inliers lie on one small part of the image ({cells} of its "
+            f"{params.grid[0] * params.grid[1]} cells): one thing, which may be anywhere",
+            code,
+            inliers=count,
+        )
     covariance = _covariance(pose, pixels[kept], points[kept], intrinsics, mount, params)
     covariance = _with_rivals(
         pose, kept, covariance, (poses, support), (pixels, points), intrinsics, mount, params
@@ -273,6 +290,13 @@ def _solve(
         return Answer(False, f"the pose is too uncertain ({sigma:.2f} m)", code, inliers=count)
     keyframes = tuple(int(k) for k in np.unique(np.concatenate(matches.keyframes)[kept]))
     return Answer(True, "", code, pose, covariance, count, keyframes)
+
+
+def _cells(pixels: NDArray[np.float64], intrinsics: Intrinsics, grid: tuple[int, int]) -> int:
+    """How many cells of a ``grid`` (across, down) over the image hold some of ``pixels``."""
+    across = np.clip(pixels[:, 0] * grid[0] // intrinsics.width, 0, grid[0] - 1)
+    down = np.clip(pixels[:, 1] * grid[1] // intrinsics.height, 0, grid[1] - 1)
+    return int(np.unique(down * grid[0] + across).size)
 
 
 def _planar_ransac(

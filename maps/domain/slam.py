@@ -30,7 +30,14 @@ are occupied, at or below ``free_log_odds`` free, the rest unknown: map_saver's 
 0.196 thresholds.
 
 Bad readings (NaN, inf, out of ``[range_min, range_max]``) are returns of nothing: they
-mark no cell, and scans with too few good beams are not matched.
+mark no cell, and scans with too few good beams are not matched. A message whose ranges or
+angles are not numbers is refused whole (ValueError).
+
+A session maps within ``max_extent`` metres (either way, in x and in y) of the pose it
+started at: the grid grows with the square of the area the robot reports, so one robot's
+odometry at (600, 600) m would otherwise cost gigabytes. A scan whose predicted pose falls
+outside is refused (``OutsideExtent``, counted in ``MapStats.refused``) and changes
+nothing, not even the odometry the next step is measured from.
 
 Nothing here imports Django: the server runs it in a worker thread, tests and benchmarks
 on simulated tours.
@@ -47,6 +54,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from maps.exceptions import OutsideExtent
 from robots.domain.se2 import Pose, compose, inverse, wrap
 
 Floats = npt.NDArray[np.float64]
@@ -61,6 +69,7 @@ class SlamParams:
     beams_used: int = 120  # beams matched per scan (evenly taken)
     usable_range: float = 7.5  # metres: farther returns are not used
     free_range: float = 4.0  # metres marked free along a beam with no return
+    max_extent: float = 50.0  # metres from the start (in x and in y) a session may map
     keyframe_distance: float = 0.25
     keyframe_angle: float = math.radians(12)
     match_every: float = 0.1  # metres (or radians / 4) moved before a scan is matched again
@@ -105,9 +114,13 @@ class Scan:
         start, step = _number(msg, "angle_min"), _number(msg, "angle_increment")
         low = _number(msg, "range_min", 0.0)
         high = min(_number(msg, "range_max", math.inf), usable_range)
+        if not all(r is None or (type(r) in (int, float)) for r in raw):
+            raise ValueError("a scan whose ranges are not all numbers (or null)")
         ranges = np.array([math.nan if r is None else r for r in raw], dtype=np.float64)
         ranges[~np.isfinite(ranges) | (ranges < low) | (ranges > high)] = math.nan
         angles = start + step * np.arange(len(ranges), dtype=np.float64)
+        if not np.isfinite(angles).all():
+            raise ValueError("a scan whose beam angles are not finite")
         return cls(angles, ranges)
 
     def thinned(self, count: int) -> Scan:
@@ -146,6 +159,7 @@ class MapStats:
     scans: int = 0
     matched: int = 0
     skipped: int = 0  # scans with too few good beams
+    refused: int = 0  # scans at a pose outside the session's extent
     keyframes: int = 0
     loop_closures: int = 0
     optimisations: int = 0
@@ -202,6 +216,7 @@ class Mapper:
         self.keyframes: list[Keyframe] = []
         self.stats = MapStats()
         self.pose: Pose = start
+        self.anchor: Pose = start  # the extent is measured from here
         self.path: list[Pose] = []  # corrected pose of every matched scan
         self._odom: Pose | None = None
         self._matched_odom: Pose | None = None
@@ -215,11 +230,16 @@ class Mapper:
     # --- the stream ---------------------------------------------------------------------
 
     def add(self, odom: Pose, scan: Scan) -> Pose:
-        """Take one scan with the odometry pose of its instant; returns the corrected pose."""
+        """Take one scan with the odometry pose of its instant; returns the corrected pose.
+
+        Raises OutsideExtent (and keeps everything as it was) when the odometry puts the
+        robot beyond ``max_extent`` of where the session started."""
         self.stats.scans += 1
+        predicted = self.pose
         if self._odom is not None:
-            self.pose = compose(self.pose, compose(inverse(self._odom), odom))
-        self._odom = odom
+            predicted = compose(self.pose, compose(inverse(self._odom), odom))
+        self._refuse_outside(predicted)
+        self.pose, self._odom = predicted, odom
         if not self._moved_enough(odom):
             return self.pose
         thin = scan.thinned(self.params.beams_used)
@@ -236,6 +256,16 @@ class Mapper:
         if self._is_keyframe():
             self._add_keyframe(Keyframe(self.pose, thin, points))
         return self.pose
+
+    def _refuse_outside(self, pose: Pose) -> None:
+        limit = self.params.max_extent
+        away = max(abs(pose[0] - self.anchor[0]), abs(pose[1] - self.anchor[1]))
+        if not away <= limit or not math.isfinite(pose[2]):  # NaN too
+            self.stats.refused += 1
+            raise OutsideExtent(
+                f"the robot reports a pose at ({pose[0]:.1f}, {pose[1]:.1f}), {away:.0f} m "
+                f"from where the session started: a session maps within {limit:g} m of it"
+            )
 
     def _moved_enough(self, odom: Pose) -> bool:
         last = self._matched_odom
@@ -368,6 +398,7 @@ class Mapper:
             angles=angles,
             edges=edges.reshape(-1, 9),
             pose=np.array(self.pose),
+            anchor=np.array(self.anchor),
             path=np.array(self.path).reshape(-1, 3),
         )
         return out.getvalue()
@@ -397,6 +428,8 @@ class Mapper:
                     (int(row[0]), int(row[1]), _pose(row[2:5]), _pose(row[5:8]), bool(row[8]))
                 )
             mapper.path = [_pose(p) for p in saved["path"]]
+            if "anchor" in saved.files:  # states saved before the extent had none
+                mapper.anchor = _pose(saved["anchor"])
         except (OSError, KeyError, ValueError, TypeError) as error:
             raise ValueError(f"not a saved mapping state: {error}") from None
         mapper.stats.keyframes = len(mapper.keyframes)

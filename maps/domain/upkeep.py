@@ -1,24 +1,35 @@
 """Upkeep of a stored sub-map from the fleet's lasers: evidence per cell, gathered over
 passes, and the change it proposes (cells that became occupied, cells that became free).
 
-A robot driving through a sub-map adds each scan at its pose estimate (``add``). A scan
-is used only when the pose is trustworthy: at least ``trust`` of its returns end within
-a cell of a wall the stored map has (a robot whose estimate is off sees a map that
-disagrees everywhere, and its evidence would be wrong everywhere). Within a *pass* (a
-robot's visit, ended by ``end_pass``) a cell counts as seen occupied when returns ended
-in it at least ``hits_per_pass`` times and at least half as often as beams crossed it,
-and as seen free when beams crossed it ``misses_per_pass`` times and returns ended in it
-at most a quarter as often (a pose a few centimetres off puts some returns from the
+A robot driving through a sub-map adds each scan at its pose estimate of the scan's own
+instant (``add``; the caller pairs them by time stamp). A scan is used only when the pose
+is trustworthy: at least ``trust`` of its returns end within a cell of a wall the stored
+map has (a robot whose estimate is off sees a map that disagrees everywhere, and its
+evidence would be wrong everywhere). Each robot has its own *pass* (its visit, ended by
+``end_pass``); within it a cell counts as seen occupied when returns ended in it at
+least ``hits_per_pass`` times and at least half as often as beams crossed it, and as
+seen free when beams crossed it ``misses_per_pass`` times and returns ended in it at
+most a quarter as often (a pose a few centimetres off puts some returns from the
 surface beside it there). A
 cell is proposed when it disagreed with the stored map on ``min_passes`` passes and
 agreed on none:
 
 - **added**: seen occupied where the stored map is free or unknown, and no stored wall
   within one cell (a wall seen a few centimetres off is the same wall);
-- **removed**: seen free where the stored map is occupied.
+- **removed**: seen free where the stored map is occupied, and not in or behind the wall
+  a printed tag hangs on (``tag_walls``): the fleet finds its way by those tags, and a
+  pose a little off at the tag, where every robot starts, makes its beams cross that
+  wall; only an admin's edit may open it.
+
+Each proposed cell carries the passes and the robots (distinct) that saw it so.
 
 The stretch of a beam just before its return (``surface_margin``) is not counted as
-crossed, so a surface seen from a slightly wrong pose does not erase itself.
+crossed, so a surface seen from a slightly wrong pose does not erase itself. A return
+that ends *inside* a stored wall (behind its face cells) is a pose error, not a
+change (a wall that vanished lets beams through to what lies behind it): it counts
+against the scan's trust, and its beam crosses nothing. A heading a few degrees off (a
+tag read close up can give one) made the returns on one side of the wall faced end
+inside it, and the fleet proposed freeing that wall.
 
 Each return is moved ``surface_depth`` (half a cell) further along its beam before its
 cell is taken: a surface on a cell border, seen with centimetres of range noise and pose
@@ -59,10 +70,18 @@ class UpkeepParams:
     beams: int = 180  # beams used per scan at most (evenly taken)
 
 
+TAG_WALL_WIDTH = 0.5  # metres either side of a tag's centre along its wall
+TAG_WALL_DEPTH = 0.6  # metres behind a tag's face: the wall and what lies behind it
+
+
+def _no_counts() -> npt.NDArray[np.uint16]:
+    return np.zeros(0, np.uint16)
+
+
 @dataclass(frozen=True)
 class Proposal:
-    """Cells (row, col) of the stored grid that changed, with the passes backing each;
-    ``unknown`` cells come only from an admin's edit."""
+    """Cells (row, col) of the stored grid that changed, with the passes and the robots
+    backing each; ``unknown`` cells come only from an admin's edit."""
 
     added: Cells
     removed: Cells
@@ -70,6 +89,9 @@ class Proposal:
     removed_passes: npt.NDArray[np.uint16]
     passes: int
     unknown: Cells = field(default_factory=lambda: np.zeros((0, 2), np.intp))
+    added_robots: npt.NDArray[np.uint16] = field(default_factory=_no_counts)
+    removed_robots: npt.NDArray[np.uint16] = field(default_factory=_no_counts)
+    robots: int = 0  # distinct robots whose passes saw a proposed cell
 
     @property
     def empty(self) -> bool:
@@ -85,9 +107,18 @@ class Proposal:
         return out
 
 
+@dataclass
+class _Pass:
+    """One robot's counts in its open pass: returns ended in a cell, beams crossed it."""
+
+    hits: Counts
+    misses: Counts
+
+
 class Evidence:
     """Laser evidence about one stored grid (row 0 at the bottom, cell (0, 0)'s corner at
-    ``origin``), gathered pass by pass."""
+    ``origin``), gathered pass by pass, each robot's passes its own; ``tags`` are the
+    sub-map's printed tags ``(x, y, yaw)`` (yaw: the outward normal of their face)."""
 
     def __init__(
         self,
@@ -95,25 +126,29 @@ class Evidence:
         origin: Sequence[float],
         resolution: float,
         params: UpkeepParams | None = None,
+        tags: Sequence[Pose] = (),
     ) -> None:
         self.params = params or UpkeepParams()
         self.stored = cell_classes(grid)
         self.origin = (float(origin[0]), float(origin[1]))
         self.resolution = resolution
         self.near_wall = binary_dilation(self.stored == 1, iterations=1)
+        self.in_wall = _in_walls(self.stored)
+        self.protected = tag_walls(tags, grid.shape, self.origin, resolution)
         shape = grid.shape
-        self.pass_hits: Counts = np.zeros(shape, np.uint16)
-        self.pass_misses: Counts = np.zeros(shape, np.uint16)
         self.occupied_passes: Counts = np.zeros(shape, np.uint16)
         self.free_passes: Counts = np.zeros(shape, np.uint16)
         self.observed = np.zeros(shape, bool)
         self.passes = 0
         self.scans = 0
         self.untrusted = 0
+        self._open: dict[str, _Pass] = {}
+        self._seen_occupied: dict[str, npt.NDArray[np.bool_]] = {}  # by robot, all passes
+        self._seen_free: dict[str, npt.NDArray[np.bool_]] = {}
 
-    def add(self, pose: Pose, scan: Scan) -> bool:
-        """Add one scan taken at ``pose`` (the stored map's frame); returns whether it was
-        trusted (and used)."""
+    def add(self, pose: Pose, scan: Scan, robot: str = "") -> bool:
+        """Add one scan ``robot`` took at ``pose`` (the stored map's frame, at the scan's
+        own instant); returns whether it was trusted (and used)."""
         p = self.params
         scan = scan.thinned(p.beams)
         good = np.isfinite(scan.ranges) & (scan.ranges <= p.max_range)
@@ -126,17 +161,29 @@ class Evidence:
         )
         hit_cells = self._cells(ends)
         inside = hit_cells[:, 0] >= 0
-        near = self.near_wall[hit_cells[inside, 0], hit_cells[inside, 1]]
+        deep = np.zeros(len(ranges), bool)
+        deep[inside] = self.in_wall[hit_cells[inside, 0], hit_cells[inside, 1]]
+        near = self.near_wall[hit_cells[inside, 0], hit_cells[inside, 1]] & ~deep[inside]
         if not len(near) or near.mean() < p.trust:
             self.untrusted += 1
             return False
         self.scans += 1
-        crossed = self._crossed(pose, ranges, angles)
-        for cells, counts in ((hit_cells[inside], self.pass_hits), (crossed, self.pass_misses)):
+        crossed = self._crossed(pose, ranges[~deep], angles[~deep])
+        counts = self._pass_of(robot)
+        for cells, counted in ((hit_cells[inside], counts.hits), (crossed, counts.misses)):
             flat = np.unique(cells[:, 0] * self.stored.shape[1] + cells[:, 1])
-            counts.reshape(-1)[flat] += 1
+            counted.reshape(-1)[flat] += 1
             self.observed.reshape(-1)[flat] = True
         return True
+
+    def _pass_of(self, robot: str) -> _Pass:
+        found = self._open.get(robot)
+        if found is None:
+            shape = self.stored.shape
+            found = self._open[robot] = _Pass(
+                np.zeros(shape, np.uint16), np.zeros(shape, np.uint16)
+            )
+        return found
 
     def _crossed(
         self, pose: Pose, ranges: npt.NDArray[np.float64], angles: npt.NDArray[np.float64]
@@ -160,16 +207,25 @@ class Evidence:
         cols[outside] = -1
         return np.column_stack((rows, cols))
 
-    def end_pass(self) -> None:
-        """Close the current pass: count what each cell looked like in it."""
+    def end_pass(self, robot: str | None = None) -> None:
+        """Close ``robot``'s open pass (every robot's when None): count what each cell
+        looked like in it. A robot with no trusted scan since has no pass to close."""
+        for name in list(self._open) if robot is None else [robot]:
+            if name in self._open:
+                self._close(name, self._open.pop(name))
+
+    def _close(self, robot: str, counts: _Pass) -> None:
         p = self.params
-        hits, misses = self.pass_hits, self.pass_misses
+        hits, misses = counts.hits, counts.misses
         seen_occupied = (hits >= p.hits_per_pass) & (2 * hits >= misses)
         seen_free = (misses >= p.misses_per_pass) & (4 * hits <= misses)
         self.occupied_passes += seen_occupied
         self.free_passes += seen_free
-        hits[...] = 0
-        misses[...] = 0
+        for seen, by_robot in ((seen_occupied, self._seen_occupied), (seen_free, self._seen_free)):
+            if robot in by_robot:
+                by_robot[robot] |= seen
+            else:
+                by_robot[robot] = seen
         self.passes += 1
 
     def proposal(self) -> Proposal:
@@ -181,12 +237,65 @@ class Evidence:
             & (self.stored != 1)
             & ~self.near_wall
         )
-        removed = (self.free_passes >= n) & (self.occupied_passes == 0) & (self.stored == 1)
-        added_cells, removed_cells = np.argwhere(added), np.argwhere(removed)
+        removed = (
+            (self.free_passes >= n)
+            & (self.occupied_passes == 0)
+            & (self.stored == 1)
+            & ~self.protected
+        )
+        occupied_robots = _robots_per_cell(self._seen_occupied, self.stored.shape)
+        free_robots = _robots_per_cell(self._seen_free, self.stored.shape)
+        backing = {
+            name
+            for name, seen in (*self._seen_occupied.items(), *self._seen_free.items())
+            if (seen & (added | removed)).any()
+        }
         return Proposal(
-            added_cells,
-            removed_cells,
+            np.argwhere(added),
+            np.argwhere(removed),
             self.occupied_passes[added],
             self.free_passes[removed],
             self.passes,
+            added_robots=occupied_robots[added],
+            removed_robots=free_robots[removed],
+            robots=len(backing),
         )
+
+
+def _in_walls(stored: npt.NDArray[np.int8]) -> npt.NDArray[np.bool_]:
+    """Stored wall cells behind the faces of their wall (a face: a wall cell beside one
+    that is not wall), where no return of a true pose ends: returns are counted half a
+    cell deep, so they end in the face cell."""
+    wall: npt.NDArray[np.bool_] = stored == 1
+    faces: npt.NDArray[np.bool_] = binary_dilation(~wall, iterations=1)
+    inside: npt.NDArray[np.bool_] = wall & ~faces
+    return inside
+
+
+def _robots_per_cell(
+    seen: dict[str, npt.NDArray[np.bool_]], shape: tuple[int, ...]
+) -> npt.NDArray[np.uint16]:
+    counts = np.zeros(shape, np.uint16)
+    for mask in seen.values():
+        counts += mask
+    return counts
+
+
+def tag_walls(
+    tags: Sequence[Pose], shape: tuple[int, ...], origin: Sequence[float], resolution: float
+) -> npt.NDArray[np.bool_]:
+    """Cells in or behind the wall each tag ``(x, y, yaw)`` hangs on: up to
+    ``TAG_WALL_DEPTH`` behind its face (against its outward normal ``yaw``) and
+    ``TAG_WALL_WIDTH`` either side of it."""
+    mask = np.zeros(shape, bool)
+    if not tags:
+        return mask
+    rows, cols = np.indices(shape)
+    x = origin[0] + (cols + 0.5) * resolution
+    y = origin[1] + (rows + 0.5) * resolution
+    for tx, ty, yaw in tags:
+        out_x, out_y = math.cos(yaw), math.sin(yaw)
+        along = (x - tx) * out_x + (y - ty) * out_y  # negative: behind the face
+        across = -(x - tx) * out_y + (y - ty) * out_x
+        mask |= (along >= -TAG_WALL_DEPTH) & (along <= resolution) & (abs(across) <= TAG_WALL_WIDTH)
+    return mask

@@ -11,17 +11,28 @@ the message to a bounded queue (``QUEUE_SCANS``; the oldest is dropped, and coun
 when SLAM falls behind), so publishing costs the relay one dict look-up and one append.
 SLAM (``maps.domain.slam``) runs on the queue in a worker thread; every ``SAVE_EVERY``
 seconds the map so far, the corrected path, the figures and the keyframes are written to
-the session, which is what pages and the API read.
+the session, which is what pages and the API read. Pages are told rather than left to
+poll: after each write, and when a worker starts or stops, the runner publishes the
+session's id and state on the robot's latched ``mapping`` topic (``std_msgs/String``,
+JSON), and a page reads the session again.
 
 A robot that disconnects leaves its session ``interrupted`` with the map so far; a
 session finished or discarded meanwhile stops its worker (after a last write for a
 finished one, so its candidate map is complete).
+
+Nothing a robot sends stops a worker: a scan that is not a scan (a dict among its
+ranges) or a pose beyond the session's extent (``SlamParams.max_extent``) is refused,
+counted (``bad_scans``, ``refused``) and said (``refusal``, the last reason) in the
+session's figures, and SLAM goes on. Should a worker stop all the same, the runner
+notices at its next look and leaves the session ``interrupted`` with the reason, never
+``running`` with nobody mapping.
 """
 
 from __future__ import annotations
 
 import asyncio
 import contextlib
+import json
 import logging
 import math
 import time
@@ -32,10 +43,12 @@ from typing import Any, Protocol
 
 from asgiref.sync import sync_to_async
 
+from telemetry.domain import names
 from telemetry.domain.bus import OnMessage
 from telemetry.domain.messages import pose_of
 
 from ..domain.slam import Mapper, Scan, SlamParams
+from ..exceptions import OutsideExtent
 from ..models import MappingSession
 from . import sessions
 
@@ -80,12 +93,14 @@ class SessionWorker:
         self.queue: deque[tuple[dict[str, Any] | None, dict[str, Any]]] = deque(maxlen=QUEUE_SCANS)
         self.dropped = 0
         self.bad_scans = 0
+        self.refusal = ""  # why the last scan refused was refused
         self.cpu = 0.0
         self._odom: dict[str, Any] | None = None
         self._wake = asyncio.Event()
         self._task: asyncio.Task[None] | None = None
         self._saved_at = 0.0
         self._started = time.monotonic()
+        self.on_saved: Callable[[], None] | None = None
 
     # --- the taps: on the hot path, O(1) ----------------------------------------------
 
@@ -103,61 +118,96 @@ class SessionWorker:
     def start(self) -> None:
         self._task = asyncio.get_running_loop().create_task(self._run())
 
+    @property
+    def stopped(self) -> bool:
+        """Whether the worker's task ended (it only ends when stopped or broken)."""
+        return self._task is not None and self._task.done()
+
+    def why_stopped(self) -> str:
+        task = self._task
+        if task is None or not task.done():
+            return ""
+        if task.cancelled():
+            return "its worker was cancelled"
+        return f"its worker failed: {task.exception()!r}"
+
     async def stop(self, save: bool = True) -> None:
         if self._task is not None:
             self._task.cancel()
-            with contextlib.suppress(asyncio.CancelledError):
-                await self._task
+            with contextlib.suppress(asyncio.CancelledError, Exception):
+                await self._task  # a failure was taken by ``why_stopped``
         if save:
             await self._save()
 
     async def _run(self) -> None:
-        loop = asyncio.get_running_loop()
         while True:
             with contextlib.suppress(TimeoutError):
                 await asyncio.wait_for(self._wake.wait(), SAVE_EVERY)
             self._wake.clear()
-            batch = list(self.queue)
-            self.queue.clear()
-            if batch:
-                await loop.run_in_executor(_EXECUTOR, self._process, batch)
-            if time.monotonic() - self._saved_at >= SAVE_EVERY:
-                await self._save()
+            try:
+                await self._work()
+            except Exception:  # the database away for a moment, or a fault of ours
+                logger.exception("mapping session %s: a round failed", self.session_pk)
+
+    async def _work(self) -> None:
+        batch = list(self.queue)
+        self.queue.clear()
+        if batch:
+            await asyncio.get_running_loop().run_in_executor(_EXECUTOR, self._process, batch)
+        if time.monotonic() - self._saved_at >= SAVE_EVERY:
+            await self._save()
 
     def _process(self, batch: list[tuple[dict[str, Any] | None, dict[str, Any]]]) -> None:
         started = time.thread_time()
         for odom_msg, scan_msg in batch:
-            odom = _odom_pose(odom_msg)
             try:
-                scan = Scan.from_message(scan_msg, self.params.usable_range)
-            except ValueError:
+                self._add(odom_msg, scan_msg)
+            except OutsideExtent as error:
+                self.refusal = str(error)
+            except ValueError as error:
                 self.bad_scans += 1
-                continue
-            if odom is not None:
-                self.mapper.add(odom, scan)
+                self.refusal = str(error)
         self.cpu += time.thread_time() - started
+
+    def _add(self, odom_msg: dict[str, Any] | None, scan_msg: dict[str, Any]) -> None:
+        """Raises ValueError for a message that is no scan, OutsideExtent for a pose
+        beyond the session's extent."""
+        odom = _odom_pose(odom_msg)
+        scan = Scan.from_message(scan_msg, self.params.usable_range)
+        if odom is not None:
+            self.mapper.add(odom, scan)
 
     async def _save(self) -> None:
         self._saved_at = time.monotonic()
         loop = asyncio.get_running_loop()
         snapshot = await loop.run_in_executor(_EXECUTOR, self._snapshot)
-        await sync_to_async(sessions.save_progress)(self.session_pk, *snapshot)
+        if snapshot is None:  # no map yet (no keyframe, nothing to update): figures only
+            await sync_to_async(sessions.save_figures)(self.session_pk, self._figures())
+        else:
+            await sync_to_async(sessions.save_progress)(self.session_pk, *snapshot)
+        if self.on_saved is not None:
+            self.on_saved()
 
-    def _snapshot(self) -> tuple[Any, ...]:
+    def _snapshot(self) -> tuple[Any, ...] | None:
         started = time.thread_time()
         grid, origin = self.mapper.grid()
+        if not grid.size:
+            return None
         state = self.mapper.state()
         self.cpu += time.thread_time() - started
-        stats = self.mapper.stats
+        path = list(self.mapper.path)
+        return grid, origin, self.params.resolution, path, self._figures(), state
+
+    def _figures(self) -> dict[str, Any]:
         elapsed = max(1e-6, time.monotonic() - self._started)
-        figures = {
-            **stats.__dict__,
+        return {
+            **self.mapper.stats.__dict__,
             "dropped": self.dropped,
             "bad_scans": self.bad_scans,
+            "refusal": self.refusal,
             "cpu_share": round(self.cpu / elapsed, 4),
             "pose": list(self.mapper.pose),
         }
-        return grid, origin, self.params.resolution, list(self.mapper.path), figures, state
 
 
 def _odom_pose(msg: dict[str, Any] | None) -> tuple[float, float, float] | None:
@@ -168,11 +218,16 @@ def _odom_pose(msg: dict[str, Any] | None) -> tuple[float, float, float] | None:
     return found.x, found.y, found.yaw
 
 
+Tell = Callable[[str, dict[str, Any]], None]
+"""Publish a message on a topic as the server (``RosbridgeHub.tell``)."""
+
+
 class MappingRunner:
     """The mapping workers of one server process (see the module's docstring)."""
 
-    def __init__(self, hub: TopicTaps) -> None:
+    def __init__(self, hub: TopicTaps, tell: Tell | None = None) -> None:
         self.hub = hub
+        self.tell = tell
         self.workers: dict[int, SessionWorker] = {}
         self._taps: dict[int, list[Tap]] = {}  # by session: the taps of its worker
         self._task: asyncio.Task[None] | None = None
@@ -193,24 +248,35 @@ class MappingRunner:
         here = self.hub.robots()
         running = await sync_to_async(_running_sessions)(here)
         for pk, worker in list(self.workers.items()):
-            if pk in running and worker.robot in here:
+            if pk in running and worker.robot in here and not worker.stopped:
                 continue
             del self.workers[pk]
             for tap in self._taps.pop(pk, []):
                 tap.close()
+            why = worker.why_stopped()
             await worker.stop(save=True)
             if worker.robot not in here:
-                await sync_to_async(_interrupt)(pk)
+                await sync_to_async(_interrupt)(pk, DISCONNECTED)
+            elif why:
+                await sync_to_async(_interrupt)(pk, STOPPED.format(why=why))
+            self._told(worker.robot, pk, "stopped")
         for pk in running - self.workers.keys():
             found = await sync_to_async(_session_start)(pk)
             if found is not None:
                 worker = SessionWorker(*found)
+                worker.on_saved = lambda w=worker: self._told(w.robot, w.session_pk, "saved")
                 self.workers[pk] = worker
                 self._taps[pk] = [
                     self.hub.tap(f"/{worker.robot}/scan", _message_to(worker.on_scan)),
                     self.hub.tap(f"/{worker.robot}/odom", _message_to(worker.on_odom)),
                 ]
                 worker.start()
+                self._told(worker.robot, pk, "started")
+
+    def _told(self, robot: str, session: int, what: str) -> None:
+        if self.tell is not None:
+            text = json.dumps({"session": session, "event": what})
+            self.tell(names.robot_topic(robot, names.MAPPING), {"data": text})
 
 
 def _message_to(callback: Callable[[dict[str, Any]], None]) -> OnMessage:
@@ -238,8 +304,11 @@ def _session_start(pk: int) -> tuple[MappingSession, Any, bytes] | None:
     return session, prior, bytes(session.keyframes)
 
 
-def _interrupt(session_pk: int) -> None:
+DISCONNECTED = "the robot disconnected: resume the session or discard it"
+STOPPED = "mapping stopped on the server ({why}): resume the session or discard it"
+
+
+def _interrupt(session_pk: int, reason: str) -> None:
     MappingSession.objects.filter(pk=session_pk, state=MappingSession.RUNNING).update(
-        state=MappingSession.INTERRUPTED,
-        reason="the robot disconnected: resume the session or discard it",
+        state=MappingSession.INTERRUPTED, reason=reason
     )

@@ -144,6 +144,14 @@ def save_progress(
     )
 
 
+def save_figures(session_pk: int, stats: dict[str, Any]) -> None:
+    """Write the figures alone (before the first map: no keyframe yet), of a running or
+    finishing session."""
+    MappingSession.objects.filter(
+        pk=session_pk, state__in=[MappingSession.RUNNING, MappingSession.FINISHED]
+    ).update(stats=stats)
+
+
 def _next_snapshot(session_pk: int) -> int:
     current = (
         MappingSession.objects.filter(pk=session_pk).values_list("snapshot", flat=True).first()
@@ -160,6 +168,16 @@ def _meta(resolution: float, origin: tuple[float, float]) -> MapMetadata:
         free_thresh=MAP_SAVER_FREE_THRESH,
         negate=False,
     )
+
+
+def size_of(session: MappingSession) -> tuple[int, int]:
+    """(width, height) in cells of the map so far, from its PGM header; (0, 0) before
+    the first."""
+    pgm = bytes(session.grid_pgm)
+    if not pgm:
+        return 0, 0
+    width, height = pgm.split(b"\n")[1].split()[:2]
+    return int(width), int(height)
 
 
 def candidate(session: MappingSession) -> LoadedMap:

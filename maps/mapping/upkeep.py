@@ -2,14 +2,23 @@
 sub-map from robots navigating normally, proposals for admins, and accepting them.
 
 ``UpkeepRunner`` taps every connected robot's ``pose`` (its estimate, ``frame_id`` = the
-Map ID) and ``scan``; a scan taken ``MIN_MOVE`` from the last one is queued with the
-robot's latest pose (a bounded queue:
-the oldest is dropped when the worker falls behind), and a worker thread adds it to the
+Map ID) and ``scan``, and pairs each scan with the pose of *its own time stamp*: the
+robot's clock, whatever it says against the server's (a loaded robot's runs behind). A
+pose is not always there when its scan comes: a congested robot drops telemetry, and a
+ROS robot's AMCL publishes the pose of a scan after the scan. So the last
+``POSES_KEPT`` poses are kept, a scan newer than all of them waits (``PENDING_SCANS`` at
+most) for its pose, and a scan whose pose never comes (none within ``PAIR_WITHIN``
+seconds of its stamp) is not used (``unpaired``): the latest pose is not the pose of the
+scan, and a scan a turn's worth off made the fleet propose walls that were there.
+
+A paired scan taken ``MIN_MOVE`` from the last one is queued (a bounded queue: the
+oldest is dropped when the worker falls behind), and a worker thread adds it to the
 evidence (``maps.domain.upkeep.Evidence``) of that sub-map's current version, which
-uses only scans whose pose the stored map confirms. A robot leaving the sub-map, or
-``PASS_SECONDS`` of scans, ends a pass. Every ``SAVE_EVERY`` seconds a non-empty proposal
-is written as the sub-map's open ``ChangeProposal`` for that version; a new version of
-the sub-map starts its evidence again.
+uses only scans whose pose the stored map confirms and never frees the wall a tag hangs
+on. A robot leaving the sub-map, or ``PASS_SECONDS`` of its own scans (by its stamps),
+ends that robot's pass. Every ``SAVE_EVERY`` seconds a non-empty proposal is written as
+the sub-map's open ``ChangeProposal`` for that version, with the passes and the robots
+that saw each cell; a new version of the sub-map starts its evidence again.
 
 ``edit`` replaces an open proposal's cells with the ones an admin painted (occupied,
 free, unknown); the fleet's evidence no longer rewrites an edited proposal. ``accept``
@@ -35,6 +44,7 @@ from django.db import transaction
 
 from telemetry.domain.bus import OnMessage, Topic
 from telemetry.domain.messages import pose_of
+from telemetry.domain.times import parse_stamp
 
 from .. import services, versions
 from ..domain.mapfile import export_map, load_map_upload, map_yaml_text
@@ -53,21 +63,43 @@ MIN_MOVE = 0.2
 """Metres (or radians / 2) a robot moves between the scans taken: evidence needs views
 from places, not every scan, and the relay's robots may scan fast in simulated time."""
 PASS_SECONDS = 60.0
+"""Seconds of a robot's own clock (its scans' stamps) after which its pass ends."""
 SAVE_EVERY = 5.0
+POSES_KEPT = 50
+"""Poses kept per robot to pair scans with (5 s at 10 Hz)."""
+PENDING_SCANS = 10
+"""Scans kept per robot waiting for the pose of their stamp."""
+PAIR_WITHIN = 0.02
+"""Seconds: a pose pairs with a scan when their stamps are this close (the robot stamps
+a scan and the pose it gives for it alike)."""
 
 _EXECUTOR = ThreadPoolExecutor(max_workers=1, thread_name_prefix="upkeep")
 
-
-Queued = tuple[str, str, tuple[float, float, float], dict[str, Any]]
-"""A scan waiting for the worker: robot, Map ID, pose estimate, the message."""
+Placed = tuple[str, tuple[float, float, float]]
+"""A pose estimate: the Map ID and (x, y, yaw) in it."""
+Queued = tuple[str, str, tuple[float, float, float], float, dict[str, Any]]
+"""A scan waiting for the worker: robot, Map ID, pose estimate, stamp, the message."""
 
 
 @dataclass
 class _Robot:
     name: str
-    pose: tuple[str, tuple[float, float, float]] | None = None
-    taken: tuple[str, tuple[float, float, float]] | None = None  # where the last scan was
+    poses: deque[tuple[float, Placed]] = field(default_factory=lambda: deque(maxlen=POSES_KEPT))
+    pending: deque[tuple[float, dict[str, Any]]] = field(
+        default_factory=lambda: deque(maxlen=PENDING_SCANS)
+    )
+    taken: Placed | None = None  # where the last scan was
     taps: list[Tap] = field(default_factory=list)
+
+    def pose_at(self, stamp: float) -> Placed | None:
+        """The pose stamped within ``PAIR_WITHIN`` of ``stamp``, the nearest (the newest
+        of equals); or None."""
+        best: Placed | None = None
+        gap = math.inf
+        for when, placed in reversed(self.poses):
+            if abs(when - stamp) <= PAIR_WITHIN and abs(when - stamp) < gap:
+                best, gap = placed, abs(when - stamp)
+        return best
 
 
 @dataclass
@@ -75,8 +107,7 @@ class _MapEvidence:
     submap_pk: int
     revision: int
     evidence: Evidence
-    pass_started: float
-    visitors: set[str] = field(default_factory=set)
+    pass_started: dict[str, float] = field(default_factory=dict)  # robot -> its stamp
 
 
 class UpkeepRunner:
@@ -87,6 +118,7 @@ class UpkeepRunner:
         self.robots: dict[str, _Robot] = {}
         self.queue: deque[Queued] = deque(maxlen=QUEUE_SCANS)
         self.dropped = 0
+        self.unpaired = 0  # scans whose pose never came
         self.maps: dict[str, _MapEvidence] = {}
         self._where: dict[str, str] = {}  # robot -> Map ID it last scanned in
         self._saved_at = time.monotonic()
@@ -110,7 +142,7 @@ class UpkeepRunner:
                 logger.exception("map upkeep: a batch failed; going on with the next")
             await asyncio.sleep(POLL)
 
-    # --- taps --------------------------------------------------------------------------
+    # --- taps: on the hot path, a few look-ups ---------------------------------------
 
     def sync_taps(self) -> None:
         here = self.hub.robots()
@@ -127,47 +159,77 @@ class UpkeepRunner:
 
     def _on_pose(self, robot: _Robot) -> OnMessage:
         def on_pose(_topic: Topic, msg: dict[str, Any]) -> None:
-            found = pose_of(msg)
-            if found is not None and found.map_id and math.isfinite(found.x + found.y + found.yaw):
-                robot.pose = (found.map_id, (found.x, found.y, found.yaw))
+            found, stamp = pose_of(msg), _stamp_of(msg)
+            if found is None or stamp is None or not found.map_id:
+                return
+            if not math.isfinite(found.x + found.y + found.yaw):
+                return
+            robot.poses.append((stamp, (found.map_id, (found.x, found.y, found.yaw))))
+            self._pair_pending(robot, stamp)
 
         return on_pose
 
     def _on_scan(self, robot: _Robot) -> OnMessage:
         def on_scan(_topic: Topic, msg: dict[str, Any]) -> None:
-            if robot.pose is None or not _moved(robot.taken, robot.pose):
+            stamp = _stamp_of(msg)
+            if stamp is None:
+                self.unpaired += 1
                 return
-            robot.taken = robot.pose
-            if len(self.queue) == self.queue.maxlen:
-                self.dropped += 1
-            self.queue.append((robot.name, robot.pose[0], robot.pose[1], msg))
+            placed = robot.pose_at(stamp)
+            if placed is not None:
+                self._take(robot, placed, stamp, msg)
+            elif not robot.poses or stamp > robot.poses[-1][0]:
+                if len(robot.pending) == robot.pending.maxlen:
+                    self.unpaired += 1
+                robot.pending.append((stamp, msg))  # its pose may come after it
+            else:
+                self.unpaired += 1
 
         return on_scan
 
+    def _pair_pending(self, robot: _Robot, newest: float) -> None:
+        """Take the waiting scans the poses now pair; forget those whose pose is past."""
+        while robot.pending and robot.pending[0][0] <= newest + PAIR_WITHIN:
+            stamp, msg = robot.pending.popleft()
+            placed = robot.pose_at(stamp)
+            if placed is None:
+                self.unpaired += 1
+            else:
+                self._take(robot, placed, stamp, msg)
+
+    def _take(self, robot: _Robot, placed: Placed, stamp: float, msg: dict[str, Any]) -> None:
+        if not _moved(robot.taken, placed):
+            return
+        robot.taken = placed
+        if len(self.queue) == self.queue.maxlen:
+            self.dropped += 1
+        self.queue.append((robot.name, placed[0], placed[1], stamp, msg))
+
     # --- the worker thread -------------------------------------------------------------
 
-    def process(
-        self, batch: Sequence[tuple[str, str, tuple[float, float, float], dict[str, Any]]]
-    ) -> None:
-        now = time.monotonic()
-        for robot, map_id, pose, msg in batch:
+    def process(self, batch: Sequence[Queued]) -> None:
+        for robot, map_id, pose, stamp, msg in batch:
             left = self._where.get(robot)
             if left is not None and left != map_id and left in self.maps:
-                self.maps[left].evidence.end_pass()  # the robot left that sub-map
+                self._end_pass(self.maps[left], robot)  # the robot left that sub-map
             self._where[robot] = map_id
-            held = self._evidence(map_id, now)
+            held = self._evidence(map_id)
             if held is None:
                 continue
             try:
                 scan = Scan.from_message(msg)
             except ValueError:
                 continue
-            held.evidence.add(pose, scan)
-            if now - held.pass_started >= PASS_SECONDS:
-                held.evidence.end_pass()
-                held.pass_started = now
+            held.evidence.add(pose, scan, robot)
+            if stamp - held.pass_started.setdefault(robot, stamp) >= PASS_SECONDS:
+                self._end_pass(held, robot)
 
-    def _evidence(self, map_id: str, now: float) -> _MapEvidence | None:
+    @staticmethod
+    def _end_pass(held: _MapEvidence, robot: str) -> None:
+        held.evidence.end_pass(robot)
+        held.pass_started.pop(robot, None)
+
+    def _evidence(self, map_id: str) -> _MapEvidence | None:
         held = self.maps.get(map_id)
         if held is not None:
             return held
@@ -176,8 +238,10 @@ class UpkeepRunner:
         if submap is None:
             return None
         grid = services.grid_of(submap)
-        evidence = Evidence(grid, (submap.origin_x, submap.origin_y), submap.resolution)
-        held = self.maps[map_id] = _MapEvidence(submap.pk, submap.revision, evidence, now)
+        tags = [(x, y, yaw) for x, y, yaw in submap.tags.values_list("x", "y", "yaw")]
+        origin = (submap.origin_x, submap.origin_y)
+        evidence = Evidence(grid, origin, submap.resolution, tags=tags)
+        held = self.maps[map_id] = _MapEvidence(submap.pk, submap.revision, evidence)
         return held
 
     def save(self) -> None:
@@ -194,10 +258,20 @@ class UpkeepRunner:
                 store_proposal(held.submap_pk, held.revision, proposal, held.evidence.scans)
 
 
-def _moved(
-    before: tuple[str, tuple[float, float, float]] | None,
-    now: tuple[str, tuple[float, float, float]],
-) -> bool:
+def _stamp_of(msg: dict[str, Any]) -> float | None:
+    """Seconds of the message's ``header.stamp`` (the robot's clock), or None."""
+    header = msg.get("header")
+    stamp = header.get("stamp") if isinstance(header, dict) else None
+    if not isinstance(stamp, dict):
+        return None
+    try:
+        sec, nanosec = parse_stamp(stamp)
+    except ValueError:
+        return None
+    return sec + nanosec * 1e-9
+
+
+def _moved(before: Placed | None, now: Placed) -> bool:
     if before is None or before[0] != now[0]:
         return True
     (x0, y0, a0), (x1, y1, a1) = before[1], now[1]
@@ -222,7 +296,10 @@ def store_proposal(submap_pk: int, revision: int, proposal: Proposal, scans: int
             "removed": proposal.removed.tolist(),
             "added_passes": proposal.added_passes.tolist(),
             "removed_passes": proposal.removed_passes.tolist(),
+            "added_robots": proposal.added_robots.tolist(),
+            "removed_robots": proposal.removed_robots.tolist(),
             "passes": proposal.passes,
+            "robots": proposal.robots,
             "scans": scans,
         },
     )
@@ -237,12 +314,15 @@ def edit(
 ) -> ChangeProposal:
     """Replace an open proposal's cells by an admin's (cells of its version, checked by
     the caller); a cell keeps the passes the fleet saw it on if it stays as proposed, 0
-    otherwise. Raises MappingError for a proposal no longer open."""
+    otherwise, and the robots likewise. Raises MappingError for a proposal no longer
+    open."""
     locked = ChangeProposal.objects.select_for_update().get(pk=proposal.pk)
     if locked.state != ChangeProposal.OPEN:
         raise MappingError(f"This proposal is {locked.state}.")
     locked.added_passes = _passes_of(added, locked.added, locked.added_passes)
     locked.removed_passes = _passes_of(removed, locked.removed, locked.removed_passes)
+    locked.added_robots = _passes_of(added, locked.added, locked.added_robots)
+    locked.removed_robots = _passes_of(removed, locked.removed, locked.removed_robots)
     locked.added, locked.removed, locked.unknown = added, removed, unknown
     locked.edited = True
     locked.save()
@@ -250,6 +330,10 @@ def edit(
 
 
 def _passes_of(cells: list[list[int]], proposed: list[list[int]], passes: list[int]) -> list[int]:
+    """The count (passes, robots) of each cell as proposed, 0 for a cell not proposed
+    (or proposed before the count was kept)."""
+    if len(passes) != len(proposed):
+        passes = [0] * len(proposed)
     seen = {(int(r), int(c)): int(n) for (r, c), n in zip(proposed, passes, strict=True)}
     return [seen.get((r, c), 0) for r, c in cells]
 

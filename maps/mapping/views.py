@@ -17,6 +17,7 @@ from rest_framework.request import Request
 from rest_framework.response import Response
 from rest_framework.views import APIView
 
+from cloudnav_web.heavy import heavy_response
 from robots.models import Robot
 
 from .. import versions
@@ -24,7 +25,7 @@ from ..access import Role, buildings_for
 from ..domain.mapfile import map_yaml_text, occupancy_grid_json
 from ..models import ChangeProposal, MappingSession
 from ..serializers import VersionSerializer
-from ..views import building_for
+from ..views import GRID_BYTES_PER_CELL, building_for
 from . import sessions, upkeep
 
 
@@ -74,11 +75,7 @@ class SessionSerializer(serializers.ModelSerializer[MappingSession]):
 
     def get_size(self, session: MappingSession) -> list[int]:
         """[width, height] of the map so far, in cells ([0, 0] before the first)."""
-        pgm = bytes(session.grid_pgm)
-        if not pgm:
-            return [0, 0]
-        width, height = pgm.split(b"\n")[1].split()[:2]
-        return [int(width), int(height)]
+        return list(sessions.size_of(session))
 
 
 def session_for(request: Request, pk: int, need: Role = Role.VIEWER) -> MappingSession:
@@ -138,14 +135,19 @@ class SessionDetail(APIView):
 
 
 class SessionGrid(APIView):
-    """The map so far as a ``nav_msgs/OccupancyGrid`` in rosbridge JSON."""
+    """The map so far as a ``nav_msgs/OccupancyGrid`` in rosbridge JSON (heavy work)."""
 
     @extend_schema(responses={200: OpenApiTypes.OBJECT})
     def get(self, request: Request, pk: int) -> HttpResponseBase:
         session = session_for(request, pk)
-        loaded = sessions.candidate(session)
-        body = occupancy_grid_json(loaded.grid, loaded.meta, frame_id=f"mapping/{session.pk}")
-        return HttpResponse(body, content_type="application/json")
+        width, height = sessions.size_of(session)
+
+        def build() -> bytes:
+            loaded = sessions.candidate(session)
+            return occupancy_grid_json(loaded.grid, loaded.meta, frame_id=f"mapping/{session.pk}")
+
+        need = width * height * GRID_BYTES_PER_CELL
+        return heavy_response(request, need, build, "application/json")
 
 
 class SessionCandidate(APIView):
@@ -221,9 +223,12 @@ class ProposalSerializer(serializers.ModelSerializer[ChangeProposal]):
             "removed",
             "added_passes",
             "removed_passes",
+            "added_robots",
+            "removed_robots",
             "unknown",
             "edited",
             "passes",
+            "robots",
             "scans",
             "created",
             "updated",
@@ -234,7 +239,8 @@ class ProposalSerializer(serializers.ModelSerializer[ChangeProposal]):
 
 class ProposalList(APIView):
     """The changes the fleet's lasers propose for a sub-map (``?state=open``), cells as
-    ``[row, col]`` of the version they were seen on, with the passes backing each."""
+    ``[row, col]`` of the version they were seen on, with the passes and the robots
+    backing each."""
 
     @extend_schema(
         parameters=[OpenApiParameter("state", str)], responses=ProposalSerializer(many=True)

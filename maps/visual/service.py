@@ -3,17 +3,20 @@
 Both take the request document as it arrived (rosbridge JSON or a REST body: the same
 fields) and raise KeyframeError (a 400, or a failed service call) for anything unusable,
 before anything is queued or searched; ``KeyframeQueueFull`` when the ingestion queue
-is full. Who may ask is the caller's business (the adapters check it): these functions
-take the buildings already allowed.
+is full. Who may ask is the caller's business (the adapters know who it is):
+``buildings_to_search`` turns the buildings a caller may relocalise in into the ones a
+request searches, and ``relocalise_queued`` answers on the relocalisation lanes
+(``maps.visual.lanes``), which both adapters share.
 """
 
 from __future__ import annotations
 
-import math
 from collections.abc import Iterable, Mapping
+from concurrent.futures import Future
 from typing import Any
 
 from django.conf import settings
+from django.db import close_old_connections
 
 from maps.domain.keyframes import FeatureExtractor, Mount
 from maps.domain.relocalisation import Answer, QueryFrame, relocalise
@@ -25,9 +28,10 @@ from maps.domain.visual_input import (
     planar_pose,
 )
 from maps.domain.vocabulary import default_vocabulary
-from maps.exceptions import KeyframeError
+from maps.exceptions import KeyframeError, RelocalisationRefused
 from maps.models import Building, SubMap
 from maps.visual import store
+from maps.visual.lanes import Caller, relocalisation_lanes
 from maps.visual.worker import Job, ingest_queue
 
 
@@ -43,9 +47,9 @@ def mount_of(value: Any) -> Mount:
     try:
         mount = Mount(float(value["forward"]), float(value["height"]))
     except (KeyError, TypeError, ValueError):
-        raise KeyframeError("mount: {forward, height} in metres is required") from None
-    if not (math.isfinite(mount.forward) and math.isfinite(mount.height) and 0 < mount.height < 3):
-        raise KeyframeError("mount: forward must be finite and height within (0, 3) m")
+        raise KeyframeError("mount", "{forward, height} in metres is required") from None
+    if not (abs(mount.forward) < 3 and 0 < mount.height < 3):  # NaN fails both
+        raise KeyframeError("mount", "forward must be within (-3, 3) m and height within (0, 3) m")
     return mount
 
 
@@ -64,6 +68,42 @@ def accept_keyframe(submap: SubMap, robot: str, document: Mapping[str, Any]) -> 
         raise KeyframeQueueFull("the keyframe queue is full; send a later keyframe")
 
 
+def buildings_to_search(allowed: Iterable[int], code: str | None) -> list[Building]:
+    """The buildings a relocalisation request searches: among ``allowed`` (the pks of the
+    buildings the caller may relocalise in), the one named ``code``, or all of them.
+    Raises RelocalisationRefused when that is none (the same whether or not a building
+    ``code`` exists)."""
+    buildings = list(Building.objects.filter(pk__in=set(allowed)).order_by("code"))
+    if code:
+        buildings = [b for b in buildings if b.code == code]
+        if not buildings:
+            raise RelocalisationRefused(
+                f"You may not relocalise in {code}: its robots and the people who may "
+                "drive there may."
+            )
+    if not buildings:
+        raise RelocalisationRefused(
+            "You may relocalise in no building: a building's robots and the people who "
+            "may drive there may."
+        )
+    return buildings
+
+
+def relocalise_queued(
+    caller: Caller, buildings: list[Building], document: Mapping[str, Any]
+) -> Future[dict[str, Any]]:
+    """``relocalise_in`` on the relocalisation lanes: the future of its answer (or of its
+    KeyframeError). Raises RelocalisationBusy when the caller's share or its lane is full."""
+
+    def work() -> dict[str, Any]:
+        try:
+            return relocalise_in(buildings, document)
+        finally:
+            close_old_connections()  # this thread's, after the keyframe index's queries
+
+    return relocalisation_lanes().submit(caller, work)
+
+
 def relocalise_in(buildings: Iterable[Building], document: Mapping[str, Any]) -> dict[str, Any]:
     """Answer a relocalisation request (``images``, optional ``depth``, ``camera_info``,
     ``mount``, ``submap``) against the keyframes of ``buildings`` (the ones the caller
@@ -77,7 +117,7 @@ def relocalise_in(buildings: Iterable[Building], document: Mapping[str, Any]) ->
         depth_image(document["depth"], images[0].shape, limit)  # checked, unused (docs/design.md)
     intrinsics = intrinsics_of(document.get("camera_info"), images[0].shape)
     if any(image.shape != images[0].shape for image in images):
-        raise KeyframeError("images: every image must have the same size")
+        raise KeyframeError("images", "every image must have the same size")
     mount = mount_of(document.get("mount"))
     submap = _text(document.get("submap"), "submap")
     extractor = FeatureExtractor(default_vocabulary())
@@ -104,7 +144,7 @@ def _text(value: Any, field: str) -> str:
     if value is None:
         return ""
     if not isinstance(value, str):
-        raise KeyframeError(f"{field}: a code is required")
+        raise KeyframeError(field, "a code is required")
     return value.strip()
 
 

@@ -50,7 +50,7 @@ def check_pose(submap: SubMap, pose: tuple[float, float, float]) -> None:
     near = grid[max(row - reach, 0) : row + reach + 1, max(col - reach, 0) : col + reach + 1]
     if not inside or not (near == 0).any():
         raise KeyframeError(
-            f"pose: ({pose[0]:.2f}, {pose[1]:.2f}) is not on the free floor of {submap.map_id}"
+            "pose", f"({pose[0]:.2f}, {pose[1]:.2f}) is not on the free floor of {submap.map_id}"
         )
 
 

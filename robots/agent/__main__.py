@@ -12,6 +12,8 @@ Many in one process, with the tokens ``manage.py seed_demo`` wrote::
 ``--changes 7`` runs a building that differs from its stored maps in ways drawn from
 seed 7 (``robots/agent/sim/changes.py``).
 ``--planner teb`` drives with the timed elastic band instead of the dynamic window.
+``--sensors rgbd`` gives the robots an RGB-D camera and no laser: each makes its scan
+from depth, as ``depthimage_to_laserscan`` does, for its own obstacle avoidance.
 ``--people 8 --people-seed 3`` puts eight people on seeded routes through the building;
 the robots see them, and one another, in their lasers and cameras.
 ``--time-scale 4`` runs the simulation four times faster than the wall clock (every rate
@@ -88,6 +90,7 @@ async def main(options: argparse.Namespace) -> None:
             depth_rate=options.depth_rate,
             raw_depth=options.raw_depth,
             local_planner=options.planner,
+            sensors=options.sensors,
         ),
         changes=None if options.changes is None else plan_changes(options.changes),
         visual=options.visual,
@@ -110,4 +113,8 @@ if __name__ == "__main__":
         format="%(asctime)s %(levelname)s %(name)s: %(message)s",
         stream=sys.stderr,
     )
+    # httpx logs every request at INFO: the bundle check every 2 s, unchanged or not. The
+    # supervisor says itself when a bundle was downloaded.
+    if logging.getLogger().level > logging.DEBUG:
+        logging.getLogger("httpx").setLevel(logging.WARNING)
     asyncio.run(main(parsed))

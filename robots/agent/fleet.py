@@ -14,7 +14,7 @@ import asyncio
 import logging
 import math
 from collections.abc import Iterable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import httpx
 import numpy as np
@@ -54,8 +54,8 @@ class FleetOptions:
 
 def add_robot_arguments(parser: argparse.ArgumentParser) -> None:
     """The command-line options of how simulated robots run: ``--time-scale``,
-    ``--camera-rate``, ``--camera-timecode``, ``--particles``, ``--planner`` (defaults:
-    ``RobotConfig``'s), ``--people`` and ``--people-seed``."""
+    ``--camera-rate``, ``--camera-timecode``, ``--particles``, ``--planner``, ``--sensors``
+    (defaults: ``RobotConfig``'s), ``--people`` and ``--people-seed``."""
     defaults = RobotConfig()
     parser.add_argument("--time-scale", type=float, default=1.0, help="simulated s per wall s")
     parser.add_argument(
@@ -88,6 +88,12 @@ def add_robot_arguments(parser: argparse.ArgumentParser) -> None:
         default=defaults.local_planner,
         help="local planner: dynamic window or timed elastic band",
     )
+    parser.add_argument(
+        "--sensors",
+        choices=("laser", "rgbd"),
+        default=defaults.sensors,
+        help="laser, or rgbd: an RGB-D camera and no laser (the scan is made from depth)",
+    )
     parser.add_argument("--people", type=int, default=0, help="people walking in the building")
     parser.add_argument("--people-seed", type=int, default=0, help="seed of their routes")
 
@@ -117,9 +123,15 @@ def build_robot(
     )
     seed, config = options.seed + 10 * index, options.robot
     start = options.start or demo_start(index)
-    hardware = SimHardware(world, start, seed=seed, limits=config.body, crowd=crowd)
+    hardware = SimHardware(
+        world, start, seed=seed, limits=config.body, crowd=crowd, sensors=config.sensors
+    )
     particles = config.localisation.particles if options.particles is None else options.particles
-    tracker = PoseTracker(particle_filter(particles, seed, config.localisation))
+    filter_params = config.localisation  # its scan comes from where the hardware takes it
+    filter_params = replace(
+        filter_params, beams=replace(filter_params.beams, laser_pose=hardware.scan_mount)
+    )
+    tracker = PoseTracker(particle_filter(particles, seed, filter_params))
     supervisor = MapsSupervisor(BundleCache(http), tracker)
     client = RosbridgeClient(ws_url, token, seed=seed)
     visual = VisualMap(http, hardware.camera.model) if options.visual else None

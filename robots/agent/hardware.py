@@ -50,7 +50,10 @@ class Hardware(Protocol):
     camera_model: CameraModel
     """Intrinsics and mounting of the camera whose ``image`` the tag detector reads."""
     scan_angles: NDArray[np.float64]
-    """Bearing of each laser beam in the base frame, radians."""
+    """Bearing of each laser beam in the scan's frame, radians."""
+    scan_mount: Pose
+    """Where the scan's frame sits in the base frame (a laser's mount, or the camera's
+    for a scan made from depth)."""
 
     @property
     def odom_pose(self) -> Pose:
@@ -129,6 +132,11 @@ class NavigationStack(Protocol):
 
     def plan(self) -> tuple[int, Sequence[Point]]:
         """The stack's latest global plan and a number that grows with each new one."""
+        ...
+
+    def progress(self) -> str:
+        """What the stack last said of the goal's progress (Nav2's feedback: distance
+        remaining, recoveries), for ``nav_status``; empty when it says nothing."""
         ...
 
 

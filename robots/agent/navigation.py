@@ -778,6 +778,8 @@ class Navigator:
             self._end(GoalStatus.SUCCEEDED, "arrived")
         elif drive.state is DriveState.ARRIVED:
             self.supervisor.arrived(seconds)
+        elif drive.reason:  # a navigation stack's feedback on the leg
+            self.board.describe(f"{leg.text} ({drive.reason})")
         return drive.command
 
     def _end(self, status: GoalStatus, text: str) -> bool:

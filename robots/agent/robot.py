@@ -48,6 +48,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from robots.agent.client import RosbridgeClient
+from robots.agent.depth_scan import seen_obstacles
 from robots.agent.hardware import Hardware, compressed_image_message, encode_jpeg
 from robots.agent.localisation import ParticleFilter, odometry_delta
 from robots.agent.navigation import LegDriver, LocalObstacles, Navigator
@@ -219,6 +220,7 @@ class Robot(Generic[H]):
         self.config = config or RobotConfig()
         self.navigator = Navigator(supervisor, self.config, driver)
         self.detector = TagDetector(hardware.camera_model)
+        self.seen = seen_obstacles(hardware.scan_mount, self.config)
         self.epoch = time.time() if epoch is None else epoch
         self._epoch_given = epoch is not None
         self.seconds = 0.0
@@ -306,7 +308,9 @@ class Robot(Generic[H]):
         self.tracker.scan(scan)
         rates = (self.config.detect_rate, self.config.camera_rate, self.config.depth_rate)
         frame = self._look() if self._due(*rates) else None
-        self._drive(LocalObstacles.from_scan(ranges.astype(np.float64), self.hardware.scan_angles))
+        here = self.hardware.odom_pose
+        points = self.seen.update(ranges, self.hardware.scan_angles, here, self.seconds)
+        self._drive(LocalObstacles(points))
         self._check_map()
         await self._publish(scan, frame)
 

@@ -124,7 +124,7 @@ class StackDriver:
             return Drive(STOP, DriveState.FAILED, reason)
         if state is StackGoal.NONE:  # cancelled from outside (another client): send again
             self._sent = None
-        return Drive(None)
+        return Drive(None, reason=self.stack.progress())
 
     def _withdraw(self) -> None:
         """Cancel the stack's goal, if one was sent."""

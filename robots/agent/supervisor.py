@@ -273,6 +273,7 @@ class BundleCache:
         if response.status_code != 200:
             raise BundleError(f"{map_id}: HTTP {response.status_code}")
         submap = submap_from_bundle(response.json(), response.headers.get("ETag", ""))
+        logger.info("bundle %s downloaded (%s)", map_id, "changed" if held else "new")
         self.downloads += 1
         self.held[map_id] = submap
         return submap

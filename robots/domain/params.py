@@ -18,6 +18,9 @@ from typing import Literal, get_args
 LaserModel = Literal["likelihood_field_prob", "likelihood_field"]
 LocalPlanner = Literal["dwa", "teb"]
 """The local planners: the dynamic window approach, the timed elastic band."""
+Sensors = Literal["laser", "rgbd"]
+"""What the robot senses obstacles with: a 2D laser, or an RGB-D camera alone (its scan
+made from depth)."""
 """AMCL's ``laser_model_type`` values that the particle filter implements."""
 
 
@@ -216,6 +219,12 @@ class RobotConfig:
     strip of the picture."""
     local_planner: LocalPlanner = "dwa"
     """``dwa`` (``controller``) or ``teb`` (``teb``)."""
+    sensors: Sensors = "laser"
+    """``laser``, or ``rgbd``: no laser; the scan (published on ``scan`` as
+    ``depthimage_to_laserscan`` does, and seen by the local planner) is made from the
+    camera's depth, and what it saw is remembered for ``obstacle_memory`` seconds."""
+    obstacle_memory: float = 4.0
+    """s: how long an RGB-D robot remembers a return that left its field of view."""
     body: BodyLimits = field(default_factory=BodyLimits)
     localisation: FilterParams = field(default_factory=FilterParams)
     planner: PlannerConfig = field(default_factory=PlannerConfig)
@@ -225,6 +234,8 @@ class RobotConfig:
     def __post_init__(self) -> None:
         if self.local_planner not in get_args(LocalPlanner):
             raise ValueError(f"unknown local_planner {self.local_planner!r}")
+        if self.sensors not in get_args(Sensors):
+            raise ValueError(f"unknown sensors {self.sensors!r}")
 
     @property
     def planning_radius(self) -> float:

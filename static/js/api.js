@@ -87,8 +87,10 @@ export function splitMapRef(text) {
   return match ? { mapId: match[1], version: Number(match[2]) } : { mapId: plain, version: null };
 }
 
-/** Split a Map ID "building/map" into its parts. */
+/** Split a Map ID "building/map" into its parts; a version held ("building/map@v2", as a
+ * robot's map_id topic says it) is not part of the sub-map's code. */
 export function splitMapId(mapId) {
-  const at = (mapId || "").indexOf("/");
-  return at < 0 ? [null, mapId || null] : [mapId.slice(0, at), mapId.slice(at + 1)];
+  const plain = splitMapRef(mapId).mapId;
+  const at = plain.indexOf("/");
+  return at < 0 ? [null, plain || null] : [plain.slice(0, at), plain.slice(at + 1)];
 }

@@ -5,6 +5,7 @@
 import { ApiError, api, splitMapId, urls } from "./api.js";
 import { heardRecently, liveness } from "./liveness.js";
 import { MembersPanel } from "./members.js";
+import { RecordingPanel } from "./recording.js";
 import { askToConfirm, badge, connectFleet, el, pageConfig } from "./page.js";
 import { TopologyView, edgeKey } from "./topology.js";
 
@@ -225,6 +226,7 @@ if (editable) {
   bindEditor();
   new MembersPanel(building).load();
 }
+new RecordingPanel(building, { editable }).load();
 window.cloudnav = { ...(window.cloudnav || {}), topology: view };
 loadTopology();
 refreshRobots();

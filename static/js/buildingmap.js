@@ -8,7 +8,7 @@ import { FloorPlan, LAYERS } from "./floorplan.js";
 import { planarPose, poseStamped } from "./geometry.js";
 import { heardRecently, liveness } from "./liveness.js";
 import { MissionsPanel } from "./missions.js";
-import { badge, connectFleet, el, navigationState, pageConfig, whereabouts } from "./page.js";
+import { badge, connectFleet, el, navigationState, pageConfig, poseRefusal, stopRobot, whereabouts } from "./page.js";
 
 const TRAIL_POINTS = 300;
 const TRAIL_STEP_M = 0.05;
@@ -276,7 +276,7 @@ function hint(text) {
   $("plan-hint").textContent = text;
 }
 
-function sendGoal({ pose, map }) {
+async function sendGoal({ pose, map }) {
   const name = plan.selected;
   selectTool(null);
   if (!map) {
@@ -284,6 +284,12 @@ function sendGoal({ pose, map }) {
     return;
   }
   const mapId = `${building}/${map}`;
+  const refusal = await poseRefusal(connection, mapId, pose);
+  if (refusal) {
+    hint(`No goal sent: ${refusal}`);
+    wrap.dataset.refused = `${name}:${mapId}`;
+    return;
+  }
   if (!connection.publish(`/${name}/goal`, "geometry_msgs/PoseStamped", poseStamped(mapId, pose))) {
     hint("Not connected to the server: no goal sent.");
     return;
@@ -291,6 +297,17 @@ function sendGoal({ pose, map }) {
   setGoal(plan.robots.get(name), mapId, pose);
   hint(`Goal sent to ${name} in ${map}.`);
   wrap.dataset.goal = `${name}:${mapId}`;
+}
+
+/** STOP the selected robot: the server halts it whatever moves it. */
+async function stopSelected() {
+  const name = plan.selected;
+  if (!name) return;
+  try {
+    hint(`${name} stopped: ${await stopRobot(connection, name)}`);
+  } catch (error) {
+    hint(`STOP of ${name} failed: ${error.message}`);
+  }
 }
 
 // ------------------------------------------------------------ controls
@@ -313,7 +330,10 @@ function bindControls() {
     if (following && track?.pose) plan.centerOn(track.pose.x, track.pose.y);
     renderSelected();
   });
-  if (mayDrive) $("tool-goal").addEventListener("click", () => selectTool("goal"));
+  if (mayDrive) {
+    $("tool-goal").addEventListener("click", () => selectTool("goal"));
+    $("selected-stop").addEventListener("click", () => stopSelected());
+  }
   for (const [key, title] of Object.entries(LAYERS)) {
     const box = el("input", { type: "checkbox", checked: true, dataset: { layer: key } });
     box.addEventListener("change", () => plan.setLayer(key, box.checked));

@@ -126,7 +126,6 @@ export class CameraPanel {
   async #renderRtc(player) {
     const stats = await player.stats();
     if (!stats || this.rtc !== player) return;
-    const ms = (value) => (value === null ? "—" : `${Math.round(value)} ms`);
     this.ui.frame.dataset.rtcFps = stats.fps.toFixed(1);
     this.ui.frame.dataset.rtcKbits = stats.kbit_per_s.toFixed(0);
     this.ui.rtc.hidden = false;
@@ -228,20 +227,33 @@ export class CameraPanel {
   }
 }
 
+/** A delay in milliseconds as a person reads it; "—" when there is none. */
+const ms = (value) => (value === null || value === undefined ? "—" : `${Math.round(value)} ms`);
+
+/** The relay's stamp-to-sent delays of `stream` in words; when the camera stamps by a
+ * clock far off the server's, that offset is said instead (it is no delay). */
+export function stampDelay(stream) {
+  const offset = stream.clock_offset_ms;
+  if (offset !== null && offset !== undefined) {
+    const way = offset > 0 ? "behind" : "ahead of";
+    return `— (the camera's clock is ${Math.round(Math.abs(offset) / 1000)} s ${way} the server's)`;
+  }
+  return `p50 ${ms(stream.delay_p50_ms)} · p99 ${ms(stream.delay_p99_ms)}`;
+}
+
 /** The relay's figures of one stream as [label, value] pairs a person reads. */
 export function streamFigures(stream, type) {
-  const ms = (value) => (value === null || value === undefined ? "—" : `${Math.round(value)} ms`);
   const rate = `${fixed(stream.fps, 1)} fps · ${fixed(stream.kB_per_s, 1)} kB/s`;
   if (type === "source") {
     return [
       ["Camera publishes", rate],
-      ["Delay to the server", `p50 ${ms(stream.delay_p50_ms)} · p99 ${ms(stream.delay_p99_ms)}`],
+      ["Delay to the server", stampDelay(stream)],
     ];
   }
   return [
     ["Server sends", rate],
     ["Stream", stream.params],
-    ["Delay, stamp to sent", `p50 ${ms(stream.delay_p50_ms)} · p99 ${ms(stream.delay_p99_ms)}`],
+    ["Delay, stamp to sent", stampDelay(stream)],
     ["Encoder", `${fixed(stream.encoder_cpu * 100, 1)} % of a core`],
     ["Viewers", String(stream.viewers)],
     ["Frames skipped", String(stream.frames_skipped)],

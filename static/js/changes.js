@@ -72,6 +72,9 @@ export class ChangesPanel {
   #row(proposal) {
     const passes = [...proposal.added_passes, ...proposal.removed_passes];
     const most = passes.length ? Math.max(...passes) : 0;
+    const robots = [...(proposal.added_robots || []), ...(proposal.removed_robots || [])];
+    const fewest = robots.length ? Math.min(...robots) : 0;
+    const robotsSaid = `${proposal.robots} robot${proposal.robots === 1 ? "" : "s"} (each cell by at least ${fewest})`;
     const stale = proposal.based_on !== this.versions.current;
     const actions = el("div", { class: "row" },
       el("button", { class: "btn small", type: "button", onclick: () => this.show(proposal) }, "Show"));
@@ -82,11 +85,12 @@ export class ChangesPanel {
         el("button", { class: "btn small", type: "button", onclick: () => this.decide(proposal, "reject") }, "Reject"));
     }
     const unknown = proposal.unknown?.length ? `, ${proposal.unknown.length} unknown` : "";
+    // One cell: the actions wrap under the figures, so a narrow column never clips them.
     return el("tr", { dataset: { proposal: proposal.id } },
-      el("td", {},
+      el("td", { class: "wrap" },
         el("div", {}, `${proposal.added.length} cells became occupied, ${proposal.removed.length} free${unknown}${proposal.edited ? " (edited)" : ""}`),
-        el("div", { class: "small muted" }, `seen on ${proposal.passes} passes (each cell on up to ${most}), ${proposal.scans} scans; made on v${proposal.based_on}${stale ? " (not current)" : ""}`)),
-      el("td", {}, actions));
+        el("div", { class: "small muted" }, `seen on ${proposal.passes} passes (each cell on up to ${most}) by ${robotsSaid}, ${proposal.scans} scans; made on v${proposal.based_on}${stale ? " (not current)" : ""}`),
+        actions));
   }
 
   show(proposal) {
@@ -190,13 +194,16 @@ export class ChangesPanel {
     }
     try {
       await api.post(`${this.url}${proposal.id}/${decision}`, {});
+      $("changes-messages").hidden = true;
       if (this.editing?.proposal.id === proposal.id) this.stopEditing();
       this.versions.clear();
       await Promise.all([this.load(), this.versions.load()]);
       await this.onChanged();
     } catch (error) {
-      $("versions-diff").hidden = false;
-      $("versions-diff").textContent = error instanceof ApiError ? error.messages.join("; ") : error.message;
+      // said in this card, beside the proposal refused, not in Versions
+      const text = error instanceof ApiError ? error.messages.join("; ") : error.message;
+      $("changes-messages").hidden = false;
+      $("changes-messages").replaceChildren(el("div", { class: "alert error", role: "alert" }, `Not ${decision}ed: ${text}`));
     }
   }
 }

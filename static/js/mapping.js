@@ -1,13 +1,16 @@
 // The robot page's mapping card: start a mapping session for this robot (a new sub-map,
 // or a new version of one), watch the map grow with the corrected path, then finish,
-// resume, discard or (admins) publish it.
+// resume, discard or (admins) publish it. The server tells the page when the session
+// changes or saves its map (the robot's latched `mapping` topic); the page reads it then,
+// and once every SLOW_MS for what no mapping worker tells (a finished session published
+// or discarded from another page).
 
 import { ApiError, api } from "./api.js";
 import { MapView } from "./mapview.js";
-import { el, fixed, pageConfig } from "./page.js";
+import { askToConfirm, el, fixed, pageConfig } from "./page.js";
 
 const $ = (id) => document.getElementById(id);
-const REFRESH_MS = 1000;
+const SLOW_MS = 30000;
 const OPEN = ["running", "interrupted"];
 const config = pageConfig();
 const card = $("mapping-card");
@@ -67,6 +70,20 @@ async function act(action, body = undefined) {
   }
 }
 
+/** Publishing makes a new version robots take up: asked first, with a note for its history. */
+async function publish() {
+  if (!state.session) return;
+  const note = el("textarea", { name: "note", rows: 2, maxlength: 500, placeholder: "what was mapped, and why" });
+  const sure = await askToConfirm({
+    id: "mapping-publish-dialog",
+    title: `Publish ${state.session.map_id}?`,
+    text: "The map becomes a new version of the sub-map; robots entering it take it up.",
+    fields: [el("label", { class: "field" }, "Note (kept in the version's history)", note)],
+    confirm: "Publish",
+  });
+  if (sure) await act("publish", { note: note.value.trim() });
+}
+
 async function start(event) {
   event.preventDefault();
   const form = event.target;
@@ -88,8 +105,30 @@ async function start(event) {
 if (card.dataset.mayDrive === "1") {
   $("mapping-start").addEventListener("submit", start);
   for (const action of ["finish", "resume", "discard", "publish"]) {
-    $(`mapping-${action}`).addEventListener("click", () => act(action, action === "publish" ? {} : undefined));
+    $(`mapping-${action}`).addEventListener("click", () => (action === "publish" ? publish() : act(action)));
   }
 }
 refresh();
-setInterval(refresh, REFRESH_MS);
+setInterval(refresh, SLOW_MS);
+
+let refreshing = false;
+let again = false;
+/** Read the session again when the server says it changed (`connection`: the page's rosbridge). */
+export function followSessions(connection) {
+  connection.subscribe(`/${config.robot}/mapping`, "std_msgs/String", refreshOnce);
+}
+
+/** One read at a time; news during a read asks for one more after it. */
+async function refreshOnce() {
+  again = refreshing;
+  if (refreshing) return;
+  refreshing = true;
+  try {
+    do {
+      again = false;
+      await refresh();
+    } while (again);
+  } finally {
+    refreshing = false;
+  }
+}

@@ -41,6 +41,30 @@ export function connectFleet() {
   return connection.start();
 }
 
+/**
+ * STOP (`/cloudnav/stop`): the server halts `robot` whatever moves it (zero velocity, its
+ * goal cancelled whoever sent it, its mission paused, another operator's teleop lock
+ * withdrawn) and says what it did; resolves to that sentence.
+ */
+export async function stopRobot(connection, robot) {
+  const answer = await connection.call("/cloudnav/stop", "cloudnav/Stop", { robot });
+  return answer.message;
+}
+
+/**
+ * Why the server would refuse a goal or an initial pose (`what`) at `pose` of sub-map
+ * `mapId` (`/cloudnav/check_pose`: in an obstacle, in unknown space, outside the map, out
+ * of reach), or "" if it would take it. The server checks what is published anyway.
+ */
+export async function poseRefusal(connection, mapId, pose, what = "goal") {
+  try {
+    const answer = await connection.call("/cloudnav/check_pose", "cloudnav/CheckPose", { map_id: mapId, x: pose.x, y: pose.y, what });
+    return answer.success ? "" : answer.message;
+  } catch {
+    return ""; // the publication is checked where it arrives
+  }
+}
+
 /** Give each live element its note; CSS shows the notes while the body is `server-lost`. */
 function sayNotLive() {
   for (const element of document.querySelectorAll(".live-element")) {
@@ -64,14 +88,16 @@ export function el(tag, attributes = {}, ...children) {
 /**
  * Ask a person to confirm something with consequences, in a modal <dialog>: `title`, then
  * `text` and `lines` (a list), then buttons `cancel` (the default: Escape and the form's
- * first button) and `confirm`. Resolves to true only when they confirm.
+ * first button) and `confirm`; `fields` (elements, e.g. a note to fill in) go above the
+ * buttons. Resolves to true only when they confirm.
  */
-export function askToConfirm({ title, text = "", lines = [], confirm = "Continue", cancel = "Cancel", id = "" }) {
+export function askToConfirm({ title, text = "", lines = [], confirm = "Continue", cancel = "Cancel", id = "", fields = [] }) {
   const dialog = el("dialog", { class: "confirm", id: id || null, "aria-label": title },
     el("form", { method: "dialog" },
       el("h2", {}, title),
       text ? el("p", {}, text) : null,
       lines.length ? el("ul", {}, ...lines.map((line) => el("li", {}, line))) : null,
+      ...fields,
       el("div", { class: "row" },
         el("button", { class: "btn", value: "cancel", autofocus: true }, cancel),
         el("button", { class: "btn primary", value: "confirm" }, confirm))));

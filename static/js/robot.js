@@ -6,7 +6,8 @@ import { CameraPanel } from "./camera.js";
 import { degrees, planarPose, poseStamped, poseWithCovariance, scanPoints } from "./geometry.js";
 import { liveness } from "./liveness.js";
 import { MapView } from "./mapview.js";
-import { badge, connectFleet, fixed, navigationState, pageConfig, whereabouts } from "./page.js";
+import { followSessions } from "./mapping.js";
+import { badge, connectFleet, fixed, navigationState, pageConfig, poseRefusal, stopRobot, whereabouts } from "./page.js";
 import { TimePlot } from "./plot.js";
 import { RatesPanel } from "./rates.js";
 import { Replay } from "./replay.js";
@@ -21,6 +22,7 @@ const config = pageConfig();
 const robot = config.robot;
 const ns = `/${robot}`;
 const connection = connectFleet();
+followSessions(connection);
 
 const state = {
   robotMap: null,
@@ -346,6 +348,13 @@ async function sendPose(tool, pose) {
     selectTool(null, { keepHint: true });
     return;
   }
+  // Asked before sending: a place no robot could stand at is refused here, where it was pressed.
+  const refusal = await poseRefusal(connection, mapId, pose, tool === "goal" ? "goal" : "initial pose");
+  if (refusal) {
+    refuse(`Not sent: ${refusal}`);
+    selectTool(null, { keepHint: true });
+    return;
+  }
   if (tool === "goal") {
     connection.publish(`${ns}/goal`, "geometry_msgs/PoseStamped", poseStamped(mapId, pose));
     state.goal = { mapId, pose };
@@ -416,6 +425,20 @@ async function cancelGoal() {
   } catch (error) {
     $("goal-text").textContent = `cancel failed: ${error.message}`;
   }
+  forgetGoal();
+}
+
+/** STOP: the server halts the robot whatever moves it, and the page says what it did. */
+async function stop() {
+  try {
+    $("goal-text").textContent = `Stopped: ${await stopRobot(connection, robot)}`;
+  } catch (error) {
+    $("goal-text").textContent = `STOP failed: ${error.message}`;
+  }
+  forgetGoal();
+}
+
+function forgetGoal() {
   state.goal = null;
   topology.view.setRoute([]);
   $("route-label").textContent = "";
@@ -442,6 +465,7 @@ function bindOperatorControls() {
   const teleop = new Teleop(connection, robot, {
     acquire: $("lock-acquire"),
     release: $("lock-release"),
+    keep: $("lock-keep"),
     lockState: $("lock-state"),
     message: $("lock-message"),
     joystick: $("joystick"),
@@ -450,13 +474,13 @@ function bindOperatorControls() {
     maxAngular: $("max-angular"),
     maxLinearOut: $("max-linear-out"),
     maxAngularOut: $("max-angular-out"),
-  });
-  const stop = () => {
+  }, config.user);
+  const halt = () => {
     teleop.halt();
-    if (state.goal) cancelGoal();
+    stop();
   };
-  $("stop-button").addEventListener("click", stop);
-  teleop.addEventListener("stop", stop);
+  $("stop-button").addEventListener("click", halt);
+  teleop.addEventListener("stop", halt);
   window.cloudnav.robotPage.teleop = teleop;
   fillGoalMaps();
 }

@@ -48,6 +48,13 @@ function alertOnce(text) {
 }
 
 async function rotate(name) {
+  const sure = await askToConfirm({
+    id: "rotate-dialog",
+    title: `Rotate the token of ${name}?`,
+    text: "Its current token stops working at once: a connected robot is cut off until it is given the new one.",
+    confirm: "Rotate token",
+  });
+  if (!sure) return;
   const answer = await api.post(`/api/robots/${encodeURIComponent(name)}/rotate_token`);
   showToken(`New token of ${name} (the old one stopped working)`, answer.token);
 }

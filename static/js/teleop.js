@@ -1,7 +1,8 @@
 // Teleoperation of one robot: the teleop lock (/cloudnav/teleop_lock), keyboard (arrows and
 // WASD), an on-screen joystick (nipplejs: mouse, pen and touch), speed limits and a stop.
-// Commands go out at 10 Hz while any input is held, then one zero Twist; the lock is
-// renewed while held.
+// Commands go out at 10 Hz while any input is held, then one zero Twist. Only commands keep
+// the lock (it lapses CLOUDNAV_TELEOP_LOCK_TTL after the last one): while holding it the
+// page only watches whether it still does, and says so when it lapsed or was taken.
 
 import nipplejs from "../vendor/nipplejs.js";
 import { degrees } from "./geometry.js";
@@ -10,6 +11,8 @@ const LOCK_SERVICE = "/cloudnav/teleop_lock";
 const LOCK_TYPE = "cloudnav/TeleopLock";
 const COMMAND_MS = 100;
 const RENEW_MS = 2000;
+const HELD_CHECK_MS = 1000;
+const ASK_MS = 1000;
 const STICK_PX = 150;
 const KEYS = {
   ArrowUp: "forward", KeyW: "forward",
@@ -23,10 +26,11 @@ export function twist(linear, angular) {
 }
 
 export class Teleop extends EventTarget {
-  constructor(connection, robot, elements) {
+  constructor(connection, robot, elements, user = "") {
     super();
     this.connection = connection;
     this.robot = robot;
+    this.label = `user:${user}`;
     this.ui = elements;
     this.holding = false;
     this.holder = "";
@@ -69,9 +73,16 @@ export class Teleop extends EventTarget {
     return [linear * this.limits.linear, angular * this.limits.angular];
   }
 
+  /** Take the lock; held by someone else, ask them for it (it passes unless they keep it). */
   async acquire() {
     try {
-      const answer = await this.#lock("acquire");
+      let answer = await this.#lock("acquire");
+      if (!answer.success && answer.holder) answer = await this.#lock("ask");
+      while (!answer.success && answer.handover_in !== undefined) {
+        this.#notify(answer.message);
+        await new Promise((resolve) => setTimeout(resolve, ASK_MS));
+        answer = await this.#lock("ask");
+      }
       this.holder = answer.holder || "";
       if (answer.success) this.#start();
       else this.#notify(answer.message || `held by ${this.holder}`);
@@ -79,6 +90,17 @@ export class Teleop extends EventTarget {
       this.#notify(error.message);
     }
     this.#render();
+  }
+
+  /** Keep the lock someone asks for. */
+  async keep() {
+    try {
+      const answer = await this.#lock("refuse");
+      this.#notify(answer.message);
+    } catch (error) {
+      this.#notify(error.message);
+    }
+    this.ui.keep.hidden = true;
   }
 
   async release() {
@@ -109,7 +131,7 @@ export class Teleop extends EventTarget {
     this.holding = true;
     this.#notify("");
     this.timers.push(setInterval(() => this.#tick(), COMMAND_MS));
-    this.timers.push(setInterval(() => this.#renew(), RENEW_MS));
+    this.timers.push(setInterval(() => this.#stillHeld(), HELD_CHECK_MS));
   }
 
   #stop() {
@@ -128,16 +150,27 @@ export class Teleop extends EventTarget {
     this.#render();
   }
 
-  async #renew() {
+  /** Asking renews nothing: whether the lock is still ours, else why not. */
+  async #stillHeld() {
     try {
-      const answer = await this.#lock("acquire");
-      if (!answer.success) {
-        this.holder = answer.holder || "";
-        this.#lost(answer.message || "the lock was taken");
+      const answer = await this.#lock("status");
+      if (!this.holding) return;
+      if (answer.holder === this.label) {
+        this.#asked(answer);
+        return;
       }
-    } catch (error) {
-      this.#lost(error.message);
+      this.holder = answer.holder || "";
+      this.#lost(this.holder ? `taken by ${this.holder.replace(/^user:/, "")}` : "it lapsed with no command for a while");
+    } catch {
+      // A lost connection is shown by the page's banner (and releases the lock).
     }
+  }
+
+  /** Someone asks for the lock: say who, and offer to keep it. */
+  #asked(status) {
+    const asker = status.asked_by;
+    this.ui.keep.hidden = !asker;
+    if (asker) this.#notify(`${asker.replace(/^user:/, "")} asks for control: it passes to them in ${Math.ceil(status.handover_in)} s unless you keep it.`);
   }
 
   #tick() {
@@ -159,6 +192,7 @@ export class Teleop extends EventTarget {
     const ui = this.ui;
     ui.acquire.addEventListener("click", () => this.acquire());
     ui.release.addEventListener("click", () => this.release());
+    ui.keep.addEventListener("click", () => this.keep());
     for (const slider of [ui.maxLinear, ui.maxAngular]) {
       slider.addEventListener("input", () => this.#renderLimits());
     }

@@ -4,7 +4,11 @@ An ``EventDraft`` is one occurrence: when, which robot, what kind, how severe, w
 (``actor``: ``server``, ``robot:<name>``, ``user:<name>``), a sentence for people and the
 data behind it. The same record is what the database keeps (``telemetry.models.Event``) and
 what a recording will carry, so its fields are plain values. Some kinds are alerts: they
-stay open until someone acknowledges them.
+stay open until someone acknowledges them or their condition ends. A draft's ``clears``
+names the alerts whose condition it ends (the robot is back, localised, charged, moving);
+an ``alert_cleared`` draft exists only for that, and is kept only where it cleared one.
+The event log keeps one open alert per robot and condition: the same condition never
+raises twice.
 
 ``EventDeriver`` turns observations into drafts. It is called on the relay's hot path
 (each pose, each status), so every observation is a few dictionary operations and no I/O;
@@ -16,7 +20,7 @@ from __future__ import annotations
 import json
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from enum import StrEnum
 from typing import Any
 
@@ -40,6 +44,8 @@ class Kind(StrEnum):
     RELOCALISED = "relocalised"
     BUNDLE_FETCHED = "bundle_fetched"
     MAP_VERSION_CHANGED = "map_version_changed"
+    ROBOT_STOPPED = "robot_stopped"
+    ALERT_CLEARED = "alert_cleared"
 
 
 class Severity(StrEnum):
@@ -64,6 +70,9 @@ SILENT_AFTER_S = 5.0
 # A robot with an active goal that moved less than STUCK_METRES in STUCK_AFTER_S is stuck.
 STUCK_AFTER_S = 30.0
 STUCK_METRES = 0.25
+# A robot that says it is lost before it was ever localised since it connected is still
+# starting (about to read its first tag): an alert only once it has been so this long.
+STARTING_GRACE_S = 60.0
 # Battery fraction under which an alert is raised, and over which it may be raised again.
 BATTERY_LOW = 0.2
 BATTERY_RECOVERED = 0.3
@@ -89,6 +98,7 @@ class EventDraft:
     actor: str = "server"
     building: str | None = None
     data: Mapping[str, Any] = field(default_factory=dict)
+    clears: frozenset[Kind] = frozenset()
 
     @property
     def alert(self) -> bool:
@@ -111,6 +121,13 @@ class _Watch:
     placed: tuple[str, str] = ("", "")  # the map and source of the last localised state
     battery_low: bool = False
     at: tuple[float, float] | None = None
+    connected_at: float = 0.0
+    localised_once: bool = False  # since it connected; before that it is starting
+    starting_overdue: bool = False
+    stuck_since: float = 0.0  # the anchor time the stuck alert was raised at
+    # Alerts that may be open for this robot: those raised here, and after it connects
+    # any from before (another process, an earlier run), which the log clears if open.
+    raised: set[Kind] = field(default_factory=set)
 
 
 class EventDeriver:
@@ -136,18 +153,35 @@ class EventDeriver:
         message: str,
         **data: Any,
     ) -> EventDraft:
+        if kind in ALERTS:
+            watch.raised.add(kind)
         return EventDraft(
             now, kind, severity, robot, message, f"robot:{robot}", watch.building, data
         )
+
+    def _clear(
+        self, watch: _Watch, now: float, kind: Kind, robot: str, message: str
+    ) -> list[EventDraft]:
+        """An ``alert_cleared`` draft ending ``kind``, if such an alert may be open."""
+        if kind not in watch.raised:
+            return []
+        watch.raised.discard(kind)
+        draft = self._draft(watch, now, Kind.ALERT_CLEARED, Severity.INFO, robot, message)
+        return [replace(draft, data={"alert": kind.value}, clears=frozenset({kind}))]
 
     def watching(self) -> bool:
         """True while a robot is watched (``tick`` has something to look at)."""
         return bool(self._watches)
 
     def connected(self, robot: str, now: float) -> list[EventDraft]:
+        """News that clears the robot's disconnection and silence; from now on it is
+        starting until it is first localised."""
         watch = self._watch(robot, now)
         watch.connected, watch.silent = True, False
-        return [self._draft(watch, now, Kind.CONNECTED, Severity.INFO, robot, f"{robot} connected")]
+        watch.connected_at, watch.localised_once, watch.starting_overdue = now, False, False
+        watch.raised = set(ALERTS) - {Kind.DISCONNECTED, Kind.SILENT}
+        draft = self._draft(watch, now, Kind.CONNECTED, Severity.INFO, robot, f"{robot} connected")
+        return [replace(draft, clears=frozenset({Kind.DISCONNECTED, Kind.SILENT}))]
 
     def disconnected(self, robot: str, now: float) -> list[EventDraft]:
         watch = self._watch(robot, now)
@@ -161,17 +195,16 @@ class EventDeriver:
 
     def pose(self, robot: str, map_id: str, x: float, y: float, now: float) -> list[EventDraft]:
         watch = self._watch(robot, now)
-        watch.silent = False
         if "/" in map_id:
             watch.building = map_id.split("/", 1)[0]
         watch.at = (x, y)
         anchor = watch.anchor
         if anchor is None or math.hypot(x - anchor[0], y - anchor[1]) >= STUCK_METRES:
-            watch.anchor, watch.stuck = (x, y, now), False
+            watch.anchor = (x, y, now)
         return []
 
     def heard(self, robot: str, now: float) -> None:
-        self._watch(robot, now).silent = False
+        self._watch(robot, now)
 
     def nav_status(self, robot: str, msg: Mapping[str, Any], now: float) -> list[EventDraft]:
         """A GoalStatusArray: an aborted, rejected or lost goal once, with its reason."""
@@ -185,35 +218,40 @@ class EventDeriver:
         goal_id = str((latest.get("goal_id") or {}).get("id", ""))
         was_active, watch.goal_active = watch.goal_active, code == _ACTIVE
         if watch.goal_active and not was_active and watch.at is not None:
-            watch.anchor, watch.stuck = (*watch.at, now), False
+            watch.anchor = (*watch.at, now)
         key = (goal_id, code)
         if key == watch.status_key or (code not in _FAILED and code not in _ENDED):
+            new_goal = watch.goal_active and key != watch.status_key
             watch.status_key = key
-            return []
+            if not new_goal:
+                return []
+            return self._clear(watch, now, Kind.GOAL_ABORTED, robot, f"{robot} took a new goal")
         watch.status_key = key
         if code in _ENDED:
             kind, verb = _ENDED[code]
             text = f"{robot}: goal {verb}"
             return [self._draft(watch, now, kind, Severity.INFO, robot, text, goal=goal_id)]
         reason = str(latest.get("text") or "no reason given")
-        return [
-            self._draft(
-                watch,
-                now,
-                Kind.GOAL_ABORTED,
-                Severity.ERROR,
-                robot,
-                f"{robot}: goal {_FAILED[code]}: {reason}",
-                goal=goal_id,
-                status=_FAILED[code],
-                reason=reason,
-            )
-        ]
+        failed = self._draft(
+            watch,
+            now,
+            Kind.GOAL_ABORTED,
+            Severity.ERROR,
+            robot,
+            f"{robot}: goal {_FAILED[code]}: {reason}",
+            goal=goal_id,
+            status=_FAILED[code],
+            reason=reason,
+        )
+        # the condition is "the robot's last goal failed": this failure replaces the last
+        return [replace(failed, clears=frozenset({Kind.GOAL_ABORTED}))]
 
     def localisation(self, robot: str, msg: Mapping[str, Any], now: float) -> list[EventDraft]:
         """A DiagnosticStatus whose ``state`` value says lost, entering (a tag was read) or
         localised (``map_id`` by ``source``): lost once, a tag read once per entering, and
-        relocalised when localised after being lost or by something other than a tag."""
+        relocalised when localised after being lost or by something other than a tag. Lost
+        is an alert only once the robot was localised since it connected (before, it is
+        starting: see ``tick``); being localised clears it."""
         watch = self._watch(robot, now)
         values = {
             v.get("key"): v.get("value") for v in msg.get("values") or [] if isinstance(v, Mapping)
@@ -236,8 +274,10 @@ class EventDeriver:
                 )
             ]
         if state == "localised":
-            return self._localised(watch, robot, before, (map_id, source), now)
-        if state != "lost" or before == "lost":
+            watch.localised_once = True
+            found = self._localised(watch, robot, before, (map_id, source), now)
+            return found + self._clear(watch, now, Kind.LOST, robot, f"{robot} is localised")
+        if state != "lost" or before == "lost" or not watch.localised_once:
             return []
         return [
             self._draft(
@@ -299,6 +339,19 @@ class EventDeriver:
             )
         ]
 
+    def stopped(
+        self, robot: str, actor: str, done: Mapping[str, Any], now: float
+    ) -> list[EventDraft]:
+        """``actor`` pressed STOP for ``robot``; ``done`` says what the stop did (the goal
+        cancelled, missions paused, whose teleop lock was withdrawn)."""
+        watch = self._watches.get(robot) or _Watch()
+        text = f"{robot} stopped by {actor}: {done.get('message', 'zero velocity sent')}"
+        return [
+            EventDraft(
+                now, Kind.ROBOT_STOPPED, Severity.WARNING, robot, text, actor, watch.building, done
+            )
+        ]
+
     def battery(self, robot: str, msg: Mapping[str, Any], now: float) -> list[EventDraft]:
         """A BatteryState: an alert when ``percentage`` (0..1) falls under BATTERY_LOW."""
         watch = self._watch(robot, now)
@@ -307,6 +360,8 @@ class EventDeriver:
             return []
         if level >= BATTERY_RECOVERED:
             watch.battery_low = False
+            text = f"{robot}: battery back at {round(level * 100)} %"
+            return self._clear(watch, now, Kind.BATTERY_LOW, robot, text)
         if level >= BATTERY_LOW or watch.battery_low:
             return []
         watch.battery_low = True
@@ -338,42 +393,64 @@ class EventDeriver:
         ]
 
     def tick(self, now: float) -> list[EventDraft]:
-        """Events only time reveals: robots gone silent, robots stuck on their way."""
+        """Events only time reveals: robots gone silent or heard again, robots stuck on
+        their way or moving again, robots that never localised after connecting."""
         drafts: list[EventDraft] = []
         for robot, watch in list(self._watches.items()):
             if not watch.connected:
                 del self._watches[robot]
                 continue
-            if not watch.silent and now - watch.heard > SILENT_AFTER_S:
-                watch.silent = True
-                drafts.append(
-                    self._draft(
-                        watch,
-                        now,
-                        Kind.SILENT,
-                        Severity.WARNING,
-                        robot,
-                        f"{robot} has published nothing for {round(now - watch.heard)} s",
-                        seconds=round(now - watch.heard, 1),
-                    )
-                )
-            anchor = watch.anchor
-            if watch.goal_active and not watch.stuck and anchor and now - anchor[2] > STUCK_AFTER_S:
-                watch.stuck = True
-                drafts.append(
-                    self._draft(
-                        watch,
-                        now,
-                        Kind.STUCK,
-                        Severity.WARNING,
-                        robot,
-                        f"{robot} has a goal but moved less than {STUCK_METRES} m in "
-                        f"{round(now - anchor[2])} s",
-                        x=anchor[0],
-                        y=anchor[1],
-                    )
-                )
+            drafts += self._silence(watch, robot, now)
+            drafts += self._stuck(watch, robot, now)
+            drafts += self._starting(watch, robot, now)
         return drafts
+
+    def _silence(self, watch: _Watch, robot: str, now: float) -> list[EventDraft]:
+        quiet = now - watch.heard
+        if watch.silent and quiet <= SILENT_AFTER_S:
+            watch.silent = False
+            return self._clear(watch, now, Kind.SILENT, robot, f"{robot} is heard again")
+        if watch.silent or quiet <= SILENT_AFTER_S:
+            return []
+        watch.silent = True
+        text = f"{robot} has published nothing for {round(quiet)} s"
+        return [
+            self._draft(
+                watch, now, Kind.SILENT, Severity.WARNING, robot, text, seconds=round(quiet, 1)
+            )
+        ]
+
+    def _stuck(self, watch: _Watch, robot: str, now: float) -> list[EventDraft]:
+        anchor = watch.anchor
+        if watch.stuck and (not watch.goal_active or not anchor or anchor[2] > watch.stuck_since):
+            watch.stuck = False
+            text = f"{robot} is moving again" if watch.goal_active else f"{robot} has no goal"
+            return self._clear(watch, now, Kind.STUCK, robot, text)
+        if watch.stuck or not watch.goal_active or not anchor or now - anchor[2] <= STUCK_AFTER_S:
+            return []
+        watch.stuck, watch.stuck_since = True, anchor[2]
+        text = (
+            f"{robot} has a goal but moved less than {STUCK_METRES} m in {round(now - anchor[2])} s"
+        )
+        return [
+            self._draft(
+                watch, now, Kind.STUCK, Severity.WARNING, robot, text, x=anchor[0], y=anchor[1]
+            )
+        ]
+
+    def _starting(self, watch: _Watch, robot: str, now: float) -> list[EventDraft]:
+        """LOST once a robot that connected has said it is lost for STARTING_GRACE_S and
+        was never localised since."""
+        overdue = now - watch.connected_at > STARTING_GRACE_S
+        if watch.localised_once or watch.starting_overdue or watch.localisation != "lost":
+            return []
+        if not overdue:
+            return []
+        watch.starting_overdue = True
+        text = (
+            f"{robot} is lost: not localised {round(now - watch.connected_at)} s after connecting"
+        )
+        return [self._draft(watch, now, Kind.LOST, Severity.WARNING, robot, text, detail=text)]
 
 
 def bundle_fetched(robot: str, building: str, map_id: str, version: str, now: float) -> EventDraft:

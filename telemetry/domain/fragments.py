@@ -46,9 +46,10 @@ class _Pending:
 class Reassembler:
     """Collects one connection's incoming fragments until a message is whole.
 
-    Bounded three ways: the pieces this connection holds cost at most ``max_bytes``
-    (and at most ``max_pending`` messages are in progress); every connection's pieces
-    together draw on the ``shared`` budget; and a message that got no piece for
+    Bounded four ways: the pieces this connection holds cost at most ``max_bytes``
+    (and at most ``max_pending`` messages are in progress); the connections of one person
+    or robot draw on their ``client_share``; every connection's pieces together draw on
+    the ``shared`` budget; and a message that got no piece for
     ``timeout`` seconds is forgotten by a timer, whether or not anything else arrives.
     """
 
@@ -59,9 +60,11 @@ class Reassembler:
         scheduler: Scheduler,
         timeout: float = 10.0,
         max_pending: int = 16,
+        client_share: ByteBudget | None = None,
     ) -> None:
         self.max_bytes = max_bytes
         self.shared = shared
+        self.client_share = client_share or ByteBudget(max_bytes)
         self.scheduler = scheduler
         self.timeout = timeout
         self.max_pending = max_pending
@@ -110,7 +113,12 @@ class Reassembler:
                 raise LimitReached(
                     f"fragmented messages of this connection are over {self.max_bytes} bytes"
                 )
-            self.shared.take(cost, "fragmented messages")
+            self.client_share.take(cost, "fragmented messages for all this client's connections")
+            try:
+                self.shared.take(cost, "fragmented messages")
+            except LimitReached:
+                self.client_share.give_back(cost)
+                raise
         except LimitReached:
             self._forget(fragment_id)
             raise
@@ -130,3 +138,4 @@ class Reassembler:
             pending.timer.cancel()
         self.held -= pending.cost
         self.shared.give_back(pending.cost)
+        self.client_share.give_back(pending.cost)

@@ -571,7 +571,9 @@ def depth_of(msg: Message, max_pixels: int) -> NDArray[np.float32] | None:
     except (KeyError, TypeError, ValueError):
         return None
     size = {"16UC1": 2, "mono16": 2, "32FC1": 4}.get(encoding)
-    if size is None or not 0 < height * width <= max_pixels or step < width * size:
+    if size is None or not (height > 0 and width > 0 and height * width <= max_pixels):
+        return None
+    if step < width * size:
         return None
     if len(data) != height * step:
         return None

@@ -7,14 +7,13 @@ service namespaces (``rosapi``, ``cloudnav``), which every client calls by relat
 
 from __future__ import annotations
 
-import hashlib
 import re
 from typing import TypeGuard
 
 from telemetry.exceptions import InvalidName
 
 # One token of a ROS 2 name: a letter or underscore, then letters, digits, underscores.
-_NAME = re.compile(r"^/?[A-Za-z_][A-Za-z0-9_]*(/[A-Za-z_][A-Za-z0-9_]*)*/?$")
+_NAME = re.compile(r"/?[A-Za-z_][A-Za-z0-9_]*(/[A-Za-z_][A-Za-z0-9_]*)*/?")
 MAX_NAME_LENGTH = 256
 # A robot's name: one such token (as ``robots.models.Robot.name`` holds it).
 _SEGMENT = re.compile(r"[A-Za-z_][A-Za-z0-9_]{0,63}")
@@ -41,6 +40,8 @@ ROBOT_TOPIC_TYPES = {
     "cmd_vel": "geometry_msgs/Twist",
     "goal": "geometry_msgs/PoseStamped",
     "initialpose": "geometry_msgs/PoseWithCovarianceStamped",
+    # Published by the server (latched): the robot's mapping session changed or saved its map.
+    "mapping": "std_msgs/String",
 }
 # Services each robot serves, relative to its namespace, with their types: operators may
 # call them (a robot's goal is cancelled by a call, since operators publish only commands).
@@ -49,13 +50,14 @@ ROBOT_SERVICE_TYPES = {CANCEL_GOAL: "std_srvs/Trigger"}
 # What operators may publish to a robot they may drive.
 COMMAND_TOPICS = frozenset({"cmd_vel", "goal", "initialpose"})
 # Topics whose last message every new subscriber receives, whatever the publisher asked.
-LATCHED_TOPICS = frozenset({"map_id", "localisation"})
+LATCHED_TOPICS = frozenset({"map_id", "localisation", "mapping"})
 CMD_VEL = "cmd_vel"
 POSE = "pose"
 MAP_ID = "map_id"
 NAV_STATUS = "nav_status"
 LOCALISATION = "localisation"
 BATTERY = "battery"
+MAPPING = "mapping"
 GOAL = "goal"
 
 
@@ -64,7 +66,7 @@ def absolute(name: str, namespace: str = "") -> str:
 
     Raises InvalidName for anything that is not a ROS name (including ``~`` private names).
     """
-    if not isinstance(name, str) or len(name) > MAX_NAME_LENGTH or not _NAME.match(name):
+    if not isinstance(name, str) or len(name) > MAX_NAME_LENGTH or not _NAME.fullmatch(name):
         raise InvalidName(f"'{name}' is not a valid ROS name")
     name = name.rstrip("/")
     if name.startswith("/"):
@@ -148,20 +150,6 @@ def canonical_type(type_name: str) -> str:
     return type_name.strip()
 
 
-def _group(kind: str, name: str) -> str:
-    # Channel-layer group names allow [A-Za-z0-9._-] below 100 characters; ROS tokens have
-    # no dots, so turning slashes into dots keeps names unique and readable.
-    readable = f"rb.{kind}{name.replace('/', '.')}"
-    if len(readable) < 100:
-        return readable
-    return f"rb.{kind}.h" + hashlib.sha256(name.encode()).hexdigest()[:40]
-
-
-def topic_group(topic: str) -> str:
-    """Return the group of the server processes with subscribers to ``topic``."""
-    return _group("t", topic)
-
-
 PROCESS_CHANNEL_PREFIX = "rb.process"
 REDIS_KEY_PREFIX = "cloudnav:rb:"
 
@@ -169,3 +157,15 @@ REDIS_KEY_PREFIX = "cloudnav:rb:"
 def redis_key(*parts: str) -> str:
     """Return the key of one piece of shared rosbridge state in Redis (scaled mode)."""
     return REDIS_KEY_PREFIX + ":".join(parts)
+
+
+def topic_channel(topic: str, database: int = 0) -> str:
+    """Return the Redis pub/sub channel that carries ``topic`` between the server processes
+    on Redis database ``database`` (Redis shares channels across databases: deployments or
+    test runs on one server must not hear each other's)."""
+    return f"{REDIS_KEY_PREFIX}{database}:topic:{topic}"
+
+
+def topic_of_channel(channel: str) -> str:
+    """Return the topic a ``topic_channel`` carries."""
+    return channel.partition(":topic:")[2]

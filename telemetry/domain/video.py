@@ -255,8 +255,13 @@ class StreamParams:
 
 # The source size assumed when a stream keeps it (a camera's is known only from its frames).
 ASSUMED_SOURCE = (1280, 720)
-# Frames libvpx holds per encoder (lookahead, references, golden and alt-ref), in I420.
-VP8_FRAMES_HELD = 8
+# What a VP8 pipeline holds per output pixel (libvpx's frames and buffers, the decoded
+# camera frame, its scaled and I420 copies), and beside them. Measured as the resident
+# growth of one encoder over 12 frames (tests/test_hostile_video_budget.py): 15 MiB at
+# 640x480, 36 at 1280x720, 78 at 1920x1080, 567 at 4096x4096 (about 34 bytes a pixel
+# plus 5 MiB, with a margin: 648 MiB at 4096x4096, where 8 I420 frames said 194).
+VP8_BYTES_PER_PIXEL = 40
+VP8_BYTES_BESIDE = 8 * 2**20
 
 
 def encoder_memory(params: StreamParams) -> int:
@@ -268,7 +273,7 @@ def encoder_memory(params: StreamParams) -> int:
     width = image.width or ASSUMED_SOURCE[0]
     height = image.height or ASSUMED_SOURCE[1]
     if params.vp8 is not None:
-        return width * height * 3 // 2 * VP8_FRAMES_HELD + 2 * 2**20  # + a keyframe interval
+        return width * height * VP8_BYTES_PER_PIXEL + VP8_BYTES_BESIDE
     return width * height * 3 * 2  # the decoded frame and its resized copy
 
 

@@ -18,6 +18,10 @@ from dataclasses import dataclass, field
 
 WINDOW = 5.0
 MAX_SAMPLES = 20_000
+# Frames that arrive this much later (or earlier) than their stamps, at the median, are
+# stamped by a clock other than the server's (a robot's, offset or scaled): their
+# stamp-to-sent delays measure that offset, not the stream, and are not given as delays.
+CLOCK_SKEW_S = 5.0
 
 
 def percentile(values: Iterable[float], p: float) -> float | None:
@@ -65,6 +69,7 @@ class StreamStats:
     bytes_out: Series = field(default_factory=Series)
     delays: Series = field(default_factory=Series)
     relay_delays: Series = field(default_factory=Series)
+    arrivals: Series = field(default_factory=Series)  # arrival minus stamp, seconds
     cpu: Series = field(default_factory=Series)
     frames_sent: int = 0
     frames_skipped: int = 0
@@ -87,14 +92,21 @@ class StreamStats:
             self.frames_sent += 1
             self.delays.add(now, now - origin)
             self.relay_delays.add(now, now - received)
+            self.arrivals.add(now, received - origin)
 
     def skipped(self, count: int) -> None:
         self.frames_skipped += count
 
     def snapshot(self, now: float) -> dict[str, float | int | None]:
-        """Return the figures: rates over the window, delays in ms, totals since start."""
+        """Return the figures: rates over the window, delays in ms, totals since start.
+        ``clock_offset_ms`` is how far the stamps' clock is behind the server's when it is
+        off by more than CLOCK_SKEW_S (the stamp delays are None then), else None."""
         delays = self.delays.values(now)
         relay = self.relay_delays.values(now)
+        arrival = percentile(self.arrivals.values(now), 50)
+        offset = arrival if arrival is not None and abs(arrival) > CLOCK_SKEW_S else None
+        if offset is not None:
+            delays = []
         # The first figures are those a narrow UI shows: keep them first.
         return {
             "fps": round(self.frames_in.per_second(now, self.started), 2),
@@ -102,6 +114,7 @@ class StreamStats:
             "delay_p50_ms": _ms(percentile(delays, 50)),
             "delay_p99_ms": _ms(percentile(delays, 99)),
             "relay_p99_ms": _ms(percentile(relay, 99)),
+            "clock_offset_ms": _ms(offset),
             "encoder_cpu": round(self.cpu.per_second(now, self.started), 4),
             "frames_sent": self.frames_sent,
             "frames_skipped": self.frames_skipped,

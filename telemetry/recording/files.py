@@ -7,15 +7,23 @@ name. Files use the ``ros1`` profile: ``ros1msg`` schemas and ``ros1`` messages,
 chunks of ``CHUNK_BYTES`` so a stop mid-file loses at most one chunk; ``open_messages``
 reads a finished file by its index and an unfinished one record by record, and
 ``repair`` rewrites an unfinished file with its summary.
+
+A file is being written exactly while its writer holds an exclusive ``flock`` on it, in
+whichever server process that writer is (the recording directory is shared in the scaled
+mode). The kernel drops the lock when the writer closes the file or its process dies, even
+by kill -9, so retention (``delete_if_closed``) and repair (``repair_all``) take a file
+only once they hold its lock themselves: never one a live process is writing, and at once
+one a dead process left.
 """
 
 from __future__ import annotations
 
+import fcntl
 import os
 import struct
-import time
 import uuid
 from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, NamedTuple
@@ -170,7 +178,7 @@ class RotatingFiles:
     def _open(self, start_ns: int) -> None:
         self.directory.mkdir(parents=True, exist_ok=True)
         self.path = self.directory / f"{start_ns}-{PROCESS_TOKEN}{SUFFIX}"
-        self._out = open(self.path, "wb")  # noqa: SIM115 (closed by close())
+        self._out = _open_locked(self.path)
         self._sink = McapSink(self._out)
         self._opened_ns = start_ns
 
@@ -190,6 +198,50 @@ class RotatingFiles:
         finally:
             if out is not None:
                 out.close()
+
+
+def _open_locked(path: Path) -> IO[bytes]:
+    """Open ``path`` for writing and hold its lock until it is closed.
+
+    Between the file's creation and its lock, another process may have claimed it as
+    closed and deleted it (retention) or replaced it (repair): then it is opened again, so
+    what is written always goes into the file at ``path``."""
+    while True:
+        out = open(path, "wb")  # noqa: SIM115 (closed by RotatingFiles.close())
+        fcntl.flock(out.fileno(), fcntl.LOCK_EX)
+        try:
+            if os.stat(path).st_ino == os.fstat(out.fileno()).st_ino:
+                return out
+        except FileNotFoundError:
+            pass
+        out.close()
+
+
+@contextmanager
+def claimed(path: Path) -> Iterator[bool]:
+    """Yield True, holding ``path``'s lock for the block, when no writer holds it (the
+    file is closed, or its writer's process is dead); False when one is writing it or the
+    file is gone."""
+    try:
+        probe = open(path, "rb")  # noqa: SIM115 (closed below)
+    except FileNotFoundError:
+        yield False
+        return
+    with probe:
+        try:
+            fcntl.flock(probe.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            yield False
+            return
+        yield True
+
+
+def delete_if_closed(path: Path) -> bool:
+    """Delete ``path`` unless a live writer holds it; True if it was deleted."""
+    with claimed(path) as closed:
+        if closed:
+            path.unlink(missing_ok=True)
+        return closed
 
 
 def finished(path: Path) -> bool:
@@ -307,23 +359,23 @@ def repair(path: Path) -> None:
     os.replace(partial, path)
 
 
-def repair_all(root: Path, writing: set[Path], quiet_seconds: float) -> int:
-    """Repair every unfinished file under ``root`` not in ``writing`` and untouched for
-    ``quiet_seconds`` (so no other process is still writing it); return how many."""
+def repair_all(root: Path) -> int:
+    """Repair every unfinished file under ``root`` that no live writer holds (what a
+    stopped or killed process left); return how many."""
     count = 0
     if not root.is_dir():
         return 0
     for directory in root.iterdir():
         for path in directory.glob(f"*{SUFFIX}") if directory.is_dir() else []:
-            if path not in writing and not finished(path) and _old(path, quiet_seconds):
-                repair(path)
+            if not finished(path) and _repair_if_closed(path):
                 count += 1
     return count
 
 
-def _old(path: Path, seconds: float) -> bool:
-    """Written to longer ago than ``seconds``: no other process is still writing it."""
-    try:
-        return time.time() - path.stat().st_mtime > seconds
-    except FileNotFoundError:
-        return False
+def _repair_if_closed(path: Path) -> bool:
+    with claimed(path) as closed:
+        # finished meanwhile: its writer closed it between the two looks
+        if closed and not finished(path):
+            repair(path)
+            return True
+    return False

@@ -209,8 +209,7 @@ class Recorder:
             log.exception("recorder: %s failed", getattr(work, "__name__", work))
 
     def _repair(self) -> None:
-        writing = {w.path for w in self._writers.values() if w.path is not None}
-        files.repair_all(self.config.root, writing, self.config.file_seconds + 60)
+        files.repair_all(self.config.root)
 
     def step(self) -> None:
         """One pass of the writer: plans when due, every queue drained, retention when due."""
@@ -309,13 +308,16 @@ class Recorder:
             self._guarded(lambda: self._free_space(robot))
 
     def _free_space(self, robot: str) -> None:
-        for f in files.files_of(self.config.root, robot)[:-1][:1]:
-            f.path.unlink(missing_ok=True)
+        for f in files.files_of(self.config.root, robot)[:-1]:  # the newest is the one cut
+            if files.delete_if_closed(f.path):
+                return
 
     def _apply_retention(self) -> None:
-        writing = {w.path for w in self._writers.values() if w.path is not None}
+        """Prune each building's files, and repair what a process that died meanwhile left
+        (in the scaled mode its robots are recorded again by their new process)."""
         for retention in self.retentions():
-            prune(self.config.root, retention, writing, self.clock())
+            prune(self.config.root, retention, self.clock())
+        self._repair()
 
 
 def recorded(plan: Plan, suffix: str) -> bool:
@@ -324,9 +326,10 @@ def recorded(plan: Plan, suffix: str) -> bool:
     return suffix in plan.topics or (suffix == EVENTS_TOPIC and bool(plan.topics))
 
 
-def prune(root: Path, retention: Retention, writing: set[Path], now: float) -> list[Path]:
+def prune(root: Path, retention: Retention, now: float) -> list[Path]:
     """Delete the building's files older than its days, then its oldest files until its
-    robots hold at most its budget; files being written are kept. Returns what went."""
+    robots hold at most its budget; only closed files go, never one a writer of any
+    process holds (``files.delete_if_closed``). Returns what went."""
     oldest_kept = int((now - retention.days * 86400) * 1e9)
     candidates: list[files.RecordingFile] = []
     for robot in retention.robots:
@@ -336,9 +339,10 @@ def prune(root: Path, retention: Retention, writing: set[Path], now: float) -> l
     total = sum(f.size for f in candidates)
     for f in candidates:
         too_old = f.last_ns < oldest_kept
-        if f.path in writing or not (too_old or total > retention.budget):
+        if not (too_old or total > retention.budget):
             continue
-        total -= f.size
-        f.path.unlink(missing_ok=True)
-        gone.append(f.path)
+        size = f.size
+        if files.delete_if_closed(f.path):
+            total -= size
+            gone.append(f.path)
     return gone

@@ -10,6 +10,7 @@ file. Robots and buildings the requester may not see answer 404, as if absent.
 from __future__ import annotations
 
 import time
+from collections.abc import Iterator
 from datetime import UTC, datetime
 from typing import Any
 
@@ -21,7 +22,8 @@ from rest_framework.request import Request
 from rest_framework.response import Response
 from rest_framework.views import APIView
 
-from maps.access import buildings_for
+from cloudnav_web.heavy import budgeted_stream, client_of, export_budget
+from maps.access import buildings_for, robot_of
 from robots.models import Robot
 
 from . import export
@@ -65,23 +67,31 @@ def time_range(params: Any) -> tuple[int, int]:
 
 
 def recording_response(
-    robots: list[str], start: int, end: int, name: str, kind: str
+    request: Request, robots: list[str], start: int, end: int, name: str, kind: str
 ) -> StreamingHttpResponse:
-    """The robots' recording in ``[start, end]`` as ``kind`` (``mcap`` or ``bag``)."""
-    config = recording_config()
-    flush_recordings(robots)
-    taken = export.snapshot(config.root, robots, start, end)
-    if kind == "bag":
-        content = export.bag_stream(lambda: export.snapshot_records(taken, start, end))
-        content_type = "application/x-rosbag"
-    else:
-        content = export.mcap_stream(export.snapshot_records(taken, start, end))
-        content_type = "application/mcap"
-    response = StreamingHttpResponse(content, content_type=content_type)
+    """The robots' recording in ``[start, end]`` as ``kind`` (``mcap`` or ``bag``), within
+    the export budget: Overloaded (429) past the requester's share, (503) the process's."""
+    ticket = export_budget().take(client_of(request), export.EXPORT_MEMORY_BYTES)
+    try:
+        content, content_type = _export(robots, start, end, kind)
+    except BaseException:
+        ticket.release()
+        raise
+    response = budgeted_stream(request, ticket, content, content_type)
     filename = f"{name}-{start // NS}-{end // NS}.{kind}"
     response["Content-Disposition"] = f'attachment; filename="{filename}"'
     response["Cache-Control"] = "no-store"
     return response
+
+
+def _export(robots: list[str], start: int, end: int, kind: str) -> tuple[Iterator[bytes], str]:
+    """The file's pieces, to be made as they are sent, and its content type."""
+    flush_recordings(robots)
+    taken = export.snapshot(recording_config().root, robots, start, end)
+    if kind == "bag":
+        bag = export.bag_stream(lambda: export.snapshot_records(taken, start, end))
+        return bag, "application/x-rosbag"
+    return export.mcap_stream(export.snapshot_records(taken, start, end)), "application/mcap"
 
 
 RANGE = [
@@ -99,14 +109,18 @@ class RobotRecording(APIView):
     def get(self, request: Request, name: str) -> StreamingHttpResponse:
         start, end = time_range(request.query_params)
         visible_robot(request, name)
-        return recording_response([name], start, end, name, self.kind)
+        return recording_response(request, [name], start, end, name, self.kind)
 
 
 REPLAY_LIMIT = 5000
 
 
 def visible_robot(request: Request, name: str) -> None:
-    """Raise Http404 unless the requester may see robot ``name``."""
+    """Raise Http404 unless the requester may read robot ``name``'s recording: a person of
+    one of its buildings, or the robot itself (another robot's is none of its business)."""
+    robot = robot_of(request.user)
+    if robot is not None and robot.name != name:
+        raise Http404("No such robot.")
     visible = Robot.objects.filter(name=name, buildings__in=buildings_for(request.user))
     if not visible.exists():
         raise Http404("No such robot.")
@@ -150,7 +164,7 @@ class BuildingRecording(APIView):
     def get(self, request: Request, code: str) -> StreamingHttpResponse:
         start, end = time_range(request.query_params)
         building = buildings_for(request.user).filter(code=code).first()
-        if building is None:
+        if building is None or robot_of(request.user) is not None:  # robots: their own only
             raise Http404("No such building.")
         robots = list(building.robots.values_list("name", flat=True))
-        return recording_response(robots, start, end, code, self.kind)
+        return recording_response(request, robots, start, end, code, self.kind)

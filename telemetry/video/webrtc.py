@@ -22,6 +22,7 @@ import logging
 import secrets
 import time
 import weakref
+from collections import OrderedDict
 from contextlib import AsyncExitStack
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
@@ -59,6 +60,7 @@ logger = logging.getLogger(__name__)
 aioice.ice.CONSENT_INTERVAL = 1  # module constants of aioice
 aioice.ice.CONSENT_FAILURES = 3
 CONNECT_TIMEOUT = 15.0
+ENDED_KEPT = 256
 KEYFRAME_EVERY = 1.0  # at most one keyframe asked by lagging viewers per second
 
 
@@ -190,6 +192,10 @@ class WhepSessions:
         self.ice_servers = ice_servers
         self.per_client = per_client
         self.sessions: dict[str, WhepSession] = {}
+        # Sessions that ended on their own (the peer failed or left, access revoked), by id,
+        # with their client: its DELETE, which may come after (a page changing mode), is
+        # answered as done, not 404. The newest ENDED_KEPT only.
+        self.ended: OrderedDict[str, str] = OrderedDict()
 
     def count(self, client: str) -> int:
         return sum(1 for s in self.sessions.values() if s.client == client)
@@ -275,11 +281,21 @@ class WhepSessions:
         session.resources.push_async_callback(_cancel, asyncio.create_task(_connect_or_drop()))
 
     async def close(self, session_id: str, client: str | None = None) -> bool:
-        """End a session (of ``client`` only, when given); False if there is none."""
+        """End a session: ``client``'s (a DELETE), or any (``client`` None: it ended on its
+        own). False if there is none; True for ``client``'s that ended on its own."""
         session = self.sessions.get(session_id)
+        if session is None and client is not None:
+            if self.ended.get(session_id) != client:
+                return False
+            del self.ended[session_id]
+            return True
         if session is None or (client is not None and session.client != client):
             return False
         del self.sessions[session_id]
+        if client is None:
+            self.ended[session_id] = session.client
+            while len(self.ended) > ENDED_KEPT:
+                self.ended.popitem(last=False)
         if session.track is not None:
             session.track.stop()
         await session.peer.close()

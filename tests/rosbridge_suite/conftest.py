@@ -10,7 +10,13 @@ from typing import Any
 import pytest
 import websockets
 
-from tests.fixtures_live import LiveServer, session_cookie
+from tests.fixtures_live import (
+    LiveServer,
+    LiveServers,
+    flush_redis,
+    scaled_redis_url,
+    session_cookie,
+)
 
 WAIT = 5.0
 
@@ -43,20 +49,32 @@ class WsClient:
 MakeClient = Callable[[], Awaitable[WsClient]]
 
 
-@pytest.fixture
-def admin_headers(daphne_server: LiveServer, admin: Any) -> dict[str, str]:
-    return {"Cookie": session_cookie(admin).decode(), "Origin": daphne_server.url}
+@pytest.fixture(
+    params=["embedded", pytest.param("two processes", marks=[pytest.mark.scaled, pytest.mark.live])]
+)
+def servers(request: pytest.FixtureRequest, daphne_servers: LiveServers) -> list[LiveServer]:
+    """One live server (embedded mode), or two in scaled mode sharing Redis: the same
+    tests, whichever process each client is on."""
+    if request.param == "embedded":
+        return [daphne_servers.start()]
+    flush_redis(scaled_redis_url())
+    return daphne_servers.start_many(2, env={"REDIS_URL": scaled_redis_url()})
 
 
 @pytest.fixture
-async def make_client(
-    daphne_server: LiveServer, admin_headers: dict[str, str]
-) -> AsyncIterator[MakeClient]:
-    headers = admin_headers
+def admin_cookie(admin: Any) -> str:
+    return session_cookie(admin).decode()
+
+
+@pytest.fixture
+async def make_client(servers: list[LiveServer], admin_cookie: str) -> AsyncIterator[MakeClient]:
+    """Clients take the servers in turn: the node on the first, the next on the second."""
     opened: list[WsClient] = []
 
     async def make() -> WsClient:
-        socket = await websockets.connect(daphne_server.rosbridge_url(), additional_headers=headers)
+        server = servers[len(opened) % len(servers)]
+        headers = {"Cookie": admin_cookie, "Origin": server.url}
+        socket = await websockets.connect(server.rosbridge_url(), additional_headers=headers)
         opened.append(WsClient(socket))
         return opened[-1]
 

@@ -8,7 +8,6 @@ from tf (``map -> base_footprint``), the global planner's plan from its topic. C
 from __future__ import annotations
 
 import logging
-import math
 import threading
 from collections.abc import Sequence
 from pathlib import Path
@@ -35,9 +34,15 @@ from nav_msgs.msg import (  # type: ignore[import-not-found,unused-ignore]
 from nav_msgs.srv import LoadMap  # type: ignore[import-not-found,unused-ignore]
 from numpy.typing import NDArray
 
-from maps.domain.mapfile import MapMetadata, export_map, map_yaml_text
+from robots.agent.bridge import (
+    StackReadings,
+    full_covariance,
+    pose_of,
+    quaternion_of,
+    write_map_files,
+    yaw_of,
+)
 from robots.agent.hardware import StackGoal
-from robots.agent.ros.hardware import yaw_of
 from robots.domain.se2 import Point, Pose
 
 logger = logging.getLogger(__name__)
@@ -58,7 +63,7 @@ STATES = {
 
 
 def quaternion(yaw: float) -> Any:
-    return Quaternion(0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2))
+    return Quaternion(*quaternion_of(yaw))
 
 
 class RosNavigationStack:
@@ -83,17 +88,13 @@ class RosNavigationStack:
         map_dir: Path | None = None,
     ) -> None:
         self.frame, self.base_frame = frame, base_frame
-        self.map_id: str | None = None
+        self.readings = StackReadings()
         self._map = rospy.Publisher(map_topic, OccupancyGrid, queue_size=1, latch=True)
         self._initial = rospy.Publisher(
             initial_pose_topic, PoseWithCovarianceStamped, queue_size=1, latch=True
         )
         self._move_base = actionlib.SimpleActionClient(action, MoveBaseAction)
         self._goal_sent = False
-        self._lock = threading.Lock()
-        self._placed_at: Any = None  # the stamp of the last initial pose
-        self._pose: tuple[Any, Pose] | None = None  # (stamp, pose) from the pose source
-        self._plan: tuple[int, list[Point]] = (0, [])
         self._tf: Any = None
         if pose_source == "tf":
             import tf2_ros  # type: ignore[import-not-found,unused-ignore]
@@ -117,23 +118,15 @@ class RosNavigationStack:
         msg.info.origin.position.x, msg.info.origin.position.y = origin[0], origin[1]
         msg.info.origin.orientation = quaternion(origin[2])
         msg.data = cells.ravel().tolist()
-        self.map_id = map_id
+        self.readings.map_id = map_id
         self._map.publish(msg)
-        if self._load_map is not None:
-            url = self._write_map_files(map_id, cells, resolution, origin)
+        if self._load_map is not None and self._map_dir is not None:
+            url = write_map_files(self._map_dir, map_id, cells, resolution, origin)
             threading.Thread(target=self._ask_map_server, args=(url,), daemon=True).start()
 
-    def _write_map_files(self, map_id: str, cells: Any, resolution: float, origin: Pose) -> str:
-        """The sub-map as map_server files (PGM and YAML) under ``map_dir``; the YAML's path."""
-        assert self._map_dir is not None
-        name = map_id.replace("/", "__")
-        meta = MapMetadata(f"{name}.pgm", float(resolution), origin, 0.65, 0.196, False)
-        image, exported = export_map(cells, meta, f"{name}.pgm")
-        self._map_dir.mkdir(parents=True, exist_ok=True)
-        (self._map_dir / f"{name}.pgm").write_bytes(image)
-        yaml_path = self._map_dir / f"{name}.yaml"
-        yaml_path.write_text(map_yaml_text(exported))
-        return str(yaml_path)
+    @property
+    def map_id(self) -> str | None:
+        return self.readings.map_id
 
     def _ask_map_server(self, url: str) -> None:
         """Call the ``LoadMap`` service (off the control loop); failures are logged."""
@@ -147,32 +140,21 @@ class RosNavigationStack:
         if answer.result != 0:  # LoadMap.RESULT_SUCCESS
             logger.warning("load_map %s: the map server answered %d", url, answer.result)
 
-    def _held(self, map_id: str) -> None:
-        if map_id != self.map_id:
-            raise ValueError(f"{map_id} is not the map on /map ({self.map_id})")
-
     def set_initial_pose(self, map_id: str, pose: Pose, covariance: NDArray[np.float64]) -> None:
         """Raises ValueError unless ``map_id`` is the sub-map on ``/map``."""
-        self._held(map_id)
+        self.readings.held(map_id)
         msg = PoseWithCovarianceStamped()
         msg.header.stamp = rospy.Time.now()
         msg.header.frame_id = self.frame
         msg.pose.pose.position.x, msg.pose.pose.position.y = pose[0], pose[1]
         msg.pose.pose.orientation = quaternion(pose[2])
-        full = np.zeros((6, 6))
-        small = np.asarray(covariance, dtype=np.float64).reshape(3, 3)
-        index = (0, 1, 5)  # x, y, yaw of ROS's (x, y, z, roll, pitch, yaw)
-        for i, row in enumerate(index):
-            for j, column in enumerate(index):
-                full[row, column] = small[i, j]
-        msg.pose.covariance = full.ravel().tolist()
-        with self._lock:
-            self._placed_at = msg.header.stamp
+        msg.pose.covariance = full_covariance(covariance)
+        self.readings.placed(msg.header.stamp.to_sec())
         self._initial.publish(msg)
 
     def send_goal(self, map_id: str, pose: Pose) -> None:
         """Raises ValueError unless ``map_id`` is the sub-map on ``/map``."""
-        self._held(map_id)
+        self.readings.held(map_id)
         goal = MoveBaseGoal()
         goal.target_pose.header.stamp = rospy.Time.now()
         goal.target_pose.header.frame_id = self.frame
@@ -193,17 +175,14 @@ class RosNavigationStack:
         """The pose source's latest pose, if stamped after the last initial pose."""
         if self._tf is not None:
             self._pose_from_tf()
-        with self._lock:
-            placed, found = self._placed_at, self._pose
-        if placed is None or found is None or found[0] < placed:
-            return None
-        return found[1]
+        return self.readings.pose()
+
+    def progress(self) -> str:
+        """Nothing: move_base's feedback is its pose, which the pose source gives."""
+        return ""
 
     def _on_pose(self, msg: Any) -> None:
-        pose = msg.pose.pose
-        found = (pose.position.x, pose.position.y, yaw_of(pose.orientation))
-        with self._lock:
-            self._pose = (msg.header.stamp, found)
+        self.readings.on_pose(msg.header.stamp.to_sec(), pose_of(msg.pose.pose))
 
     def _pose_from_tf(self) -> None:
         import tf2_ros  # type: ignore[import-not-found,unused-ignore]
@@ -215,17 +194,13 @@ class RosNavigationStack:
             return
         t = seen.transform
         found = (t.translation.x, t.translation.y, yaw_of(t.rotation))
-        with self._lock:
-            self._pose = (seen.header.stamp, found)
+        self.readings.on_pose(seen.header.stamp.to_sec(), found)
 
     def plan(self) -> tuple[int, Sequence[Point]]:
-        with self._lock:
-            return self._plan
+        return self.readings.plan()
 
     def _on_plan(self, msg: Any) -> None:
-        points = [(p.pose.position.x, p.pose.position.y) for p in msg.poses]
-        with self._lock:
-            self._plan = (self._plan[0] + 1, points)
+        self.readings.on_plan([(p.pose.position.x, p.pose.position.y) for p in msg.poses])
 
     def map_subscribers(self) -> int:
         """How many subscribers ``/map`` has connected."""

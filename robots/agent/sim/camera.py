@@ -103,6 +103,16 @@ class Camera:
             self._draw_tag(image, tag, eye, nearest)
         return self._degraded(image), (self._depth(nearest) if depth else None)
 
+    def depth_rows(self, pose: Pose, rows: NDArray[np.intp]) -> Depth:
+        """Only ``rows`` of the registered depth image ``capture`` gives from ``pose``,
+        without rendering the picture: what a depth-to-scan conversion reads."""
+        eye = self.eye(pose)
+        angles = eye[2] - self._column_angles
+        nearest = self.world.cast(eye[0], eye[1], angles, self.max_depth).distance
+        if self.movers is not None:
+            nearest = np.minimum(nearest, cast_discs(eye[0], eye[1], angles, self.movers())[0])
+        return self._depth(nearest, self._rows[rows])
+
     # --- walls -------------------------------------------------------------------------
 
     def _walls(self, eye: Pose, angles: Floats, hits: RayHits) -> Image:
@@ -165,12 +175,13 @@ class Camera:
         strips[:, wanted] = panels[which.ravel(), :, column[wanted]].T
         return strips
 
-    def _depth(self, distance: Floats) -> Depth:
+    def _depth(self, distance: Floats, rows: Floats | None = None) -> Depth:
         """Registered depth: the nearer of each column's wall and the floor or ceiling
-        plane each row sees, along the optical axis."""
+        plane each row sees (of ``rows``, shape (n, 1); all by default), along the
+        optical axis."""
         model = self.model
         walls = distance * np.cos(self._column_angles)
-        below = self._rows - model.cy
+        below = (self._rows if rows is None else rows) - model.cy
         with np.errstate(divide="ignore"):
             planes = np.where(
                 below > 0,

@@ -1,12 +1,17 @@
 """The simulator as a robot's hardware (``robots.agent.hardware.Hardware``): a
 differential-drive body, a ray-cast laser, a rendered camera with depth and a battery in
-one ``World``, optionally among a crowd of people and other robots."""
+one ``World``, optionally among a crowd of people and other robots.
+
+A robot with ``sensors="rgbd"`` has no laser: its scan is made from the camera's depth
+(``robots.agent.depth_scan``), as ``depthimage_to_laserscan`` makes one on a robot with
+an RGB-D camera only, and spans the camera's field of view."""
 
 from __future__ import annotations
 
 import numpy as np
 from numpy.typing import NDArray
 
+from robots.agent.depth_scan import DepthScanSpec, depth_to_scan
 from robots.agent.perception import CameraModel
 from robots.agent.sim.battery import SimBattery
 from robots.agent.sim.body import DiffDriveBody
@@ -14,9 +19,11 @@ from robots.agent.sim.camera import Camera
 from robots.agent.sim.crowd import Crowd
 from robots.agent.sim.laser import Laser, LaserSpec
 from robots.agent.sim.world import World
-from robots.domain.params import BodyLimits
+from robots.domain.params import BodyLimits, Sensors
 from robots.domain.se2 import Pose
-from telemetry.domain.messages import Json, Odometry
+from telemetry.domain.messages import Json, Odometry, laser_scan
+
+DEPTH_SCAN_FRAME = "camera_depth_frame"
 
 
 class SimHardware:
@@ -34,8 +41,10 @@ class SimHardware:
         seed: int = 0,
         limits: BodyLimits | None = None,
         crowd: Crowd | None = None,
+        sensors: Sensors = "laser",
     ) -> None:
         self.crowd = crowd
+        self.sensors = sensors
         self.body = DiffDriveBody(world, pose, limits=limits, seed=seed)
         movers = None
         if crowd is not None:
@@ -43,9 +52,15 @@ class SimHardware:
             movers = self.body.others = crowd.movers_for(self.body)
         self.laser = Laser(world, LaserSpec(), seed=seed + 1, movers=movers)
         self.camera = Camera(world, CameraModel(), seed=seed + 2, movers=movers)
-        self.camera_model = self.camera.model
+        self.camera_model = model = self.camera.model
         self.battery = SimBattery()
-        self.scan_angles = self.laser.spec.angles()
+        self.depth_scan = DepthScanSpec()
+        if sensors == "rgbd":
+            self.scan_angles = self.depth_scan.angles(model)
+            self.scan_mount: Pose = (model.mount_x, 0.0, 0.0)
+        else:
+            self.scan_angles = self.laser.spec.angles()
+            self.scan_mount = (self.laser.spec.mount_x, 0.0, 0.0)
 
     @property
     def true_pose(self) -> Pose:
@@ -73,10 +88,29 @@ class SimHardware:
         self.body.command(linear, angular)
 
     def scan(self) -> NDArray[np.float32]:
+        if self.sensors == "rgbd":
+            rows = self.camera.depth_rows(self.body.pose, self.depth_scan.rows(self.camera.model))
+            return depth_to_scan(rows, self.camera.model, self.depth_scan)
         return self.laser.scan(self.body.pose)
 
     def scan_message(self, ranges: NDArray[np.float32], seconds: float) -> Json:
-        return self.laser.message(ranges, seconds)
+        if self.sensors == "laser":
+            return self.laser.message(ranges, seconds)
+        spec, angles = self.depth_scan, self.scan_angles
+        return dict(
+            laser_scan(
+                DEPTH_SCAN_FRAME,
+                ranges.tolist(),
+                seconds,
+                angle_min=float(angles[0]),
+                angle_max=float(angles[-1]),
+                angle_increment=float(angles[1] - angles[0]),
+                time_increment=0.0,  # a camera takes every column at once
+                scan_time=1 / 30,
+                range_min=spec.range_min,
+                range_max=spec.range_max,
+            )
+        )
 
     def odometry_message(self, seconds: float) -> Odometry:
         return self.body.odometry_message(seconds=seconds)

@@ -41,11 +41,11 @@ from sensor_msgs.msg import (  # type: ignore[import-not-found,unused-ignore]
     LaserScan,
 )
 
+from robots.agent.bridge import yaw_of
 from robots.agent.hardware import encode_jpeg
 from robots.agent.navigation import Driver, DriveState, LocalObstacles
 from robots.agent.perception import CameraModel
 from robots.agent.robot import PoseTracker, particle_filter
-from robots.agent.ros.hardware import yaw_of
 from robots.agent.sim.hardware import SimHardware
 from robots.agent.supervisor import SubMap
 from robots.domain.se2 import Pose, compose, inverse

@@ -1,0 +1,151 @@
+"""Relocalisation work within a bound, robots first: the threads that answer
+``/cloudnav/relocalise`` and ``POST /api/relocalise`` alike.
+
+A query costs tens of milliseconds of CPU per image (more while the machine is busy), so
+the process answers at most ``workers`` at once, whichever path they came by, and never
+on the event loop that relays topics. Waiting calls queue in two lanes: robots' (a robot
+that cannot place itself cannot drive) and people's. A free thread takes a robot's call
+first, and people's calls never occupy more than ``workers - 1`` threads (all of them when
+there is one), so a robot's call waits at most for the calls already running, never for
+the people queued. Each lane holds at most ``waiting`` calls and each caller at most
+``per_caller`` calls, waiting or running; beyond either the call is refused at once
+(``RelocalisationBusy``), so a flood costs a bounded amount of memory and time.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections import Counter, deque
+from collections.abc import Callable
+from concurrent.futures import Future
+from dataclasses import dataclass
+from typing import Any
+
+from django.conf import settings
+
+PER_CALLER = 2
+"""Calls one caller may have waiting or running at once."""
+
+
+class RelocalisationBusy(Exception):
+    """The call is refused for now: ``own`` when the caller's own share is spent (429),
+    else the server's lane is full (503)."""
+
+    def __init__(self, message: str, own: bool) -> None:
+        super().__init__(message)
+        self.own = own
+
+
+@dataclass(frozen=True)
+class Caller:
+    """Who asks: ``key`` names them (one share per key); ``robot`` picks the lane."""
+
+    key: str
+    robot: bool
+
+
+@dataclass(frozen=True)
+class _Call:
+    caller: Caller
+    work: Callable[[], Any]
+    future: Future[Any]
+
+
+class RelocalisationLanes:
+    """``workers`` threads (started on first use) taking calls from two lanes."""
+
+    def __init__(self, workers: int, waiting: int, per_caller: int = PER_CALLER) -> None:
+        self.workers = max(1, workers)
+        self.waiting = waiting
+        self.per_caller = per_caller
+        self.people_share = max(1, self.workers - 1)
+        self._robots: deque[_Call] = deque()
+        self._people: deque[_Call] = deque()
+        self._people_running = 0
+        self._callers: Counter[str] = Counter()
+        self._ready = threading.Condition()
+        self._threads: list[threading.Thread] = []
+
+    def submit(self, caller: Caller, work: Callable[[], Any]) -> Future[Any]:
+        """Queue ``work`` for ``caller``; its future holds what it returns or raises.
+        Raises RelocalisationBusy when the caller's share or the lane is full."""
+        lane = self._robots if caller.robot else self._people
+        with self._ready:
+            if self._callers[caller.key] >= self.per_caller:
+                raise RelocalisationBusy(
+                    "your other relocalisation requests are still being answered; "
+                    "ask again when they are done",
+                    own=True,
+                )
+            if len(lane) >= self.waiting:
+                raise RelocalisationBusy(
+                    "the server is answering other relocalisation requests; ask again shortly",
+                    own=False,
+                )
+            call = _Call(caller, work, Future())
+            lane.append(call)
+            self._callers[caller.key] += 1
+            self._start_threads()
+            self._ready.notify_all()
+        return call.future
+
+    def _start_threads(self) -> None:
+        while len(self._threads) < self.workers:
+            thread = threading.Thread(target=self._serve, name="relocalise", daemon=True)
+            self._threads.append(thread)
+            thread.start()
+
+    def _next(self) -> _Call:
+        """The next call a free thread may take: a robot's, else a person's while people
+        hold fewer than their share of the threads."""
+        with self._ready:
+            while True:
+                if self._robots:
+                    return self._robots.popleft()
+                if self._people and self._people_running < self.people_share:
+                    self._people_running += 1
+                    return self._people.popleft()
+                self._ready.wait()
+
+    def _serve(self) -> None:
+        while True:
+            call = self._next()
+            try:
+                if call.future.set_running_or_notify_cancel():
+                    _run(call)
+            finally:
+                self._done(call.caller)
+
+    def _done(self, caller: Caller) -> None:
+        with self._ready:
+            if not caller.robot:
+                self._people_running -= 1
+            self._callers[caller.key] -= 1
+            if self._callers[caller.key] <= 0:
+                del self._callers[caller.key]
+            self._ready.notify_all()
+
+
+def _run(call: _Call) -> None:
+    try:
+        result = call.work()
+    except BaseException as error:  # the caller's to handle; the thread lives on
+        call.future.set_exception(error)
+    else:
+        call.future.set_result(result)
+
+
+_LANES: RelocalisationLanes | None = None
+_LANES_LOCK = threading.Lock()
+
+
+def relocalisation_lanes() -> RelocalisationLanes:
+    """This process's lanes (``CLOUDNAV_RELOCALISE_WORKERS`` threads,
+    ``CLOUDNAV_RELOCALISE_QUEUE`` calls waiting in each lane)."""
+    global _LANES
+    with _LANES_LOCK:
+        if _LANES is None:
+            _LANES = RelocalisationLanes(
+                settings.CLOUDNAV_RELOCALISE_WORKERS, settings.CLOUDNAV_RELOCALISE_QUEUE
+            )
+        return _LANES
