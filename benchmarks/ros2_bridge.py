@@ -82,14 +82,14 @@ def ros2_venv(distro: str) -> Path:
     return Path(built.stdout.strip().splitlines()[-1])
 
 
-def graph_env(venv: Path) -> dict[str, str]:
-    """The environment of a ROS 2 graph in ``venv``: a domain of its own (one per call),
-    discovery on this machine only, the repository on the path."""
+def graph_env(venv: Path, domain: int | None = None) -> dict[str, str]:
+    """The environment of a ROS 2 graph in ``venv``: ``domain``, else a domain of its own
+    (one per call), discovery on this machine only, the repository on the path."""
     return {
         "PATH": f"{venv / 'bin'}:/usr/bin:/bin",
         "HOME": os.environ.get("HOME", "/tmp"),
         "PYTHONPATH": str(ROOT),
-        "ROS_DOMAIN_ID": str(next(DOMAINS) % 100 + 1),
+        "ROS_DOMAIN_ID": str(domain if domain is not None else next(DOMAINS) % 100 + 1),
         "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST",
     }
 

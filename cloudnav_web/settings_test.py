@@ -33,8 +33,10 @@ if not env_bool("CLOUDNAV_LIVE_SERVER", False):
 
 # Keyframe files of test runs go apart from the demo's (a live server inherits the path,
 # unless a test gives its servers a directory of their own).
+# Each pytest-xdist worker has its own.
+_KEYFRAMES = f"test-keyframes-{os.environ.get('PYTEST_XDIST_WORKER', 'gw0')}"
 CLOUDNAV_KEYFRAME_DIR = Path(
-    os.environ.get("CLOUDNAV_KEYFRAME_DIR", str(BASE_DIR / "var" / "test-keyframes"))
+    os.environ.get("CLOUDNAV_KEYFRAME_DIR", str(BASE_DIR / "var" / _KEYFRAMES))
 )
 # Servers under test record only when a test gives them a directory of its own.
 CLOUDNAV_RECORDING = bool(os.environ.get("CLOUDNAV_RECORDING_DIR"))

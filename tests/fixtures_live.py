@@ -529,12 +529,19 @@ DEFAULT_REDIS_URL = "redis://127.0.0.1:6379/13"
 DEFAULT_POSTGRES_URL = "postgres://postgres@127.0.0.1:5432/postgres"
 
 
+def worker_index() -> int:
+    """This pytest process's number among pytest-xdist's workers (``gw0`` is 0), 0 alone."""
+    return int(os.environ.get("PYTEST_XDIST_WORKER", "gw0").removeprefix("gw") or 0)
+
+
 def scaled_redis_url() -> str:
-    return (
-        os.environ.get("CLOUDNAV_TEST_REDIS_URL")
-        or os.environ.get("REDIS_URL")
-        or DEFAULT_REDIS_URL
-    )
+    """The Redis database of this pytest process: the configured one, plus the worker's
+    number, so that workers running at once never flush each other's."""
+    configured = os.environ.get("CLOUDNAV_TEST_REDIS_URL") or os.environ.get("REDIS_URL")
+    url = configured or DEFAULT_REDIS_URL
+    parts = urllib.parse.urlsplit(url)
+    database = int(parts.path.strip("/") or 0) + worker_index()
+    return urllib.parse.urlunsplit(parts._replace(path=f"/{database}"))
 
 
 def scaled_postgres_url() -> str:

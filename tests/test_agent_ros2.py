@@ -12,6 +12,7 @@ failed build fails the test: nothing here is skipped.
 
 from __future__ import annotations
 
+import itertools
 import json
 import math
 import subprocess
@@ -24,6 +25,7 @@ import numpy as np
 import pytest
 
 from benchmarks import ros2_bridge
+from tests.fixtures_live import worker_index
 from tests.test_agent_ros import (
     ATRIUM_1,
     BACK_IN_CORRIDOR_A,
@@ -42,6 +44,8 @@ from tests.test_agent_ros import (
 ROOT = Path(__file__).resolve().parent.parent
 ACTIVE = 1
 TELEOP_HOLD = 0.5  # robots.agent.robot.TELEOP_HOLD: the dead-man's delay
+DOMAINS_PER_WORKER = 25
+_domains = itertools.count()
 
 
 @pytest.fixture(scope="session", params=["jazzy", "kilted"])
@@ -55,8 +59,10 @@ def ros2_venv(request: pytest.FixtureRequest) -> Path:
 
 @pytest.fixture
 def ros2_env(ros2_venv: Path) -> dict[str, str]:
-    """The environment of this test's ROS 2 graph: its own domain, on this machine only."""
-    return ros2_bridge.graph_env(ros2_venv)
+    """The environment of this test's ROS 2 graph: its own domain (apart from those of
+    other pytest workers), on this machine only."""
+    domain = 1 + worker_index() * DOMAINS_PER_WORKER + next(_domains) % DOMAINS_PER_WORKER
+    return ros2_bridge.graph_env(ros2_venv, domain)
 
 
 class Events:
