@@ -551,6 +551,7 @@ async def cloud_grid(server: Any, token: str, map_id: str) -> Any:
 
 
 @pytest.mark.slow
+@pytest.mark.timeout(900)  # its own waits have deadlines; together they outlast 300 s
 async def test_a_ros_robot_crosses_sub_maps_through_its_own_move_base(
     node: None,
     ros_env: dict[str, str],
@@ -651,8 +652,10 @@ async def test_a_ros_robot_crosses_sub_maps_through_its_own_move_base(
                 assert time.monotonic() < give_up, "teleop never reached cmd_vel"
                 await operator.send(op="publish", topic=f"/{ROBOT}/cmd_vel", msg=turn)
                 await operator.read_for(0.1)
+            # Teleop has held the goal: the robot sends it again only after its last command
+            # (on a slow machine it may have read tag 2 before the teleop began).
+            teleop_ended = time.monotonic()
         daphne_server.stop()
-        cut = time.monotonic()
 
         # The dead-man rule on the robot itself: its last teleop command is followed by a
         # stop, though the cloud's own stop can no longer come.
@@ -665,10 +668,12 @@ async def test_a_ros_robot_crosses_sub_maps_through_its_own_move_base(
         # Then it drives on with its held maps: tag 2 read, Corridor A on /map again, and
         # move_base takes it to the goal with no cloud at all.
         wait_for(
-            lambda: ros.goal_near(*BACK_IN_CORRIDOR_A[:2], since=cut), 240, f"the goal\n{logs()}"
+            lambda: ros.goal_near(*BACK_IN_CORRIDOR_A[:2], since=teleop_ended),
+            240,
+            f"the goal\n{logs()}",
         )
         assert ros.maps[-1].info.width == 392
-        wait_for(lambda: ros.succeeded_since(cut), 180, f"arrived offline\n{logs()}")
+        wait_for(lambda: ros.succeeded_since(teleop_ended), 180, f"arrived offline\n{logs()}")
         assert all(p.poll() is None for p in processes), logs()
     finally:
         for process in processes:
