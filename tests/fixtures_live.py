@@ -21,6 +21,7 @@ import io
 import itertools
 import json
 import os
+import shutil
 import socket
 import subprocess
 import sys
@@ -562,13 +563,16 @@ class ScaledCluster:
     database_url: str = ""
     spawn: Callable[[], LiveServer] | None = None
 
+    def kill(self, index: int) -> None:
+        """Kill server ``index`` at once (SIGKILL, as a crash)."""
+        self.servers[index].process.kill()
+        self.servers[index].process.wait(10)
+
     def replace(self, index: int) -> LiveServer:
-        """Kill server ``index`` at once (SIGKILL, as a crash) and start a new process in its
-        place, on the same Redis and database; return the new one."""
+        """Kill server ``index`` (see ``kill``) and start a new process in its place, on the
+        same Redis and database; return the new one."""
         assert self.spawn is not None
-        old = self.servers[index]
-        old.process.kill()
-        old.process.wait(10)
+        self.kill(index)
         self.servers[index] = self.spawn()
         return self.servers[index]
 
@@ -728,6 +732,70 @@ def scaled_servers(
             )
 
         yield start
+
+
+# ``nginx_front``: a real nginx (Debian's package, installed by scripts/setup.sh) in front
+# of a scaled cluster, configured as ``make demo-scaled`` configures it (cloudnav_web/front.py)
+# and run as this user from the test's directory.
+
+
+def nginx_binary() -> str | None:
+    return shutil.which("nginx") or next(
+        (path for path in ("/usr/sbin/nginx",) if os.access(path, os.X_OK)), None
+    )
+
+
+@dataclass
+class Front:
+    """nginx on ``server`` (a ``LiveServer``: ``url``, ``rosbridge_url``, ...) spreading
+    connections over ``cluster``'s processes; it names the process that answered each
+    handshake in ``UPSTREAM_HEADER``."""
+
+    server: LiveServer
+    cluster: ScaledCluster
+
+    def process_of(self, headers: Any) -> int:
+        """The index in ``cluster.servers`` of the process behind a response's ``headers``."""
+        from cloudnav_web.front import UPSTREAM_HEADER
+
+        upstream = headers[UPSTREAM_HEADER].split(",")[-1].strip()  # the last one tried
+        return next(
+            index
+            for index, live in enumerate(self.cluster.servers)
+            if f"{live.host}:{live.port}" == upstream
+        )
+
+
+@pytest.fixture
+def nginx_front(tmp_path: Path) -> Iterator[Callable[[ScaledCluster], Front]]:
+    """``nginx_front(cluster)``: a ``Front`` over ``cluster``'s processes, on a free port;
+    stopped after the test. Skips when nginx is absent (``make setup`` installs it)."""
+    from cloudnav_web.front import write_config
+
+    nginx = nginx_binary()
+    if nginx is None:
+        pytest.skip("nginx is not installed: make setup (scripts/setup.sh) installs Debian's")
+    started: list[LiveServer] = []
+
+    def start(cluster: ScaledCluster) -> Front:
+        directory = tmp_path / f"nginx-{len(started)}"
+        port = free_port()
+        upstreams = [f"{live.host}:{live.port}" for live in cluster.servers]
+        config = write_config(upstreams, f"127.0.0.1:{port}", directory, show_upstream=True)
+        log_path = directory / "error.log"
+        with (directory / "stdout.log").open("wb") as out:
+            process = subprocess.Popen(
+                [nginx, "-p", str(directory), "-c", str(config)], stdout=out, stderr=out
+            )
+        server = LiveServer("127.0.0.1", port, process, log_path)
+        started.append(server)
+        if not wait_until_serving(server):
+            raise RuntimeError(f"nginx did not start:\n{(directory / 'stdout.log').read_text()}")
+        return Front(server, cluster)
+
+    yield start
+    for server in started:
+        server.stop()
 
 
 # ``rosbridge_across_processes``: the rosbridge fixture's clients, on two live server
