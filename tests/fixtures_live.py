@@ -9,7 +9,8 @@ Live servers (``daphne_server``, ``daphne_servers.start(env=...)``): real daphne
 on loopback ports against the test database, for network behaviour and unmodified clients.
 
 Scaled mode (``scaled_servers(2)``): daphne processes sharing a real Redis and a PostgreSQL
-database made for the test; mark such tests ``@pytest.mark.scaled``.
+database made for the test; mark such tests ``@pytest.mark.scaled``. ``nginx_front(cluster)``
+puts a real nginx in front of them, as ``make demo-scaled`` does.
 """
 
 from __future__ import annotations
