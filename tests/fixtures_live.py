@@ -26,6 +26,7 @@ import shutil
 import socket
 import subprocess
 import sys
+import tempfile
 import time
 import urllib.error
 import urllib.parse
@@ -691,6 +692,84 @@ def private_redis(tmp_path: Path) -> Iterator[PrivateRedis]:
     server = PrivateRedis(tmp_path)
     yield server
     server.stop()
+
+
+class PrivatePostgres:
+    """A PostgreSQL cluster of this test's own (``initdb`` on a free port, never the shared
+    server), holding a copy of a database, to stop and start again: ``url`` (of the copy),
+    ``restart(down=seconds)``."""
+
+    def __init__(self, source_url: str) -> None:
+        binaries = sorted(Path("/usr/lib/postgresql").glob("*/bin/pg_ctl"), key=_version)
+        if not binaries:
+            pytest.skip("PostgreSQL's server binaries are absent: make setup installs them")
+        self.bin = binaries[-1].parent
+        # Outside the test's directory: initdb refuses root, and its user must reach this.
+        self.directory = Path(tempfile.mkdtemp(prefix="cloudnav-pg-"))
+        if os.geteuid() == 0:
+            shutil.chown(self.directory, "postgres")
+        self.port = free_port()
+        self._as_owner("initdb", "-D", "data", "-U", "postgres", "--auth=trust", "-N")
+        self.start()
+        self.url = f"postgres://postgres@127.0.0.1:{self.port}/cloudnav"
+        self._copy(source_url)
+
+    def _as_owner(self, program: str, *arguments: str) -> None:
+        owner = ["runuser", "-u", "postgres", "--"] if os.geteuid() == 0 else []
+        command = [*owner, str(self.bin / program), *arguments]
+        subprocess.run(command, cwd=self.directory, check=True, capture_output=True, timeout=120)
+
+    def _copy(self, source_url: str) -> None:
+        import psycopg
+
+        admin_url = f"postgres://postgres@127.0.0.1:{self.port}/postgres"
+        with psycopg.connect(admin_url, autocommit=True) as admin:
+            admin.execute("CREATE DATABASE cloudnav")
+        dump = subprocess.run(
+            [self.bin / "pg_dump", "--no-owner", "--no-privileges", "-d", source_url],
+            check=True,
+            capture_output=True,
+            timeout=120,
+        )
+        subprocess.run(
+            [self.bin / "psql", "-q", "-v", "ON_ERROR_STOP=1", "-d", self.url],
+            input=dump.stdout,
+            check=True,
+            capture_output=True,
+            timeout=120,
+        )
+
+    def start(self) -> None:
+        options = f"-h 127.0.0.1 -p {self.port} -k {self.directory} -F"
+        self._as_owner("pg_ctl", "-D", "data", "-l", "server.log", "-o", options, "-w", "start")
+
+    def stop(self) -> None:
+        """Stop at once (``immediate``: no checkpoint, connections cut, as a crash)."""
+        self._as_owner("pg_ctl", "-D", "data", "-m", "immediate", "-w", "stop")
+
+    def restart(self, down: float = 0.0) -> None:
+        self.stop()
+        time.sleep(down)  # the outage itself is what is tested
+        self.start()
+
+    def remove(self) -> None:
+        with contextlib.suppress(subprocess.CalledProcessError):
+            self.stop()
+        shutil.rmtree(self.directory, ignore_errors=True)
+
+
+def _version(pg_ctl: Path) -> tuple[int, ...]:
+    return tuple(int(part) for part in pg_ctl.parent.parent.name.split("."))
+
+
+@pytest.fixture
+def private_postgres(scaled_template: tuple[str, dict[str, Any]]) -> Iterator[PrivatePostgres]:
+    """A ``PrivatePostgres`` holding a copy of the seeded scaled database."""
+    parts = urllib.parse.urlsplit(scaled_postgres_url())
+    source = urllib.parse.urlunsplit(parts._replace(path=f"/{scaled_template[0]}"))
+    server = PrivatePostgres(source)
+    yield server
+    server.remove()
 
 
 @pytest.fixture(scope="session")
