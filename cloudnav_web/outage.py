@@ -1,11 +1,15 @@
 """The database out of reach: requests are answered 503 with ``Retry-After``, and the log
-says so once per ``REPORT_EVERY`` seconds, not once per request (a fleet polling every
-couple of seconds would write thousands of tracebacks a minute)."""
+says so once per ``REPORT_EVERY`` seconds, not once per request or per loop turn (a fleet
+polling every couple of seconds, and the background writers ticking every second, would
+write thousands of tracebacks a minute). Everything that meets the outage reports to
+``REPORT``."""
 
 from __future__ import annotations
 
 import logging
+import threading
 import time
+from collections import Counter
 from collections.abc import Callable
 
 from django.http import HttpRequest, HttpResponse, JsonResponse
@@ -20,27 +24,29 @@ REPORT_EVERY = 10.0
 
 
 class OutageReport:
-    """Logs the first refusal of an outage, then at most one line per ``every`` seconds
-    with the number refused since the last line."""
+    """Logs the first thing an outage cost, then at most one line per ``every`` seconds
+    naming what it cost since the last line (requests refused, batches held back, ...)."""
 
     def __init__(self, every: float = REPORT_EVERY, clock: Callable[[], float] = time.monotonic):
         self.every = every
         self.clock = clock
-        self.refused_since = 0
+        self.since: Counter[str] = Counter()
         self.reported_at: float | None = None
+        self._lock = threading.Lock()  # views run on worker threads, loops on the event loop
 
-    def refused(self, error: Exception) -> None:
-        self.refused_since += 1
-        now = self.clock()
-        if self.reported_at is not None and now - self.reported_at < self.every:
-            return
+    def failed(self, what: str, error: BaseException) -> None:
+        """Count one ``what`` (``"requests refused"``) that the database's absence cost."""
+        with self._lock:
+            self.since[what] += 1
+            now = self.clock()
+            if self.reported_at is not None and now - self.reported_at < self.every:
+                return
+            costs = ", ".join(f"{count} {name}" for name, count in self.since.items())
+            self.since, self.reported_at = Counter(), now
         reason = (str(error).splitlines() or [type(error).__name__])[0]
         logger.warning(
-            "the database cannot be reached: %d requests refused since the last report (%s)",
-            self.refused_since,
-            reason,
+            "the database cannot be reached (%s); since the last report: %s", reason, costs
         )
-        self.refused_since, self.reported_at = 0, now
 
 
 REPORT = OutageReport()
@@ -66,5 +72,5 @@ class DatabaseOutageMiddleware(MiddlewareMixin):
     ) -> HttpResponse | None:
         if not isinstance(exception, UNREACHABLE):
             return None
-        REPORT.refused(exception)
+        REPORT.failed("requests refused", exception)
         return unavailable()

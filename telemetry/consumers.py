@@ -78,7 +78,7 @@ class RosbridgeConsumer(AsyncWebsocketConsumer):  # type: ignore[misc]  # Channe
         try:
             identity = await authenticate(self.scope)
         except UNREACHABLE as error:  # the database is down: refused, logged once in a while
-            REPORT.refused(error)
+            REPORT.failed("rosbridge handshakes refused", error)
             identity = None
         if identity is None:
             await self.close()

@@ -58,6 +58,7 @@ async def operator_through(front: Front, who: str) -> tuple[RosClient, int]:
         additional_headers={"Cookie": front.cluster.cookies[who], "Origin": front.server.url},
         open_timeout=STARTUP,
     )
+    assert socket.response is not None  # set once the handshake succeeded
     return RosClient(SocketCommunicator(socket)), front.process_of(socket.response.headers)
 
 
