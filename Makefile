@@ -4,7 +4,7 @@ BIN := .venv/bin
 export CLOUDNAV_TEST_REDIS_URL ?= redis://127.0.0.1:6379/9
 export CLOUDNAV_TEST_POSTGRES_URL ?= postgres://postgres:postgres@127.0.0.1:5432/postgres
 
-.PHONY: setup services demo test unit lint typecheck pytest bench format ros2
+.PHONY: setup services demo demo-scaled test unit lint typecheck pytest bench format ros2
 
 setup:
 	bash scripts/setup.sh
@@ -21,6 +21,11 @@ ros2:
 ## Set up, seed the demo building and run the server (http://127.0.0.1:8000) with simulated robots.
 demo: setup
 	bash scripts/demo.sh
+
+## The demo in the scaled mode: PROCESSES (3) daphne processes behind nginx on one port,
+## with Redis and PostgreSQL started where none answers (README, "A real front").
+demo-scaled: setup
+	PROCESSES=$${PROCESSES:-3} bash scripts/demo.sh
 
 ## Set up, start Redis and PostgreSQL where none answers, lint, type-check and run every test.
 test: setup services lint typecheck pytest

@@ -21,7 +21,8 @@ from functools import partial
 
 from channels.db import database_sync_to_async
 
-from cloudnav_web.batches import write_batch
+from cloudnav_web.batches import UNREACHABLE, BatchInterrupted, write_batch
+from cloudnav_web.outage import REPORT
 from maps.domain.versions import split_map_ref
 from telemetry.domain.messages import Pose2D
 
@@ -134,8 +135,11 @@ class FleetTracker:
         if batch:
             try:
                 failed = await database_sync_to_async(write_states)(batch)
-            except Exception:
-                logger.exception("fleet state flush failed; retrying with the next one")
+            except Exception as error:
+                if isinstance(error, (*UNREACHABLE, BatchInterrupted)):
+                    REPORT.failed("fleet state flushes held back", error)
+                else:
+                    logger.exception("fleet state flush failed; retrying with the next one")
                 self._dirty.update(batch)
                 return
             for pk, entry in batch.items():

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Set up everything CloudNav needs on a fresh Debian machine; quick when already done.
-#   Debian packages (chromium, redis-server, postgresql, ROS 1, cmake and g++ for the ROS 2
+#   Debian packages (chromium, redis-server, nginx, postgresql, ROS 1, cmake and g++ for the ROS 2
 #   interface packages) with apt-get where absent,
 #   the Python virtualenv from requirements.txt, Node packages from package-lock.json,
 #   and the database schema.
@@ -19,6 +19,8 @@ apt_packages() {
   local missing=()
   command -v chromium >/dev/null || missing+=(chromium)
   command -v redis-server >/dev/null || missing+=(redis-server)
+  # The scaled demo's front (make demo-scaled), run as the user with its own config.
+  [ -x /usr/sbin/nginx ] || command -v nginx >/dev/null || missing+=(nginx)
   ls /usr/lib/postgresql/*/bin/postgres >/dev/null 2>&1 || missing+=(postgresql)
   command -v node >/dev/null || missing+=(nodejs npm)
   "$PYTHON" -c "import venv, ensurepip" 2>/dev/null || missing+=(python3-venv)

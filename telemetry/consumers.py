@@ -16,6 +16,8 @@ from channels.exceptions import StopConsumer
 from channels.generic.websocket import AsyncWebsocketConsumer
 from typing_extensions import override
 
+from cloudnav_web.batches import UNREACHABLE
+from cloudnav_web.outage import REPORT
 from telemetry import replies
 from telemetry.connection import Connection
 from telemetry.domain import names, protocol
@@ -73,7 +75,11 @@ class RosbridgeConsumer(AsyncWebsocketConsumer):  # type: ignore[misc]  # Channe
 
     @override
     async def websocket_connect(self, message: dict[str, Any]) -> None:
-        identity = await authenticate(self.scope)
+        try:
+            identity = await authenticate(self.scope)
+        except UNREACHABLE as error:  # the database is down: refused, logged once in a while
+            REPORT.failed("rosbridge handshakes refused", error)
+            identity = None
         if identity is None:
             await self.close()
             return

@@ -24,6 +24,7 @@ from django.db import transaction
 from django.db.models import Max
 
 from cloudnav_web.batches import UNREACHABLE, BatchInterrupted, write_batch
+from cloudnav_web.outage import REPORT
 from maps.models import Building
 from robots.models import Robot
 from telemetry.domain import names
@@ -123,7 +124,7 @@ class EventLog:
             stored = await database_sync_to_async(store_events)(batch, ORIGIN)
         except BatchInterrupted as interrupted:
             unwritten = interrupted.unwritten
-            logger.warning("%d events wait for the database: %s", len(unwritten), interrupted)
+            REPORT.failed("event batches held back", interrupted)
             self._pending[:0] = unwritten
             return
         except Exception:  # never retried: a batch that cannot be written must not block

@@ -16,6 +16,7 @@ from typing import Any
 from channels.db import database_sync_to_async
 
 from cloudnav_web.batches import BatchInterrupted
+from cloudnav_web.outage import REPORT
 from robots import missions
 from robots.missions import Goal
 from telemetry.domain.storable import storable_text
@@ -74,7 +75,7 @@ class MissionRunner:
             try:
                 goals = await database_sync_to_async(_tick)(self.robots(), outcomes)
             except BatchInterrupted as interrupted:
-                logger.warning("mission outcomes wait for the database: %s", interrupted)
+                REPORT.failed("mission ticks held back", interrupted)
                 kept = {pk: outcomes[pk] for pk in interrupted.unwritten}
                 self._outcomes = {**kept, **self._outcomes}
                 continue

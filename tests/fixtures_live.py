@@ -9,7 +9,8 @@ Live servers (``daphne_server``, ``daphne_servers.start(env=...)``): real daphne
 on loopback ports against the test database, for network behaviour and unmodified clients.
 
 Scaled mode (``scaled_servers(2)``): daphne processes sharing a real Redis and a PostgreSQL
-database made for the test; mark such tests ``@pytest.mark.scaled``.
+database made for the test; mark such tests ``@pytest.mark.scaled``. ``nginx_front(cluster)``
+puts a real nginx in front of them, as ``make demo-scaled`` does.
 """
 
 from __future__ import annotations
@@ -21,9 +22,11 @@ import io
 import itertools
 import json
 import os
+import shutil
 import socket
 import subprocess
 import sys
+import tempfile
 import time
 import urllib.error
 import urllib.parse
@@ -562,13 +565,16 @@ class ScaledCluster:
     database_url: str = ""
     spawn: Callable[[], LiveServer] | None = None
 
+    def kill(self, index: int) -> None:
+        """Kill server ``index`` at once (SIGKILL, as a crash)."""
+        self.servers[index].process.kill()
+        self.servers[index].process.wait(10)
+
     def replace(self, index: int) -> LiveServer:
-        """Kill server ``index`` at once (SIGKILL, as a crash) and start a new process in its
-        place, on the same Redis and database; return the new one."""
+        """Kill server ``index`` (see ``kill``) and start a new process in its place, on the
+        same Redis and database; return the new one."""
         assert self.spawn is not None
-        old = self.servers[index]
-        old.process.kill()
-        old.process.wait(10)
+        self.kill(index)
         self.servers[index] = self.spawn()
         return self.servers[index]
 
@@ -688,6 +694,84 @@ def private_redis(tmp_path: Path) -> Iterator[PrivateRedis]:
     server.stop()
 
 
+class PrivatePostgres:
+    """A PostgreSQL cluster of this test's own (``initdb`` on a free port, never the shared
+    server), holding a copy of a database, to stop and start again: ``url`` (of the copy),
+    ``restart(down=seconds)``."""
+
+    def __init__(self, source_url: str) -> None:
+        binaries = sorted(Path("/usr/lib/postgresql").glob("*/bin/pg_ctl"), key=_version)
+        if not binaries:
+            pytest.skip("PostgreSQL's server binaries are absent: make setup installs them")
+        self.bin = binaries[-1].parent
+        # Outside the test's directory: initdb refuses root, and its user must reach this.
+        self.directory = Path(tempfile.mkdtemp(prefix="cloudnav-pg-"))
+        if os.geteuid() == 0:
+            shutil.chown(self.directory, "postgres")
+        self.port = free_port()
+        self._as_owner("initdb", "-D", "data", "-U", "postgres", "--auth=trust", "-N")
+        self.start()
+        self.url = f"postgres://postgres@127.0.0.1:{self.port}/cloudnav"
+        self._copy(source_url)
+
+    def _as_owner(self, program: str, *arguments: str) -> None:
+        owner = ["runuser", "-u", "postgres", "--"] if os.geteuid() == 0 else []
+        command = [*owner, str(self.bin / program), *arguments]
+        subprocess.run(command, cwd=self.directory, check=True, capture_output=True, timeout=120)
+
+    def _copy(self, source_url: str) -> None:
+        import psycopg
+
+        admin_url = f"postgres://postgres@127.0.0.1:{self.port}/postgres"
+        with psycopg.connect(admin_url, autocommit=True) as admin:
+            admin.execute("CREATE DATABASE cloudnav")
+        dump = subprocess.run(
+            [self.bin / "pg_dump", "--no-owner", "--no-privileges", "-d", source_url],
+            check=True,
+            capture_output=True,
+            timeout=120,
+        )
+        subprocess.run(
+            [self.bin / "psql", "-q", "-v", "ON_ERROR_STOP=1", "-d", self.url],
+            input=dump.stdout,
+            check=True,
+            capture_output=True,
+            timeout=120,
+        )
+
+    def start(self) -> None:
+        options = f"-h 127.0.0.1 -p {self.port} -k {self.directory} -F"
+        self._as_owner("pg_ctl", "-D", "data", "-l", "server.log", "-o", options, "-w", "start")
+
+    def stop(self) -> None:
+        """Stop at once (``immediate``: no checkpoint, connections cut, as a crash)."""
+        self._as_owner("pg_ctl", "-D", "data", "-m", "immediate", "-w", "stop")
+
+    def restart(self, down: float = 0.0) -> None:
+        self.stop()
+        time.sleep(down)  # the outage itself is what is tested
+        self.start()
+
+    def remove(self) -> None:
+        with contextlib.suppress(subprocess.CalledProcessError):
+            self.stop()
+        shutil.rmtree(self.directory, ignore_errors=True)
+
+
+def _version(pg_ctl: Path) -> tuple[int, ...]:
+    return tuple(int(part) for part in pg_ctl.parent.parent.name.split("."))
+
+
+@pytest.fixture
+def private_postgres(scaled_template: tuple[str, dict[str, Any]]) -> Iterator[PrivatePostgres]:
+    """A ``PrivatePostgres`` holding a copy of the seeded scaled database."""
+    parts = urllib.parse.urlsplit(scaled_postgres_url())
+    source = urllib.parse.urlunsplit(parts._replace(path=f"/{scaled_template[0]}"))
+    server = PrivatePostgres(source)
+    yield server
+    server.remove()
+
+
 @pytest.fixture(scope="session")
 def scaled_template() -> Iterator[tuple[str, dict[str, Any]]]:
     """A PostgreSQL database migrated and seeded once per run, copied by each scaled test;
@@ -728,6 +812,70 @@ def scaled_servers(
             )
 
         yield start
+
+
+# ``nginx_front``: a real nginx (Debian's package, installed by scripts/setup.sh) in front
+# of a scaled cluster, configured as ``make demo-scaled`` configures it (cloudnav_web/front.py)
+# and run as this user from the test's directory.
+
+
+def nginx_binary() -> str | None:
+    return shutil.which("nginx") or next(
+        (path for path in ("/usr/sbin/nginx",) if os.access(path, os.X_OK)), None
+    )
+
+
+@dataclass
+class Front:
+    """nginx on ``server`` (a ``LiveServer``: ``url``, ``rosbridge_url``, ...) spreading
+    connections over ``cluster``'s processes; it names the process that answered each
+    handshake in ``UPSTREAM_HEADER``."""
+
+    server: LiveServer
+    cluster: ScaledCluster
+
+    def process_of(self, headers: Any) -> int:
+        """The index in ``cluster.servers`` of the process behind a response's ``headers``."""
+        from cloudnav_web.front import UPSTREAM_HEADER
+
+        upstream = headers[UPSTREAM_HEADER].split(",")[-1].strip()  # the last one tried
+        return next(
+            index
+            for index, live in enumerate(self.cluster.servers)
+            if f"{live.host}:{live.port}" == upstream
+        )
+
+
+@pytest.fixture
+def nginx_front(tmp_path: Path) -> Iterator[Callable[[ScaledCluster], Front]]:
+    """``nginx_front(cluster)``: a ``Front`` over ``cluster``'s processes, on a free port;
+    stopped after the test. Skips when nginx is absent (``make setup`` installs it)."""
+    from cloudnav_web.front import write_config
+
+    nginx = nginx_binary()
+    if nginx is None:
+        pytest.skip("nginx is not installed: make setup (scripts/setup.sh) installs Debian's")
+    started: list[LiveServer] = []
+
+    def start(cluster: ScaledCluster) -> Front:
+        directory = tmp_path / f"nginx-{len(started)}"
+        port = free_port()
+        upstreams = [f"{live.host}:{live.port}" for live in cluster.servers]
+        config = write_config(upstreams, f"127.0.0.1:{port}", directory, show_upstream=True)
+        log_path = directory / "error.log"
+        with (directory / "stdout.log").open("wb") as out:
+            process = subprocess.Popen(
+                [nginx, "-p", str(directory), "-c", str(config)], stdout=out, stderr=out
+            )
+        server = LiveServer("127.0.0.1", port, process, log_path)
+        started.append(server)
+        if not wait_until_serving(server):
+            raise RuntimeError(f"nginx did not start:\n{(directory / 'stdout.log').read_text()}")
+        return Front(server, cluster)
+
+    yield start
+    for server in started:
+        server.stop()
 
 
 # ``rosbridge_across_processes``: the rosbridge fixture's clients, on two live server

@@ -43,6 +43,8 @@ from typing import Any, Protocol
 
 from asgiref.sync import sync_to_async
 
+from cloudnav_web.batches import UNREACHABLE
+from cloudnav_web.outage import REPORT
 from telemetry.domain import names
 from telemetry.domain.bus import OnMessage
 from telemetry.domain.messages import pose_of
@@ -239,7 +241,9 @@ class MappingRunner:
         while True:
             try:
                 await self.sync()
-            except Exception:  # the database may be away for a moment; try again
+            except UNREACHABLE as error:  # the database is away for a moment; try again
+                REPORT.failed("mapping runner checks", error)
+            except Exception:
                 logger.exception("mapping runner: looking at sessions failed")
             await asyncio.sleep(POLL)
 

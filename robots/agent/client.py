@@ -117,6 +117,9 @@ class RosbridgeClient:
         self.call_timeout = call_timeout
         self.keepalive = keepalive
         self.connections = 0  # how many times a connection opened
+        # The handshake response's headers of the connection opened last (a front may name
+        # the server process that took it).
+        self.response_headers: Any = None
         self._rng = random.Random(seed)
         self._topics: dict[str, _Topic] = {}
         self._subscriptions: dict[str, _Subscription] = {}
@@ -253,6 +256,7 @@ class RosbridgeClient:
         """Declare everything on a new connection, then let publishing through."""
         self._ws = ws
         self.connections += 1
+        self.response_headers = ws.response.headers if ws.response is not None else None
         connected = ws.transport.get_extra_info("socket")
         if connected is not None:
             connected.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, SEND_BUFFER)
