@@ -97,7 +97,7 @@ function enterMap(mapId, version = undefined) {
   state.robotMapVersion = version ?? null;
   $("robot-map").textContent = mapId;
   const held = $("robot-map-version");
-  held.textContent = state.robotMapVersion === null ? "" : `version ${state.robotMapVersion}`;
+  held.textContent = state.robotMapVersion === null ? "" : `v${state.robotMapVersion}`;
   held.hidden = state.robotMapVersion === null;
   if (sameMap) {
     // A new version of the map the robot is in: draw it anew.
