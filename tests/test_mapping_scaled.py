@@ -76,7 +76,7 @@ async def test_a_robot_maps_on_one_process_and_an_admin_on_another_publishes_it(
     ):
         held = await robot_http.get(BUNDLE)
         assert held.status_code == 200
-        assert held.json()["version"] == 1
+        assert held.json()["revision"] == 1
 
         async def started() -> Any:
             body = {"robot": "r1", "building": "boccioni_1", "code": "Lab", "update": True}
@@ -107,7 +107,7 @@ async def test_a_robot_maps_on_one_process_and_an_admin_on_another_publishes_it(
 
         newer = await robot_http.get(BUNDLE, headers={"If-None-Match": held.headers["ETag"]})
         assert newer.status_code == 200
-        assert newer.json()["version"] == 2
+        assert newer.json()["revision"] == 2
         assert newer.headers["ETag"].startswith('"v2-')
         again = await robot_http.get(BUNDLE, headers={"If-None-Match": newer.headers["ETag"]})
         assert again.status_code == 304
