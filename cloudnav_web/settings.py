@@ -93,6 +93,9 @@ CLOUDNAV_WEBRTC_ICE_SERVERS: list[dict[str, Any]] = json.loads(
     os.environ.get("CLOUDNAV_WEBRTC_ICE_SERVERS", "[]")
 )
 CLOUDNAV_WHEP_PER_CLIENT = int(os.environ.get("CLOUDNAV_WHEP_PER_CLIENT", "8"))
+# Seconds a WebRTC session may take to connect; one that has not by then is dropped, and
+# its encoder (and its share of the video budget) released.
+CLOUDNAV_WHEP_CONNECT_TIMEOUT = float(os.environ.get("CLOUDNAV_WHEP_CONNECT_TIMEOUT", "15"))
 
 INSTALLED_APPS = [
     "daphne",

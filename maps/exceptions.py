@@ -68,7 +68,7 @@ class VersionConflict(MapStoreError):
 
     def __init__(self, based_on: int, current: int) -> None:
         super().__init__(
-            f"This was made on version {based_on}, but the sub-map is at version {current} "
+            f"This was made on v{based_on}, but the sub-map is at v{current} "
             "now: review it against the current version."
         )
         self.based_on = based_on

@@ -94,7 +94,12 @@ class MembershipSerializer(serializers.ModelSerializer[Membership]):
 
 
 class SubMapSerializer(serializers.ModelSerializer[SubMap]):
+    """A sub-map. Its ``version`` is the number people see as ``v<n>`` everywhere;
+    ``content_hash`` is the digest of its map file (what a cache compares)."""
+
     map_id = serializers.CharField(read_only=True)
+    version = serializers.IntegerField(source="revision", read_only=True)
+    content_hash = serializers.CharField(source="version", read_only=True)
     origin = serializers.SerializerMethodField()
     links = serializers.SerializerMethodField()
 
@@ -114,7 +119,7 @@ class SubMapSerializer(serializers.ModelSerializer[SubMap]):
             "negate",
             "mode",
             "version",
-            "revision",
+            "content_hash",
             "node_x",
             "node_y",
             "updated",
@@ -274,12 +279,14 @@ class TagSerializer(serializers.ModelSerializer[EnvironmentalTag]):
 
 
 class VersionSerializer(serializers.ModelSerializer[SubMapVersion]):
-    """One version of a sub-map, without its image (see ``links``)."""
+    """One version of a sub-map, without its image (see ``links``): ``number`` is the ``n``
+    of ``v<n>``, ``content_hash`` the digest of its map file."""
 
     author: serializers.SlugRelatedField[Any] = serializers.SlugRelatedField(
         slug_field="username", read_only=True
     )
     map_ref = serializers.SerializerMethodField()
+    content_hash = serializers.CharField(source="version", read_only=True)
     origin = serializers.SerializerMethodField()
     links = serializers.SerializerMethodField()
 
@@ -293,7 +300,7 @@ class VersionSerializer(serializers.ModelSerializer[SubMapVersion]):
             "author",
             "created",
             "based_on",
-            "version",
+            "content_hash",
             "image_name",
             "width",
             "height",

@@ -29,7 +29,7 @@ def version_of(submap: SubMap, number: int) -> SubMapVersion:
     """Version ``number`` of ``submap``; raises NoSuchVersion."""
     version = submap.versions.select_related("author").filter(number=number).first()
     if version is None:
-        raise NoSuchVersion(f"{submap.map_id} has no version {number}.")
+        raise NoSuchVersion(f"{submap.map_id} has no v{number}.")
     return version
 
 
@@ -57,7 +57,7 @@ def rollback(submap: SubMap, number: int, author: Any = None, note: str = "") ->
     for name in services.MAP_FILE_FIELDS:
         setattr(locked, name, getattr(source, name))
     return services.record_version(
-        locked, Reason.ROLLBACK, author, note or f"back to version {number}", based_on=number
+        locked, Reason.ROLLBACK, author, note or f"back to v{number}", based_on=number
     )
 
 

@@ -14,8 +14,13 @@ from rest_framework import serializers
 
 from maps.access import Role, buildings_for, buildings_where, global_role
 from maps.models import Building
+from telemetry.domain.names import GLOBAL_NAMESPACES
 
-from .models import Robot
+from .models import Robot, ros_name_validator
+
+# One answer for every name that cannot be had: a robot's (of any tenant) or a namespace
+# the server keeps for itself, so a refusal confirms no other tenant's robot.
+NAME_UNAVAILABLE = "This name is not available: choose another."
 
 
 def administered(user: Any) -> QuerySet[Building]:
@@ -41,6 +46,17 @@ class RobotSerializer(serializers.ModelSerializer[Robot]):
         model = Robot
         fields = ["name", "description", "buildings", "created", "token_rotated"]
         read_only_fields = ["created", "token_rotated"]
+        # the name's uniqueness is checked by validate_name, whose answer names no robot
+        extra_kwargs = {"name": {"validators": [ros_name_validator]}}
+
+    def validate_name(self, name: str) -> str:
+        """The name, unless a robot has it (of any building) or the server keeps it."""
+        others = Robot.objects.filter(name=name)
+        if self.instance is not None:
+            others = others.exclude(pk=self.instance.pk)
+        if name in GLOBAL_NAMESPACES or others.exists():
+            raise serializers.ValidationError(NAME_UNAVAILABLE)
+        return name
 
     def to_representation(self, instance: Robot) -> dict[str, Any]:
         data = super().to_representation(instance)

@@ -4,10 +4,11 @@ from __future__ import annotations
 
 from typing import Any
 
+from django.db import IntegrityError, transaction
 from django.db.models import QuerySet
 from drf_spectacular.utils import extend_schema
 from rest_framework import generics, permissions, status
-from rest_framework.exceptions import NotFound, PermissionDenied
+from rest_framework.exceptions import NotFound, PermissionDenied, ValidationError
 from rest_framework.request import Request
 from rest_framework.response import Response
 from rest_framework.views import APIView
@@ -17,7 +18,7 @@ from maps.access import Role, buildings_where, global_role
 
 from . import services
 from .models import Robot
-from .serializers import RobotCreatedSerializer, RobotSerializer, TokenSerializer
+from .serializers import NAME_UNAVAILABLE, RobotCreatedSerializer, RobotSerializer, TokenSerializer
 
 
 class IsAdmin(permissions.BasePermission):
@@ -64,7 +65,11 @@ class RobotList(generics.ListCreateAPIView[Robot]):
         """Register a robot; the answer carries its token, which is never shown again."""
         form = RobotSerializer(data=request.data, context={"request": request})
         form.is_valid(raise_exception=True)
-        robot, token = services.register_robot(**form.validated_data)
+        try:
+            with transaction.atomic():
+                robot, token = services.register_robot(**form.validated_data)
+        except IntegrityError:  # the same name registered at the same moment
+            raise ValidationError({"name": [NAME_UNAVAILABLE]}) from None
         shown = RobotSerializer(robot, context={"request": request}).data
         answer = {**shown, "token": token}
         return Response(answer, status=status.HTTP_201_CREATED)

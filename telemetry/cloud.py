@@ -198,7 +198,8 @@ def _route(visible: frozenset[int], code: str, start: str, goal: str) -> dict[st
 
 
 async def resolve_tag(call: ServiceCall) -> Json:
-    """``{payload}`` (a tag's QR text) -> ``{map_id, building, map, version}``."""
+    """``{payload}`` (a tag's QR text) -> ``{map_id, building, map, version}`` (``version``:
+    the number of the sub-map's current version, ``v<n>`` to people)."""
     try:
         payload = parse_payload(_text(call, "payload"))
     except MapStoreError as exc:
@@ -215,7 +216,7 @@ def _submap(visible: frozenset[int], building: str, code: str) -> dict[str, Any]
     submap = map_services.visible_submap(visible, building, code)
     if submap is None:
         return None
-    return {"map_id": submap.map_id, "building": building, "map": code, "version": submap.version}
+    return {"map_id": submap.map_id, "building": building, "map": code, "version": submap.revision}
 
 
 async def plan_path(call: ServiceCall) -> Json:

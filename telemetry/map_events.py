@@ -24,7 +24,7 @@ def connect_signals() -> None:
 
 def _bundle_fetched(sender: Any, submap: SubMap, robot: str, **_: Any) -> None:  # noqa: ARG001 (the signal's)
     building = submap.building.code
-    draft = derived.bundle_fetched(robot, building, submap.map_id, submap.version, time.time())
+    draft = derived.bundle_fetched(robot, building, submap.map_id, submap.revision, time.time())
     write_on_commit(draft)
 
 

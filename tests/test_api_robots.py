@@ -73,7 +73,11 @@ def test_create_robot_prints_a_working_token(building: Building) -> None:
 
 @pytest.mark.parametrize(
     ("args", "message"),
-    [(["tb3_1", "--building", "nowhere"], "Unknown building"), (["bad name"], "ROS name")],
+    [
+        (["tb3_1", "--building", "nowhere"], "Unknown building"),
+        (["bad name"], "ROS name"),
+        (["cloudnav"], "namespace of the server"),
+    ],
 )
 def test_create_robot_refuses_bad_input(building: Building, args: list[str], message: str) -> None:
     with pytest.raises(CommandError, match=message):

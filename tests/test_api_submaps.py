@@ -60,12 +60,13 @@ def test_it_stores_a_zip_of_both(building: Building, admin: User) -> None:
 def test_uploading_an_existing_code_replaces_its_map_and_version(
     building: Building, admin: User
 ) -> None:
-    first = post(admin, pair()).json()["version"]
+    first = post(admin, pair()).json()["content_hash"]
     wider = SimpleUploadedFile("map.pgm", map_pgm(width=50))
     response = post(admin, pair(image=wider, replace="true"))
     assert response.status_code == 200
     assert response.json()["width"] == 50
-    assert response.json()["version"] != first
+    assert response.json()["content_hash"] != first
+    assert response.json()["version"] == 2
     assert SubMap.objects.count() == 1
 
 
@@ -223,7 +224,7 @@ def test_editing_metadata_changes_the_version(building: Building, admin: User) -
     response = client_for(admin).patch(f"{URL}CorridorA/", {"origin": [1, 2, 0.5]}, format="json")
     assert response.status_code == 200
     assert response.json()["origin"] == [1.0, 2.0, 0.5]
-    assert response.json()["version"] != submap.version
+    assert response.json()["content_hash"] != submap.version
 
 
 def test_editing_metadata_into_an_invalid_state_is_refused_whole(

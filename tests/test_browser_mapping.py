@@ -65,7 +65,7 @@ def test_an_admin_maps_with_a_robot_watches_the_map_grow_and_publishes_it(
     expect(dialog).to_contain_text(f"Publish {BUILDING}/Porch?")
     dialog.locator("textarea[name=note]").fill("the porch, mapped by robot_0")
     dialog.locator("button[value=confirm]").click()
-    expect(page.locator("#mapping-messages")).to_contain_text("Published as version 1")
+    expect(page.locator("#mapping-messages")).to_contain_text("Published as v1")
     versions = page.request.get(demo.url(f"/api/buildings/{BUILDING}/maps/Porch/versions/"))
     assert versions.ok
     assert versions.json()["versions"][0]["reason"] == "mapping"
@@ -238,7 +238,7 @@ def test_an_admin_edits_a_proposal_cell_by_cell_and_the_published_version_has_th
 
     row.locator("button", has_text="Accept").click()
     page.locator("#accept-dialog button[value=confirm]").click()
-    expect(page.locator("#versions-current")).to_have_text("version 2")
+    expect(page.locator("#versions-current")).to_have_text("v2")
     published = page.request.get(
         demo.url(f"/api/buildings/{BUILDING}/maps/CorridorA/versions/2/grid")
     )

@@ -224,3 +224,29 @@ def test_the_robot_page_replays_a_recording_with_its_timeline(
     expect(page.locator("#replay-bar")).to_be_hidden()
     expect(page.locator("#camera-frame")).to_be_visible()
     assert plotted_until(page) is None  # back to live: the recording's samples are gone
+
+
+def test_replaying_says_so_in_the_header_and_disarms_teleop(
+    context: BrowserContext, demo: Demo
+) -> None:
+    name, value = demo.cookies["operator"]
+    context.add_cookies([{"name": name, "value": value, "url": demo.server.url}])
+    page = context.new_page()
+    page.goto(demo.url(f"/robots/{ROBOT}/"), wait_until="domcontentloaded")
+    header = page.locator("#conn-state")
+    expect(header).to_have_text("Live")
+    page.click("#lock-acquire")
+    expect(page.locator("#lock-state")).to_have_text("You are driving")
+    page.click("#replay-toggle")
+    expect(page.locator("#replay-bar")).to_be_visible()
+    # the header says what is on show, and the recording drives nothing
+    expect(header).to_have_text("Replay")
+    expect(page.locator("#lock-state")).to_have_text("Not driving")
+    expect(page.locator("#lock-acquire")).to_be_disabled()
+    expect(page.locator("#lock-message")).to_contain_text("Replaying a recording")
+    # back to live: live again, and control may be taken again
+    page.click("#replay-toggle")
+    expect(header).to_have_text("Live")
+    expect(page.locator("#lock-acquire")).to_be_enabled()
+    page.click("#lock-acquire")
+    expect(page.locator("#lock-state")).to_have_text("You are driving")

@@ -72,7 +72,7 @@ def test_an_admin_compares_and_rolls_back_and_the_robot_takes_the_new_version(
 ) -> None:
     page = open_as(context, demo, "admin", f"/buildings/{BUILDING}/maps/CorridorA/")
     expect(page.locator("#versions-list tr")).to_have_count(2)
-    expect(page.locator("#versions-current")).to_have_text("version 2")
+    expect(page.locator("#versions-current")).to_have_text("v2")
     expect(page.locator("#versions-list tr[data-version='2']")).to_contain_text("a cabinet")
 
     page.locator("#versions-list tr[data-version='1'] button", has_text="Compare").click()
@@ -87,7 +87,7 @@ def test_an_admin_compares_and_rolls_back_and_the_robot_takes_the_new_version(
     page.locator("#versions-list tr[data-version='1'] button", has_text="Roll back").click()
     page.locator("#rollback-dialog button[value=confirm]").click()
     rolled_back = time.monotonic()
-    expect(page.locator("#versions-current")).to_have_text("version 3")
+    expect(page.locator("#versions-current")).to_have_text("v3")
     expect(page.locator("#versions-list tr[data-version='3']")).to_contain_text("rollback")
     while held_version(demo, page) != 3:
         assert time.monotonic() - rolled_back < ACCEPT_TO_ROBOT_S, "the robot kept version 2"
@@ -95,7 +95,7 @@ def test_an_admin_compares_and_rolls_back_and_the_robot_takes_the_new_version(
 
     robot = open_as(context, demo, "operator", f"/robots/{ROBOT}/")
     expect(robot.locator("#robot-map")).to_have_text(f"{BUILDING}/CorridorA")
-    expect(robot.locator("#robot-map-version")).to_have_text("version 3")
+    expect(robot.locator("#robot-map-version")).to_have_text("v3")
     screenshot(robot, "robot-map-version")
 
 
@@ -138,7 +138,7 @@ def test_an_admin_accepts_a_proposed_change_and_the_robot_takes_it(
     row.locator("button", has_text="Accept").click()
     page.locator("#accept-dialog button[value=confirm]").click()
     accepted = time.monotonic()
-    expect(page.locator("#versions-current")).to_have_text("version 2")
+    expect(page.locator("#versions-current")).to_have_text("v2")
     expect(page.locator("#versions-list tr[data-version='2']")).to_contain_text("change")
     expect(page.locator("#changes-list")).to_contain_text("No change proposed.")
     while held_version(demo, page) != 2:

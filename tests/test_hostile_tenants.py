@@ -94,6 +94,24 @@ def test_an_admin_of_every_building_renames_rotates_and_deletes(tenants: Any, ad
     assert client.delete("/api/robots/r9/").status_code == 204
 
 
+def test_a_name_another_tenant_uses_is_refused_as_any_name_no_one_may_have(
+    tenants: Any, building: Building, admin: User
+) -> None:
+    _, _, theirs = tenants
+    make_robot(name="secretbot", buildings=[theirs])
+    make_robot(name="mine", buildings=[building])
+    client = client_for(admin)
+    unavailable = {"name": ["This name is not available: choose another."]}
+    # another tenant's robot, a namespace the server keeps, one's own robot: one answer
+    for name in ("secretbot", "cloudnav", "rosapi", "mine"):
+        answer = client.post("/api/robots/", {"name": name, "buildings": ["boccioni_1"]})
+        assert (answer.status_code, answer.json()) == (400, unavailable), name
+    renamed = client.patch("/api/robots/mine/", {"name": "secretbot"}, format="json")
+    assert (renamed.status_code, renamed.json()) == (400, unavailable)
+    assert client.patch("/api/robots/mine/", {"name": "mine"}, format="json").status_code == 200
+    assert not Robot.objects.filter(name__in=["cloudnav", "rosapi"]).exists()
+
+
 @pytest.mark.parametrize(
     "path", ["/api/robots/", "/api/robots/r1/", "/api/fleet/", "/api/buildings/"]
 )

@@ -119,7 +119,7 @@ def test_a_rollback_is_a_new_version_holding_the_old_map(corridor: SubMap, admin
     assert answer.json()["reason"] == "rollback"
     assert answer.json()["based_on"] == 1
     assert client.get(f"{BASE}/image").content == map_pgm()
-    assert client.get(f"{BASE}/").json()["revision"] == 3
+    assert client.get(f"{BASE}/").json()["version"] == 3
 
 
 def test_only_admins_roll_back(corridor: SubMap, operator: User, outsider: User) -> None:
@@ -169,7 +169,7 @@ def test_a_change_made_on_an_old_version_is_refused_and_nothing_is_lost(
     with pytest.raises(VersionConflict) as refused:
         versions.publish(corridor, loaded, Reason.CHANGE, based_on=1, author=admin)
     assert (refused.value.based_on, refused.value.current) == (1, 2)
-    assert "version 2" in str(refused.value)
+    assert "v2" in str(refused.value)
     assert SubMap.objects.get(pk=corridor.pk).revision == 2
     assert corridor.versions.count() == 2
     made = versions.publish(corridor, loaded, Reason.CHANGE, based_on=2, author=admin)
@@ -187,3 +187,19 @@ def test_version_names_read_back() -> None:
     assert split_map_ref(map_ref("b/CorridorA", 12)) == ("b/CorridorA", 12)
     assert split_map_ref("b/CorridorA") == ("b/CorridorA", None)
     assert split_map_ref("b/CorridorA@v0") == ("b/CorridorA@v0", None)
+
+
+def test_a_version_is_its_number_in_every_answer_and_the_hash_is_named_so(
+    corridor: SubMap, admin: User
+) -> None:
+    client = client_for(admin)
+    assert upload(client, pgm_with_box(slice(5, 9), slice(5, 9))).status_code == 200
+    submap = client.get(f"{BASE}/").json()
+    assert submap["version"] == 2
+    assert submap["content_hash"] == SubMap.objects.get(pk=corridor.pk).version
+    newest = client.get(f"{BASE}/versions/").json()["versions"][0]
+    assert newest["number"] == 2
+    assert "version" not in newest
+    assert len(newest["content_hash"]) >= 12
+    missing = client.get(f"{BASE}/versions/9/image").json()
+    assert "v9" in str(missing)

@@ -10,7 +10,10 @@ from mcap.reader import make_reader
 from mcap_ros1.decoder import DecoderFactory
 from rosbags.rosbag1 import Reader as BagReader
 
+from maps.models import Building
+from robots.models import Robot
 from telemetry.domain import ros1, rosbag
+from telemetry.domain.events import EVENT_TYPE, EventDraft, Kind, Severity, as_log
 from telemetry.recording import export, files
 from tests.conftest import client_for, make_building, make_robot
 
@@ -208,3 +211,45 @@ def test_a_snapshot_of_a_file_being_written_reads_the_same_after_it_grew(tmp_pat
     writer.close()
     assert before == after == [s * NS for s in range(10)]
     assert len(list(export.records(tmp_path, ["r1"], 0, 10**6 * NS))) == 20
+
+
+def record_goal_event(root: Path, robot: str, second: int) -> None:
+    """An event the server derived: ``operator`` sent the robot a goal."""
+    text = f"operator sent {robot} a goal"
+    draft = EventDraft(second, Kind.GOAL_SENT, Severity.INFO, robot, text, "user:operator")
+    writer = files.RotatingFiles(root, robot, max_seconds=10, max_bytes=2**30)
+    data = ros1.encode(EVENT_TYPE, as_log(draft))
+    schema = ros1.schema_text(EVENT_TYPE).encode()
+    writer.write(files.Record(f"/{robot}/events", EVENT_TYPE, schema, second * NS, data))
+    writer.close()
+
+
+def read_back(kind: str, response, tmp_path: Path) -> list[tuple[str, bytes]]:
+    """Each message of an export or a replay window: its topic and its raw content."""
+    assert response.status_code == 200
+    if kind == "json":
+        return [(m["topic"], str(m["msg"]).encode()) for m in response.json()["messages"]]
+    if kind == "mcap":
+        reader = make_reader(io.BytesIO(body_of(response)))
+        return [(c.topic, m.data) for _s, c, m in reader.iter_messages()]
+    path = tmp_path / "read.bag"
+    path.write_bytes(body_of(response))
+    with BagReader(path) as bag:
+        return [(c.topic, bytes(raw)) for c, _t, raw in bag.messages()]
+
+
+@pytest.mark.parametrize("kind", ["mcap", "bag", "json"])
+def test_a_robot_reads_its_own_recording_without_peoples_names(recordings, viewer, kind, tmp_path):
+    token = make_robot(name="r3", buildings=[make_building(code="b3")])[1]
+    record_poses(recordings, "r3", range(1000, 1010, 2))
+    record_goal_event(recordings, "r3", 1005)
+    url = f"/api/robots/r3/recording.{kind}?start=1000&end=1010"
+    mine = read_back(kind, client_for(token).get(url), tmp_path)
+    assert {topic for topic, _ in mine} == {"/r3/pose"}
+    assert not any(b"operator" in content for _, content in mine)
+    # the building's people read the events, with who did what
+    Robot.objects.get(name="r3").buildings.add(Building.objects.get(code="boccioni_1"))
+    theirs = read_back(kind, client_for(viewer).get(url), tmp_path)
+    events = [content for topic, content in theirs if topic == "/r3/events"]
+    assert len(events) == 1
+    assert b"operator sent r3 a goal" in events[0]

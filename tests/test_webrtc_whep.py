@@ -21,6 +21,7 @@ from typing import Any
 import httpx
 import pytest
 import websockets
+from aiortc import RTCPeerConnection
 
 from telemetry.domain.camera_feed import Camera, camera_frames
 from telemetry.domain.video import Frame
@@ -262,6 +263,39 @@ async def test_a_viewer_that_vanishes_without_delete_is_dropped_within_seconds(s
         process.kill()  # no DELETE, no DTLS goodbye: the peer is simply gone
         await process.wait()
     await until(lambda: not site.rtc_streams(), "the vanished viewer to be dropped", 10)
+
+
+async def unanswered_offer(site: Site, query: str) -> int:
+    """POST an offer whose peer then goes away before any ICE check: it never connects."""
+    peer = RTCPeerConnection()
+    peer.addTransceiver("video", direction="recvonly")
+    await peer.setLocalDescription(await peer.createOffer())
+    await peer.close()
+    headers = {**site.headers, "Content-Type": SDP}
+    return await post(site, query, headers, peer.localDescription.sdp)
+
+
+async def test_an_offer_that_never_connects_releases_its_encoder(daphne_servers, tokens, jpegs):
+    # one encoder per client, and a short wait for a peer to connect
+    env = {"CLOUDNAV_VIDEO_ENCODER_PER_CLIENT": "1", "CLOUDNAV_WHEP_CONNECT_TIMEOUT": "2"}
+    server = await asyncio.to_thread(daphne_servers.start, env)
+    site = Site(server.url, server.rosbridge_url(tokens["r1"]), tokens["r1"])
+    camera = asyncio.create_task(publish(site, jpegs))
+    try:
+        assert await unanswered_offer(site, f"topic={TOPIC}&type=vp8") == 201
+        [ghost] = await asyncio.to_thread(site.rtc_streams)
+        assert ghost["viewers"] == 1
+        # its encoder holds the client's whole share meanwhile
+        other = f"topic={TOPIC}&type=vp8&bitrate=300000"
+        with pytest.raises(WhepRefused) as refused:
+            await WhepViewer.open(site.url, other, site.headers)
+        assert refused.value.status == 429
+        await until(lambda: not site.rtc_streams(), "the unconnected session to be dropped", WAIT)
+        viewer = await WhepViewer.open(site.url, other, site.headers)
+        assert len(await decoded(viewer, 2)) == 2
+        await viewer.close()
+    finally:
+        camera.cancel()
 
 
 async def test_offers_beyond_the_clients_share_are_refused(site):

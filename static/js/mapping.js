@@ -62,7 +62,7 @@ async function act(action, body = undefined) {
   if (!state.session) return;
   try {
     const answer = await api.post(`${sessionsUrl}${state.session.id}/${action}`, body);
-    if (action === "publish") say("ok", `Published as version ${answer.number} of ${state.session.map_id}.`);
+    if (action === "publish") say("ok", `Published as v${answer.number} of ${state.session.map_id}.`);
     else say("", "");
     await refresh();
   } catch (error) {

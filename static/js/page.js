@@ -18,16 +18,10 @@ const NOT_LIVE = "Not connected to the server: not live.";
 export function connectFleet() {
   const connection = new Connection();
   const banner = document.getElementById("ws-banner");
-  const state = document.getElementById("conn-state");
-  const show = (text, kind) => {
-    state.hidden = false;
-    state.innerHTML = "";
-    state.append(badge(text, kind));
-  };
   connection.addEventListener("connected", () => {
     banner.hidden = true;
     document.body.classList.remove("server-lost");
-    show("Live", "ok");
+    showState();
   });
   connection.addEventListener("disconnected", (event) => {
     banner.hidden = false;
@@ -35,10 +29,25 @@ export function connectFleet() {
     sayNotLive();
     const seconds = Math.max(1, Math.round(event.detail.retryInMs / 1000));
     banner.textContent = `Connection to the fleet lost — reconnecting in ${seconds} s…`;
-    show("Offline", "danger");
+    showState();
   });
   window.cloudnav = { ...(window.cloudnav || {}), connection };
   return connection.start();
+}
+
+/**
+ * Show in the top bar what the page shows: "Replay" while it replays a recording (the body's
+ * `data-mode`), else whether its connection is live.
+ */
+export function showState() {
+  const state = document.getElementById("conn-state");
+  const connection = window.cloudnav?.connection;
+  if (!state || !connection) return;
+  const [text, kind] = document.body.dataset.mode === "replay"
+    ? ["Replay", "warn"]
+    : connection.connected ? ["Live", "ok"] : ["Offline", "danger"];
+  state.hidden = false;
+  state.replaceChildren(badge(text, kind));
 }
 
 /**

@@ -14,10 +14,12 @@ const MAX_MARKS = 2000; // events drawn on the timeline at most
 // rosgraph_msgs/Log levels as the events' severities
 const SEVERITIES = { 2: "info", 4: "warning", 8: "error" };
 
-export class Replay {
+// Dispatches `mode` when it starts or stops replaying (`active` says which).
+export class Replay extends EventTarget {
   // robot: its name; handlers: Map of topic -> function(msg); reset(): clear the panels;
   // els: { toggle, bar, time, play, speed, clock, note, marks }
   constructor(robot, handlers, reset, els) {
+    super();
     Object.assign(this, { robot, handlers, reset, els });
     this.active = false;
     this.playing = false;
@@ -56,6 +58,7 @@ export class Replay {
     toggle.textContent = "Back to live";
     toggle.classList.add("active");
     document.body.dataset.mode = "replay";
+    this.dispatchEvent(new CustomEvent("mode"));
     this.els.note.textContent = "";
     await Promise.all([this.seek(head.span[0]), this.loadEvents()]);
   }
@@ -101,6 +104,7 @@ export class Replay {
     this.els.toggle.textContent = "Recording";
     this.els.toggle.classList.remove("active");
     document.body.dataset.mode = "live";
+    this.dispatchEvent(new CustomEvent("mode"));
     this.reset();
   }
 

@@ -7,7 +7,7 @@ import { degrees, planarPose, poseStamped, poseWithCovariance, scanPoints } from
 import { liveness } from "./liveness.js";
 import { MapView } from "./mapview.js";
 import { followSessions } from "./mapping.js";
-import { badge, connectFleet, fixed, navigationState, pageConfig, poseRefusal, stopRobot, whereabouts } from "./page.js";
+import { badge, connectFleet, fixed, navigationState, pageConfig, poseRefusal, showState, stopRobot, whereabouts } from "./page.js";
 import { TimePlot } from "./plot.js";
 import { RatesPanel } from "./rates.js";
 import { Replay } from "./replay.js";
@@ -97,7 +97,7 @@ function enterMap(mapId, version = undefined) {
   state.robotMapVersion = version ?? null;
   $("robot-map").textContent = mapId;
   const held = $("robot-map-version");
-  held.textContent = state.robotMapVersion === null ? "" : `version ${state.robotMapVersion}`;
+  held.textContent = state.robotMapVersion === null ? "" : `v${state.robotMapVersion}`;
   held.hidden = state.robotMapVersion === null;
   if (sameMap) {
     // A new version of the map the robot is in: draw it anew.
@@ -258,6 +258,7 @@ const replay = new Replay(robot, handlers, clearPanels, {
   note: $("replay-note"),
 });
 window.cloudnav.robotPage.replay = replay;
+replay.addEventListener("mode", showState);
 window.cloudnav.robotPage.plots = { linear: linearPlot, angular: angularPlot };
 
 // ------------------------------------------------------------ rates, camera, topology
@@ -481,6 +482,7 @@ function bindOperatorControls() {
   };
   $("stop-button").addEventListener("click", halt);
   teleop.addEventListener("stop", halt);
+  replay.addEventListener("mode", () => teleop.setReplaying(replay.active));
   window.cloudnav.robotPage.teleop = teleop;
   fillGoalMaps();
 }

@@ -115,6 +115,16 @@ export class Teleop extends EventTarget {
     this.#render();
   }
 
+  /**
+   * While the page replays a recording it drives nothing: the lock is released and cannot
+   * be taken until `replaying` is false again.
+   */
+  async setReplaying(replaying) {
+    this.ui.acquire.disabled = replaying;
+    if (replaying && this.holding) await this.release();
+    this.#notify(replaying ? "Replaying a recording: teleoperation is off until you go back to live." : "");
+  }
+
   /** Stop now: zero velocity, no input held. */
   halt() {
     this.pressed.clear();

@@ -17,7 +17,7 @@ export class VersionsPanel {
   async load() {
     const body = await api.get(urls.versions(this.building, this.map));
     this.current = body.current;
-    $("versions-current").textContent = `version ${body.current}`;
+    $("versions-current").textContent = `v${body.current}`;
     const buried = body.buried_tags;
     $("versions-buried").hidden = !buried.length;
     $("versions-buried").textContent = buried.length
@@ -66,14 +66,14 @@ export class VersionsPanel {
 
   async rollback(number) {
     const ok = await askToConfirm({
-      title: `Roll back to version ${number}?`,
+      title: `Roll back to v${number}?`,
       text: "Its map becomes a new version; robots in this sub-map take it within seconds. Tags and topology stay as they are.",
       confirm: "Roll back",
       id: "rollback-dialog",
     });
     if (!ok) return;
     try {
-      await api.post(urls.rollback(this.building, this.map, number), { note: `back to version ${number}` });
+      await api.post(urls.rollback(this.building, this.map, number), { note: `back to v${number}` });
       this.clear();
       await this.load();
       await this.onChanged();

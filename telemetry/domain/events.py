@@ -453,10 +453,10 @@ class EventDeriver:
         return [self._draft(watch, now, Kind.LOST, Severity.WARNING, robot, text, detail=text)]
 
 
-def bundle_fetched(robot: str, building: str, map_id: str, version: str, now: float) -> EventDraft:
-    """A robot fetched the bundle (map, tags, topology) of ``map_id`` at ``version``."""
-    text = f"{robot} fetched the map bundle of {map_id}"
-    data = {"map_id": map_id, "version": version}
+def bundle_fetched(robot: str, building: str, map_id: str, number: int, now: float) -> EventDraft:
+    """A robot fetched the bundle (map, tags, topology) of ``map_id`` at version ``number``."""
+    text = f"{robot} fetched the map bundle of {map_id} v{number}"
+    data = {"map_id": map_id, "version": number}
     return EventDraft(
         now, Kind.BUNDLE_FETCHED, Severity.INFO, robot, text, f"robot:{robot}", building, data
     )
@@ -467,7 +467,7 @@ def map_version_changed(
 ) -> EventDraft:
     """A sub-map has a new version (an upload, a mapping session, an accepted change, a
     rollback): an event of its building, recorded for each of its robots."""
-    text = f"{map_id} is now version {number} ({reason})"
+    text = f"{map_id} is now v{number} ({reason})"
     data = {"map_id": map_id, "version": number, "reason": reason}
     return EventDraft(
         now, Kind.MAP_VERSION_CHANGED, Severity.INFO, None, text, actor, building, data

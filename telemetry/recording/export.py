@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from telemetry.domain import ros1, rosbag
+from telemetry.domain.events import EVENTS_TOPIC
 
 from . import files
 
@@ -75,6 +76,13 @@ def _robot_records(
 ) -> Iterator[files.Record]:
     for f in robot_files:
         yield from files.snapshot_messages(f, start_ns, end_ns)
+
+
+def without_events(source: Iterable[files.Record]) -> Iterator[files.Record]:
+    """``source`` less the events the server derived (``/{robot}/events``): they name the
+    people who drove, stopped or sent goals, which a robot reading its own recording does
+    not learn."""
+    return (r for r in source if r.topic.split("/", 2)[-1] != EVENTS_TOPIC)
 
 
 def mcap_stream(source: Iterable[files.Record]) -> Iterator[bytes]:

@@ -27,6 +27,7 @@ from maps.access import buildings_for, robot_of
 from robots.models import Robot
 
 from . import export
+from .files import Record
 from .service import flush_recordings, recording_config
 
 NS = 1_000_000_000
@@ -72,8 +73,9 @@ def recording_response(
     """The robots' recording in ``[start, end]`` as ``kind`` (``mcap`` or ``bag``), within
     the export budget: Overloaded (429) past the requester's share, (503) the process's."""
     ticket = export_budget().take(client_of(request), export.EXPORT_MEMORY_BYTES)
+    people = robot_of(request.user) is None
     try:
-        content, content_type = _export(robots, start, end, kind)
+        content, content_type = _export(robots, start, end, kind, people)
     except BaseException:
         ticket.release()
         raise
@@ -84,14 +86,21 @@ def recording_response(
     return response
 
 
-def _export(robots: list[str], start: int, end: int, kind: str) -> tuple[Iterator[bytes], str]:
-    """The file's pieces, to be made as they are sent, and its content type."""
+def _export(
+    robots: list[str], start: int, end: int, kind: str, people: bool
+) -> tuple[Iterator[bytes], str]:
+    """The file's pieces, to be made as they are sent, and its content type; the events
+    topic only for ``people`` (a robot learns no one's name from it)."""
     flush_recordings(robots)
     taken = export.snapshot(recording_config().root, robots, start, end)
+
+    def source() -> Iterator[Record]:
+        found = export.snapshot_records(taken, start, end)
+        return found if people else export.without_events(found)
+
     if kind == "bag":
-        bag = export.bag_stream(lambda: export.snapshot_records(taken, start, end))
-        return bag, "application/x-rosbag"
-    return export.mcap_stream(export.snapshot_records(taken, start, end)), "application/mcap"
+        return export.bag_stream(source), "application/x-rosbag"
+    return export.mcap_stream(source()), "application/mcap"
 
 
 RANGE = [
@@ -151,7 +160,10 @@ class RobotReplay(APIView):
             raise serializers.ValidationError({"limit": "Give a whole number."}) from None
         root = recording_config().root
         flush_recordings([name])
-        window = export.json_window(export.records(root, [name], start, end), topics, limit)
+        found = export.records(root, [name], start, end)
+        if robot_of(request.user) is not None:
+            found = export.without_events(found)
+        window = export.json_window(found, topics, limit)
         return Response({"span": export.span(root, name), **window})
 
 

@@ -12,7 +12,8 @@ does. The pipeline stops with its last viewer, as every relay pipeline does.
 ICE consent freshness (RFC 7675) fails: aioice checks consent every ``CONSENT_INTERVAL``
 seconds and gives up after ``CONSENT_FAILURES`` misses, which we shorten from its 5 s x 6
 to 1 s x 3, so a vanished browser frees its encoder share within about 4 s. A peer that
-never connects is dropped after ``CONNECT_TIMEOUT``.
+never connects is dropped after ``connect_timeout`` (``CLOUDNAV_WHEP_CONNECT_TIMEOUT``),
+with its encoder.
 """
 
 from __future__ import annotations
@@ -59,7 +60,6 @@ logger = logging.getLogger(__name__)
 
 aioice.ice.CONSENT_INTERVAL = 1  # module constants of aioice
 aioice.ice.CONSENT_FAILURES = 3
-CONNECT_TIMEOUT = 15.0
 ENDED_KEPT = 256
 KEYFRAME_EVERY = 1.0  # at most one keyframe asked by lagging viewers per second
 
@@ -187,10 +187,17 @@ def ice_configuration(servers: list[dict[str, Any]]) -> RTCConfiguration:
 class WhepSessions:
     """This process's WebRTC sessions, at most ``per_client`` for each client."""
 
-    def __init__(self, relay: VideoRelay, ice_servers: list[dict[str, Any]], per_client: int):
+    def __init__(
+        self,
+        relay: VideoRelay,
+        ice_servers: list[dict[str, Any]],
+        per_client: int,
+        connect_timeout: float,
+    ):
         self.relay = relay
         self.ice_servers = ice_servers
         self.per_client = per_client
+        self.connect_timeout = connect_timeout
         self.sessions: dict[str, WhepSession] = {}
         # Sessions that ended on their own (the peer failed or left, access revoked), by id,
         # with their client: its DELETE, which may come after (a page changing mode), is
@@ -274,7 +281,7 @@ class WhepSessions:
                 await self.close(session.id)
 
         async def _connect_or_drop() -> None:
-            await asyncio.sleep(CONNECT_TIMEOUT)
+            await asyncio.sleep(self.connect_timeout)
             if session.peer.connectionState != "connected":
                 await self.close(session.id)
 
@@ -331,7 +338,10 @@ def sessions_of(relay: VideoRelay) -> WhepSessions:
     found = _sessions.get(relay)
     if found is None:
         found = WhepSessions(
-            relay, settings.CLOUDNAV_WEBRTC_ICE_SERVERS, settings.CLOUDNAV_WHEP_PER_CLIENT
+            relay,
+            settings.CLOUDNAV_WEBRTC_ICE_SERVERS,
+            settings.CLOUDNAV_WHEP_PER_CLIENT,
+            settings.CLOUDNAV_WHEP_CONNECT_TIMEOUT,
         )
         _sessions[relay] = found
     return found

@@ -10,6 +10,7 @@ from django.core.management.base import BaseCommand, CommandError, CommandParser
 from maps.models import Building
 from robots.models import Robot, ros_name_validator
 from robots.services import register_robot
+from telemetry.domain.names import GLOBAL_NAMESPACES
 
 
 class Command(BaseCommand):
@@ -27,6 +28,8 @@ class Command(BaseCommand):
             ros_name_validator(name)
         except ValidationError as exc:
             raise CommandError(exc.messages[0]) from None
+        if name in GLOBAL_NAMESPACES:
+            raise CommandError(f"{name} is a namespace of the server's own; choose another name.")
         if Robot.objects.filter(name=name).exists():
             raise CommandError(f"A robot named {name} already exists; rotate its token instead.")
         buildings = list(Building.objects.filter(code__in=building))
