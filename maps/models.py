@@ -6,6 +6,7 @@ from django.conf import settings
 from django.core.validators import MinValueValidator, RegexValidator
 from django.db import models
 
+from .domain.reservations import FleetRule
 from .domain.versions import Reason, map_ref
 
 code_validator = RegexValidator(
@@ -22,6 +23,12 @@ class Building(models.Model):
     zip_code = models.CharField(max_length=20, blank=True)
     address = models.CharField(max_length=300, blank=True)
     marker_dictionary = models.CharField(max_length=40, default="DICT_APRILTAG_36h11")
+    # What a goal gets whose spot another robot holds (``maps.domain.reservations``).
+    fleet_rule = models.CharField(
+        max_length=10,
+        choices=[(r.value, r.value) for r in FleetRule],
+        default=FleetRule.MOVE.value,
+    )
     members = models.ManyToManyField(
         settings.AUTH_USER_MODEL, blank=True, related_name="buildings", through="Membership"
     )

@@ -51,7 +51,15 @@ class BuildingSerializer(serializers.ModelSerializer[Building]):
 
     class Meta:
         model = Building
-        fields = ["code", "name", "zip_code", "address", "marker_dictionary", "members"]
+        fields = [
+            "code",
+            "name",
+            "zip_code",
+            "address",
+            "marker_dictionary",
+            "fleet_rule",
+            "members",
+        ]
 
     def validate_marker_dictionary(self, value: str) -> str:
         try:

@@ -42,7 +42,8 @@ class RobotBusyElsewhere(MissionError):
 
 @dataclass(frozen=True)
 class Goal:
-    """A goal to send: ``robot`` to ``map_id`` at (x, y, yaw), for ``mission``."""
+    """A goal to send: ``robot`` to ``map_id`` at (x, y, yaw), for ``mission``; ``note``
+    says why it is not the waypoint itself (moved off a spot another robot holds)."""
 
     mission: int
     robot: str
@@ -50,6 +51,7 @@ class Goal:
     x: float
     y: float
     yaw: float
+    note: str = ""
 
 
 def check_waypoints(building: Building, waypoints: Any) -> list[dict[str, Any]]:

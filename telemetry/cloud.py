@@ -135,16 +135,21 @@ async def stop(call: ServiceCall) -> Json:
 
 
 async def check_pose(call: ServiceCall) -> Json:
-    """``{map_id, x, y, what?: goal|initial pose}`` -> ``{success, message}``: whether a
-    robot could stand there (``telemetry.pose_checks``), the reason when not. The pages
-    ask before sending a goal or an initial pose; a publication that fails the same
-    check is refused anyway. Raises ServiceFailed for a sub-map the caller cannot see.
+    """``{map_id, x, y, what?: goal|initial pose, robot?}`` -> ``{success, message}``:
+    whether a robot could stand there (``telemetry.pose_checks``), the reason when not.
+    With ``robot``, a goal is also placed among the spots the other robots hold by the
+    building's fleet rule: refused with the reason, or moved (then ``message`` says so
+    and ``x``, ``y`` are where it goes). The pages ask before sending a goal or an
+    initial pose; a publication that fails the same check is refused (or moved) anyway.
+    Raises ServiceFailed for a sub-map the caller cannot see or a robot they cannot.
     """
     map_id = _text(call, "map_id").split("@", 1)[0]
     point = _point_of(call.args[0] if isinstance(call.args, list) and call.args else call.args)
-    what = call.arg("what", "goal")
+    what, robot = call.arg("what", "goal"), call.arg("robot", "")
     if what not in ("goal", "initial pose"):
         raise ServiceFailed("'what' must be 'goal' or 'initial pose'")
+    if robot and not names.is_robot_name(robot):
+        raise ServiceFailed("'robot' must be a robot's name (a letter, then letters, digits or _)")
     building, _, code = map_id.partition("/")
     visible = await database_sync_to_async(map_services.visible_submap)(
         call.conn.principal.buildings, building, code
@@ -152,10 +157,19 @@ async def check_pose(call: ServiceCall) -> Json:
     if visible is None:
         raise ServiceFailed(f"{map_id} is not a visible sub-map")
     try:
-        await call.server.poses.check_point(map_id, point, str(what))
+        if not robot or what != "goal":
+            await call.server.poses.check_point(map_id, point, str(what))
+            return {"success": True, "message": ""}
+        await call.access.require("see", names.robot_topic(robot, names.GOAL))
+        placed = await call.server.poses.place(map_id, point, robot)
     except PoseRefused as refused:
         return {"success": False, "message": refused.message}
-    return {"success": True, "message": ""}
+    if placed.refusal:
+        return {"success": False, "message": f"{placed.refusal} ({map_id})"}
+    if placed.moved_from is None:
+        return {"success": True, "message": ""}
+    x, y = placed.point
+    return {"success": True, "message": placed.message, "x": round(x, 3), "y": round(y, 3)}
 
 
 def _point_of(args: Json) -> tuple[float, float]:

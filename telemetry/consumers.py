@@ -156,12 +156,15 @@ class RosbridgeConsumer(AsyncWebsocketConsumer):  # type: ignore[misc]  # Channe
         name = await self.access.resolve(op.topic)
         if not self.access.granted("publish", name):
             await self.access.require("publish", name)
-        conn = self._conn
+        conn, msg, moved = self._conn, op.msg, ""
         if name.endswith(_CMD_VEL_SUFFIX):
-            await self.hub.teleop.check_command(conn, name, op.msg)
+            await self.hub.teleop.check_command(conn, name, msg)
         elif conn.principal.robot is None:
-            await self.hub.poses.check(name, op.msg)  # goals and initial poses
-        self.hub.publish(conn, name, op.msg, op.latch, self._frame_size)
+            checked, moved = await self.hub.poses.check(name, msg)  # goals and initial poses
+            if moved:
+                msg = dict(checked)
+                conn.report("warning", moved)
+        self.hub.publish(conn, name, msg, op.latch, self._frame_size, moved)
 
     async def on_subscribe(self, op: protocol.Subscribe) -> None:
         name = await self.access.resolve(op.topic)

@@ -83,9 +83,10 @@ class EventLog:
         elif kind == names.BATTERY:
             self._add(self.deriver.battery(robot, msg, now))
 
-    def goal_sent(self, robot: str, actor: str, msg: Mapping[str, Any]) -> None:
-        """``actor`` (a label) published ``msg`` on ``robot``'s goal topic."""
-        self._add(self.deriver.goal_sent(robot, actor, msg, self.clock()))
+    def goal_sent(self, robot: str, actor: str, msg: Mapping[str, Any], note: str = "") -> None:
+        """``actor`` (a label) published ``msg`` on ``robot``'s goal topic; ``note`` says
+        what the server did to it (moved it off another robot's spot)."""
+        self._add(self.deriver.goal_sent(robot, actor, msg, self.clock(), note))
 
     def stopped(self, robot: str, actor: str, done: Mapping[str, Any]) -> None:
         """``actor`` (a label) stopped ``robot``; ``done`` says how."""

@@ -1,16 +1,18 @@
 """The fleet feed: what the robots connected to this process publish about themselves,
-taken in as fleet state (pose and Map ID, ``robots.fleet``), events (what the event log
-observes) and mission progress (navigation status); and which robots this process
-serves, told to the other processes."""
+taken in as fleet state (pose and Map ID, ``robots.fleet``), the spots they hold (where
+they stand, and whether their goal is still active: ``maps.domain.reservations``),
+events (what the event log observes) and mission progress (navigation status); and which
+robots this process serves, told to the other processes."""
 
 from __future__ import annotations
 
 from collections.abc import Callable
 
+from maps.domain.reservations import Reservations
 from robots.fleet import FleetTracker
 from telemetry.cross_process import CrossProcess
 from telemetry.domain import names
-from telemetry.domain.messages import pose_of, string_of
+from telemetry.domain.messages import goal_live, pose_of, string_of
 from telemetry.domain.protocol import Json
 from telemetry.events import OBSERVED, EventLog
 from telemetry.missions import MissionRunner
@@ -35,9 +37,11 @@ class FleetFeed:
         tracker: FleetTracker,
         events: EventLog,
         missions: MissionRunner,
+        spots: Reservations,
         relay: Callable[[], CrossProcess],
     ) -> None:
         self.tracker = tracker
+        self.spots = spots
         self._events = events
         self._missions = missions
         self._relay = relay
@@ -58,6 +62,7 @@ class FleetFeed:
         if still_here:
             return
         self._events.disconnected(robot)
+        self.spots.leave(robot)
         for kind in {names.MAP_ID, *OBSERVED}:
             self._topics.pop(names.robot_topic(robot, kind), None)
         self._relay().remove("robots", robot)
@@ -69,13 +74,17 @@ class FleetFeed:
         if tracked is None:
             return
         robot_pk, kind = tracked
+        robot = names.first_segment(name)
         if kind == names.POSE:
             pose = pose_of(msg)
             if pose is not None:
                 self.tracker.pose(robot_pk, pose)
+                self.spots.stand(robot, pose.map_id, pose.x, pose.y)
         elif kind == names.MAP_ID and (map_id := string_of(msg)) is not None:
             self.tracker.map_id(robot_pk, map_id)
         if kind in OBSERVED:
-            self._events.observe(names.first_segment(name), kind, msg)
+            self._events.observe(robot, kind, msg)
         if kind == names.NAV_STATUS:
-            self._missions.status(names.first_segment(name), msg)
+            self._missions.status(robot, msg)
+            if not goal_live(msg):
+                self.spots.goal_over(robot)

@@ -8,7 +8,8 @@ they share, each named by what it does.
 - the teleop gate (``telemetry.teleop_gate``): who may send ``cmd_vel`` now;
 - STOP (``telemetry.stop``): halt a robot whatever moves it;
 - pose checks (``telemetry.pose_checks``): goals and initial poses no robot could stand
-  at are refused where they are sent;
+  at are refused where they are sent, and goals another robot's spot holds are refused or
+  moved by the building's fleet rule (``maps.domain.reservations``, fed by the fleet feed);
 - the fleet feed (``telemetry.fleet_feed``): robots' pose, Map ID, events and missions;
 - the access review (``telemetry.access_review``): what an access change withdraws;
 - parameters (``telemetry.params``) and the event log (``telemetry.events``);
@@ -35,8 +36,10 @@ import contextvars
 import time
 import weakref
 from collections.abc import Awaitable, Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
+from maps.domain.reservations import Reservations
+from maps.services import GOAL_CHECK_RADIUS
 from robots.fleet import FleetTracker
 from robots.missions import Goal
 from robots.teleop import RedisLockStore
@@ -53,6 +56,7 @@ from telemetry.domain.messages import pose_stamped
 from telemetry.domain.protocol import Json
 from telemetry.domain.times import complete_header_stamp
 from telemetry.events import EventLog
+from telemetry.exceptions import PoseRefused
 from telemetry.fleet_feed import FleetFeed, fleet_latched, fleet_type
 from telemetry.missions import MissionRunner
 from telemetry.params import Parameters, RedisParams
@@ -100,14 +104,15 @@ class Hub:
         self._fragment_shares: dict[str, ByteBudget] = {}
         self.clients: dict[str, Client] = {}
         self.events = EventLog()
-        self.missions = MissionRunner(self._send_goal, self.robots)
+        self.missions = MissionRunner(self._send_goal, self.robots, self._place_goal)
         self.teleop = TeleopGate(config, self.bus, self.events)
-        self.poses = PoseChecks()
+        self.poses = PoseChecks(Reservations(GOAL_CHECK_RADIUS))
         self.stop = RobotStop(self.calls, self.teleop, self.events, lambda: self.relay)
         self.fleet = FleetFeed(
             FleetTracker(interval=config.fleet_flush_interval),
             self.events,
             self.missions,
+            self.poses.reservations,
             lambda: self.relay,
         )
         self.registry = Registry()
@@ -214,22 +219,30 @@ class Hub:
         self.bus.unadvertise(conn, name, aid)
 
     def publish(
-        self, conn: Connection, name: str, msg: dict[str, Json], latch: bool, size: int
+        self,
+        conn: Connection,
+        name: str,
+        msg: dict[str, Json],
+        latch: bool,
+        size: int,
+        note: str = "",
     ) -> None:
+        """Publish ``msg``; ``note`` is what the server did to it (a goal moved), for the
+        event log."""
         complete_header_stamp(msg)
         self.bus.publish(conn, name, msg, latch, size)
         if conn.principal.robot is not None:
             self.events.heard(conn.principal.robot)
         else:
-            self._commanded(conn, name, msg)
+            self._commanded(conn, name, msg, note)
         self.fleet.published(name, msg)
 
-    def _commanded(self, conn: Connection, name: str, msg: dict[str, Json]) -> None:
+    def _commanded(self, conn: Connection, name: str, msg: dict[str, Json], note: str) -> None:
         """A person's message to a robot: a goal is an event (on this process, which may
         not be the robot's; the robot's recorder reads it from the event log)."""
         robot, _, suffix = name[1:].partition("/")
         if suffix == names.GOAL:
-            self.events.goal_sent(robot, conn.principal.label, msg)
+            self.events.goal_sent(robot, conn.principal.label, msg, note)
 
     async def subscribe(
         self, conn: Connection, name: str, op: protocol.Subscribe, params: SubscribeParams
@@ -250,11 +263,24 @@ class Hub:
     def unsubscribe(self, conn: Connection, name: str, op: protocol.Unsubscribe) -> None:
         self.bus.unsubscribe(conn, name, op.id, spelling=op.topic)
 
+    async def _place_goal(self, goal: Goal) -> Goal | str:
+        """A mission's goal as the fleet rule places it (``PoseChecks.place``), or why it
+        is refused."""
+        try:
+            placed = await self.poses.place(goal.map_id, (goal.x, goal.y), goal.robot)
+        except PoseRefused as refused:
+            return refused.message
+        if placed.refusal:
+            return f"{placed.refusal} ({goal.map_id})"
+        x, y = placed.point
+        return replace(goal, x=x, y=y, note=placed.message)
+
     def _send_goal(self, goal: Goal) -> None:
-        """Send a mission's goal to its robot from the server itself."""
+        """Send a mission's goal to its robot from the server itself; it holds its spot."""
         msg = dict(pose_stamped(goal.map_id, (goal.x, goal.y, goal.yaw), time.time()))
+        self.poses.reservations.aim(goal.robot, goal.map_id, (goal.x, goal.y))
         self.bus.publish(None, names.robot_topic(goal.robot, names.GOAL), msg)
-        self.events.goal_sent(goal.robot, "server", msg)
+        self.events.goal_sent(goal.robot, "server", msg, goal.note)
 
     async def flush_recording(self, robots: list[str]) -> None:
         """Write out what this process's recorder holds of ``robots`` (an export on another

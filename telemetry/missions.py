@@ -10,7 +10,7 @@ from __future__ import annotations
 import asyncio
 import logging
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Awaitable, Callable, Mapping
 from typing import Any
 
 from channels.db import database_sync_to_async
@@ -31,15 +31,20 @@ FAILED = {4: "aborted", 5: "rejected", 9: "lost"}
 
 
 class MissionRunner:
+    """``place`` gives each goal due its spot among the other robots' (the fleet rule):
+    the goal to send, or the reason it is refused, which pauses its mission."""
+
     def __init__(
         self,
         send: Callable[[Goal], None],
         robots: Callable[[], set[str]],
+        place: Callable[[Goal], Awaitable[Goal | str]],
         interval: float = 1.0,
         clock: Callable[[], float] = time.monotonic,
     ) -> None:
         self.send = send
         self.robots = robots
+        self.place = place
         self.interval = interval
         self.clock = clock
         self._sent: dict[str, tuple[int, float]] = {}  # robot -> (mission, when sent)
@@ -83,8 +88,12 @@ class MissionRunner:
                 logger.exception("the mission tick failed after recording its outcomes")
                 continue
             for goal in goals:
+                placed = await self.place(goal)
+                if isinstance(placed, str):
+                    self._outcomes[goal.mission] = placed
+                    continue
                 self._sent[goal.robot] = (goal.mission, self.clock())
-                self.send(goal)
+                self.send(placed)
 
 
 def _tick(robots: set[str], outcomes: dict[int, str]) -> list[Goal]:

@@ -103,8 +103,11 @@ def test_on_postgresql_a_long_reason_pauses_its_mission_and_the_others_go_on(sca
 def test_a_robots_reason_with_a_nul_is_kept_as_storable_text():
     from telemetry.missions import MissionRunner
 
+    async def as_placed(goal):
+        return goal
+
     now = [0.0]
-    runner = MissionRunner(lambda _goal: None, lambda: {"r1"}, clock=lambda: now[0])
+    runner = MissionRunner(lambda _goal: None, lambda: {"r1"}, as_placed, clock=lambda: now[0])
     runner._sent["r1"] = (7, 0.0)  # mission 7's goal, sent at 0 s
     now[0] = 5.0
     runner.status("r1", {"status_list": [{"status": 4, "text": "a\x00b\ud800"}]})

@@ -316,9 +316,10 @@ class EventDeriver:
         ]
 
     def goal_sent(
-        self, robot: str, actor: str, msg: Mapping[str, Any], now: float
+        self, robot: str, actor: str, msg: Mapping[str, Any], now: float, note: str = ""
     ) -> list[EventDraft]:
-        """A ``geometry_msgs/PoseStamped`` sent to the robot's goal topic by ``actor``."""
+        """A ``geometry_msgs/PoseStamped`` sent to the robot's goal topic by ``actor``;
+        ``note`` (if any) ends the sentence: what the server did to the goal."""
         watch = self._watches.get(robot) or _Watch()
         header = msg.get("header")
         map_id = str(header.get("frame_id") or "") if isinstance(header, Mapping) else ""
@@ -326,6 +327,7 @@ class EventDeriver:
         position = pose.get("position") if isinstance(pose, Mapping) else None
         x, y = (position.get("x"), position.get("y")) if isinstance(position, Mapping) else (0, 0)
         text = f"{actor} sent {robot} a goal in {map_id or 'its map'}"
+        text += f": {note}" if note else ""
         return [
             EventDraft(
                 now,

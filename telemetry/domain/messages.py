@@ -706,3 +706,14 @@ def string_of(msg: Message) -> str | None:
 
 def _finite(*values: float) -> bool:
     return all(math.isfinite(v) for v in values)
+
+
+def goal_live(msg: Message) -> bool:
+    """Whether the newest goal of a ``GoalStatusArray`` is still under way (not finished
+    for good); False for an empty or unreadable one."""
+    statuses = msg.get("status_list")
+    latest = statuses[-1] if isinstance(statuses, list) and statuses else None
+    code = latest.get("status") if isinstance(latest, Mapping) else None
+    if not isinstance(code, int) or code not in GoalStatus._value2member_map_:
+        return False
+    return not GoalStatus(code).terminal
