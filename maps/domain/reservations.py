@@ -110,8 +110,10 @@ class Reservations:
         self._goals.pop(robot, None)
 
     def holds(self) -> Iterator[Hold]:
+        """Every spot held: where each robot stands, and its active goal's. A robot that
+        gave no pose here (not connected to this process) holds nothing."""
         yield from self._standing.values()
-        yield from (hold for hold, _ in self._goals.values())
+        yield from (hold for hold, _ in self._goals.values() if hold.robot in self._standing)
 
     def holder(self, map_id: str, point: Point, robot: str) -> Hold | None:
         """The nearest spot of another robot than ``robot`` that a robot at ``point`` of
