@@ -169,7 +169,7 @@ async def check_pose(call: ServiceCall) -> Json:
     if placed.moved_from is None:
         return {"success": True, "message": ""}
     x, y = placed.point
-    return {"success": True, "message": placed.message, "x": round(x, 3), "y": round(y, 3)}
+    return {"success": True, "message": placed.message, "x": x, "y": y}
 
 
 def _point_of(args: Json) -> tuple[float, float]:

@@ -126,26 +126,32 @@ def agent(demo: Demo, tmp_path: Path) -> Iterator[Path]:
 
 @contextmanager
 def speaking_robot(
-    demo: Demo, speaking: threading.Event, goal_active: bool = False
+    demo: Demo,
+    speaking: threading.Event,
+    goal_active: bool = False,
+    *,
+    token: str | None = None,
+    at: tuple[str, float, float] = (MAP_ID, 2.0, 1.0),
 ) -> Iterator[None]:
-    """``robot_0`` (no simulation, a rosbridge client) connects and, while ``speaking`` is
-    set, publishes at 5 Hz that it stands still in Corridor A (and, if ``goal_active``,
-    that it has an active goal); else it stays connected saying nothing, until the block
-    ends."""
+    """``robot_0`` (or the robot of ``token``; no simulation, a rosbridge client) connects
+    and, while ``speaking`` is set, publishes at 5 Hz that it stands still ``at`` (Map ID,
+    x, y; in Corridor A unless told) and, if ``goal_active``, that it has an active goal;
+    else it stays connected saying nothing, until the block ends."""
     done = threading.Event()
+    map_id, x, y = at
 
     async def run() -> None:
-        client = RosbridgeClient(demo.server.rosbridge_url(), demo.tokens[ROBOT])
+        client = RosbridgeClient(demo.server.rosbridge_url(), token or demo.tokens[ROBOT])
         client.advertise("pose", "geometry_msgs/PoseStamped")
         client.advertise("nav_status", "actionlib_msgs/GoalStatusArray")
         task = asyncio.create_task(client.run())
         await asyncio.wait_for(client.wait_connected(), 10)
-        pose = {"position": {"x": 2.0, "y": 1.0, "z": 0}, "orientation": {"w": 1.0}}
+        pose = {"position": {"x": x, "y": y, "z": 0}, "orientation": {"w": 1.0}}
         goal = {"goal_id": {"id": "g1"}, "status": 1, "text": "driving"}
         status = {"header": {"frame_id": ""}, "status_list": [goal] if goal_active else []}
         while not done.is_set():
             if speaking.is_set():
-                await client.publish("pose", {"header": {"frame_id": MAP_ID}, "pose": pose})
+                await client.publish("pose", {"header": {"frame_id": map_id}, "pose": pose})
                 await client.publish("nav_status", status)
             await asyncio.sleep(0.2)
         await client.close()

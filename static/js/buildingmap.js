@@ -8,7 +8,7 @@ import { FloorPlan, LAYERS } from "./floorplan.js";
 import { planarPose, poseStamped } from "./geometry.js";
 import { heardRecently, liveness } from "./liveness.js";
 import { MissionsPanel } from "./missions.js";
-import { badge, connectFleet, el, navigationState, pageConfig, poseRefusal, stopRobot, whereabouts } from "./page.js";
+import { badge, connectFleet, el, navigationState, pageConfig, placePose, stopRobot, whereabouts } from "./page.js";
 
 const TRAIL_POINTS = 300;
 const TRAIL_STEP_M = 0.05;
@@ -284,18 +284,19 @@ async function sendGoal({ pose, map }) {
     return;
   }
   const mapId = `${building}/${map}`;
-  const refusal = await poseRefusal(connection, mapId, pose);
-  if (refusal) {
-    hint(`No goal sent: ${refusal}`);
+  const placed = await placePose(connection, mapId, pose, name);
+  if (placed.refusal) {
+    hint(`No goal sent: ${placed.refusal}`);
     wrap.dataset.refused = `${name}:${mapId}`;
     return;
   }
-  if (!connection.publish(`/${name}/goal`, "geometry_msgs/PoseStamped", poseStamped(mapId, pose))) {
+  if (!connection.publish(`/${name}/goal`, "geometry_msgs/PoseStamped", poseStamped(mapId, placed.pose))) {
     hint("Not connected to the server: no goal sent.");
     return;
   }
-  setGoal(plan.robots.get(name), mapId, pose);
-  hint(`Goal sent to ${name} in ${map}.`);
+  setGoal(plan.robots.get(name), mapId, placed.pose);
+  hint(placed.note ? `Goal sent to ${name} in ${map}. ${placed.note}` : `Goal sent to ${name} in ${map}.`);
+  if (placed.note) wrap.dataset.moved = `${name}:${mapId}`;
   wrap.dataset.goal = `${name}:${mapId}`;
 }
 

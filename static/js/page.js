@@ -61,16 +61,22 @@ export async function stopRobot(connection, robot) {
 }
 
 /**
- * Why the server would refuse a goal or an initial pose (`what`) at `pose` of sub-map
- * `mapId` (`/cloudnav/check_pose`: in an obstacle, in unknown space, outside the map, out
- * of reach), or "" if it would take it. The server checks what is published anyway.
+ * Where the server would put a goal or an initial pose (`what`) pressed at `pose` of
+ * sub-map `mapId` for `robot` (`/cloudnav/check_pose`): `{ refusal, pose, note }`.
+ * `refusal` says why it would refuse it (in an obstacle, in unknown space, outside the map,
+ * out of reach, or, by the building's fleet rule, a spot another robot holds), "" if it
+ * takes it; `pose` is where it goes (moved to the nearest free spot when another robot
+ * holds the one pressed) and `note` says so. The server checks what is published anyway.
  */
-export async function poseRefusal(connection, mapId, pose, what = "goal") {
+export async function placePose(connection, mapId, pose, robot, what = "goal") {
+  const args = { map_id: mapId, x: pose.x, y: pose.y, what, robot };
   try {
-    const answer = await connection.call("/cloudnav/check_pose", "cloudnav/CheckPose", { map_id: mapId, x: pose.x, y: pose.y, what });
-    return answer.success ? "" : answer.message;
+    const answer = await connection.call("/cloudnav/check_pose", "cloudnav/CheckPose", args);
+    if (!answer.success) return { refusal: answer.message, pose, note: "" };
+    const moved = typeof answer.x === "number" && typeof answer.y === "number";
+    return { refusal: "", pose: moved ? { ...pose, x: answer.x, y: answer.y } : pose, note: answer.message || "" };
   } catch {
-    return ""; // the publication is checked where it arrives
+    return { refusal: "", pose, note: "" }; // the publication is checked where it arrives
   }
 }
 

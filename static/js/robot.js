@@ -7,7 +7,7 @@ import { degrees, planarPose, poseStamped, poseWithCovariance, scanPoints } from
 import { liveness } from "./liveness.js";
 import { MapView } from "./mapview.js";
 import { followSessions } from "./mapping.js";
-import { badge, connectFleet, fixed, navigationState, pageConfig, poseRefusal, showState, stopRobot, whereabouts } from "./page.js";
+import { badge, connectFleet, fixed, navigationState, pageConfig, placePose, showState, stopRobot, whereabouts } from "./page.js";
 import { TimePlot } from "./plot.js";
 import { RatesPanel } from "./rates.js";
 import { Replay } from "./replay.js";
@@ -343,24 +343,37 @@ function refuse(text) {
   if (goal) goal.textContent = text;
 }
 
+/** Say on the map, where the goal was pressed, that the server moved it (and why). */
+function tellMoved(text) {
+  const hint = $("map-hint");
+  hint.hidden = false;
+  hint.textContent = text;
+  hint.dataset.moved = "true";
+  delete hint.dataset.refused;
+  $("goal-text").textContent += ` · ${text}`;
+}
+
 async function sendPose(tool, pose) {
   const mapId = mapForPose(tool);
   if (!mapId) {
     selectTool(null, { keepHint: true });
     return;
   }
-  // Asked before sending: a place no robot could stand at is refused here, where it was pressed.
-  const refusal = await poseRefusal(connection, mapId, pose, tool === "goal" ? "goal" : "initial pose");
-  if (refusal) {
-    refuse(`Not sent: ${refusal}`);
+  // Asked before sending: a place no robot could stand at is refused here, where it was
+  // pressed; a spot another robot holds is refused or moved by the building's fleet rule.
+  const placed = await placePose(connection, mapId, pose, robot, tool === "goal" ? "goal" : "initial pose");
+  if (placed.refusal) {
+    refuse(`Not sent: ${placed.refusal}`);
     selectTool(null, { keepHint: true });
     return;
   }
+  pose = placed.pose;
   if (tool === "goal") {
     connection.publish(`${ns}/goal`, "geometry_msgs/PoseStamped", poseStamped(mapId, pose));
     state.goal = { mapId, pose };
     $("goal-text").textContent = `${mapId} · x ${fixed(pose.x)} y ${fixed(pose.y)} · ${fixed(degrees(pose.yaw), 0)}°`;
     renderGoalState("sent", "info", "");
+    if (placed.note) tellMoved(placed.note);
     if (state.robotMap) topology.route(state.robotMap, mapId);
     // The robot is on its way: show it, and the sub-maps it crosses as it enters them.
     state.followRobotMap = true;
@@ -368,7 +381,7 @@ async function sendPose(tool, pose) {
     connection.publish(`${ns}/initialpose`, "geometry_msgs/PoseWithCovarianceStamped", poseWithCovariance(mapId, pose));
     state.trail = [];
   }
-  selectTool(null);
+  selectTool(null, { keepHint: Boolean(placed.note) });
   drawRobotLayers();
   if (state.followRobotMap && state.robotMap) showMap(state.robotMap);
 }
@@ -383,6 +396,7 @@ function selectTool(tool, { keepHint = false } = {}) {
   if (keepHint) return;
   const hints = { goal: "Press where the robot should go; drag for its heading.", initialpose: "Press where the robot is; drag for its heading." };
   delete $("map-hint").dataset.refused;
+  delete $("map-hint").dataset.moved;
   $("map-hint").hidden = !next;
   $("map-hint").textContent = hints[next] || "";
 }
