@@ -15,6 +15,7 @@ from typing import TypeVar
 from django.conf import settings
 
 from telemetry.domain.decoding import FrameLimits
+from telemetry.domain.events import STUCK_AFTER_S
 from telemetry.domain.limits import ConnectionLimits
 
 T = TypeVar("T")
@@ -48,6 +49,7 @@ class RosbridgeConfig:
     teleop_silence: float
     teleop_handover: float
     fleet_flush_interval: float
+    stuck_after: float
     redis_url: str
 
     @classmethod
@@ -83,5 +85,6 @@ class RosbridgeConfig:
             teleop_silence=setting("CLOUDNAV_TELEOP_SILENCE", 0.5, float),
             teleop_handover=setting("CLOUDNAV_TELEOP_HANDOVER", 5.0, float),
             fleet_flush_interval=setting("CLOUDNAV_FLEET_FLUSH_INTERVAL", 1.0, float),
+            stuck_after=setting("CLOUDNAV_STUCK_AFTER", STUCK_AFTER_S, float),
             redis_url=getattr(settings, "REDIS_URL", "") or "",
         )

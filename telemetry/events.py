@@ -50,10 +50,15 @@ OBSERVED = (names.POSE, names.NAV_STATUS, names.LOCALISATION, names.BATTERY)
 class EventLog:
     """Events of the robots connected to this process, written in the background."""
 
-    def __init__(self, interval: float = 1.0, clock: Callable[[], float] = time.time) -> None:
+    def __init__(
+        self,
+        interval: float = 1.0,
+        clock: Callable[[], float] = time.time,
+        deriver: EventDeriver | None = None,
+    ) -> None:
         self.interval = interval
         self.clock = clock
-        self.deriver = EventDeriver()
+        self.deriver = deriver or EventDeriver()
         self._pending: list[EventDraft] = []
         self._task: asyncio.Task[None] | None = None
         # Called on the loop with each event as it is derived (the recorder's queue); it

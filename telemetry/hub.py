@@ -51,6 +51,7 @@ from telemetry.directory import Directory
 from telemetry.domain import names, protocol
 from telemetry.domain.bus import EVERY_TOPIC, OnMessage, SubscribeParams, TopicBus, TopicTap
 from telemetry.domain.encoding import Outgoing
+from telemetry.domain.events import EventDeriver
 from telemetry.domain.limits import ByteBudget, Holdings
 from telemetry.domain.messages import pose_stamped
 from telemetry.domain.protocol import Json
@@ -103,10 +104,11 @@ class Hub:
         self.fragment_budget = ByteBudget(config.fragments_total_bytes)
         self._fragment_shares: dict[str, ByteBudget] = {}
         self.clients: dict[str, Client] = {}
-        self.events = EventLog()
+        spots = Reservations(GOAL_CHECK_RADIUS)
+        self.events = EventLog(deriver=EventDeriver(config.stuck_after, spots.blocking))
         self.missions = MissionRunner(self._send_goal, self.robots, self._place_goal)
         self.teleop = TeleopGate(config, self.bus, self.events)
-        self.poses = PoseChecks(Reservations(GOAL_CHECK_RADIUS))
+        self.poses = PoseChecks(spots)
         self.stop = RobotStop(self.calls, self.teleop, self.events, lambda: self.relay)
         self.fleet = FleetFeed(
             FleetTracker(interval=config.fleet_flush_interval),

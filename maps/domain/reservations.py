@@ -25,6 +25,8 @@ from robots.domain.se2 import Point
 
 # After a goal is sent, the robot's statuses of the goal before it do not end it.
 GOAL_GRACE_S = 1.5
+# Metres between a stuck robot's spot and another robot's that may be what blocks it.
+BLOCKING_REACH = 1.2
 # Metres between the candidate spots tried around a held one, and how far out they go.
 MOVE_STEP = 0.1
 MOVE_REACH = 2.0
@@ -165,6 +167,16 @@ class Reservations:
         ]
         near = [(d, h) for d, h in near if d <= reach]
         return min(near, key=lambda pair: pair[0])[1] if near else None
+
+    def blocking(self, robot: str) -> tuple[str, str] | None:
+        """The robot standing in ``robot``'s way (within BLOCKING_REACH), as its name and
+        a phrase for a stuck alert, or None (``telemetry.domain.events.Blocker``)."""
+        found = self.neighbour(robot, BLOCKING_REACH)
+        if found is None:
+            return None
+        me = self._standing[robot]
+        away = math.dist((found.x, found.y), (me.x, me.y))
+        return found.robot, f"{found.robot} standing {away:.1f} m away"
 
 
 def _around(point: Point, step: float, reach: float) -> Iterator[Point]:

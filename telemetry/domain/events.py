@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
 from enum import StrEnum
 from typing import Any
@@ -67,7 +67,8 @@ ALERTS = frozenset(
 )
 # A connected robot that published nothing for this long has gone silent.
 SILENT_AFTER_S = 5.0
-# A robot with an active goal that moved less than STUCK_METRES in STUCK_AFTER_S is stuck.
+# A robot with an active goal that moved less than STUCK_METRES in STUCK_AFTER_S is stuck
+# (the default of ``CLOUDNAV_STUCK_AFTER``).
 STUCK_AFTER_S = 30.0
 STUCK_METRES = 0.25
 # A robot that says it is lost before it was ever localised since it connected is still
@@ -130,11 +131,22 @@ class _Watch:
     raised: set[Kind] = field(default_factory=set)
 
 
-class EventDeriver:
-    """Observations in, ``EventDraft`` lists out; keeps only the last state of each robot."""
+Blocker = Callable[[str], "tuple[str, str] | None"]
+"""What stands in a robot's way, if the fleet knows: (its name, a phrase such as ``robot_1
+standing 0.6 m away``), or None."""
 
-    def __init__(self) -> None:
+
+class EventDeriver:
+    """Observations in, ``EventDraft`` lists out; keeps only the last state of each robot.
+
+    A robot is stuck after ``stuck_after`` seconds without progress; ``blocker`` names what
+    blocks it (another robot near it), else the alert says an unknown obstacle or person.
+    """
+
+    def __init__(self, stuck_after: float = STUCK_AFTER_S, blocker: Blocker | None = None) -> None:
         self._watches: dict[str, _Watch] = {}
+        self.stuck_after = stuck_after
+        self.blocker = blocker
 
     def _watch(self, robot: str, now: float) -> _Watch:
         watch = self._watches.get(robot)
@@ -428,15 +440,31 @@ class EventDeriver:
             watch.stuck = False
             text = f"{robot} is moving again" if watch.goal_active else f"{robot} has no goal"
             return self._clear(watch, now, Kind.STUCK, robot, text)
-        if watch.stuck or not watch.goal_active or not anchor or now - anchor[2] <= STUCK_AFTER_S:
+        if (
+            watch.stuck
+            or not watch.goal_active
+            or not anchor
+            or now - anchor[2] <= self.stuck_after
+        ):
             return []
         watch.stuck, watch.stuck_since = True, anchor[2]
+        found = self.blocker(robot) if self.blocker is not None else None
+        blocker, why = found or ("unknown", "an unknown obstacle or person")
         text = (
-            f"{robot} has a goal but moved less than {STUCK_METRES} m in {round(now - anchor[2])} s"
+            f"{robot} has a goal but moved less than {STUCK_METRES} m in "
+            f"{round(now - anchor[2])} s: blocked by {why}"
         )
         return [
             self._draft(
-                watch, now, Kind.STUCK, Severity.WARNING, robot, text, x=anchor[0], y=anchor[1]
+                watch,
+                now,
+                Kind.STUCK,
+                Severity.WARNING,
+                robot,
+                text,
+                x=anchor[0],
+                y=anchor[1],
+                blocker=blocker,
             )
         ]
 
