@@ -37,6 +37,8 @@ class MissionSerializer(serializers.ModelSerializer[Mission]):
             "state",
             "index",
             "laps",
+            "time_limit",
+            "on_timeout",
             "note",
             "created_by",
             "created",
@@ -53,6 +55,12 @@ class NewMissionSerializer(serializers.Serializer[Any]):
     )
     mode = serializers.ChoiceField(choices=Mission.Mode.values, default=Mission.Mode.ONCE)
     waypoints = serializers.JSONField()
+    time_limit = serializers.FloatField(
+        min_value=0.0, max_value=86400.0, default=Mission._meta.get_field("time_limit").default
+    )
+    on_timeout = serializers.ChoiceField(
+        choices=Mission.OnTimeout.values, default=Mission.OnTimeout.PAUSE
+    )
 
 
 class IsPerson(permissions.BasePermission):
@@ -117,6 +125,8 @@ class MissionList(APIView):
                 data["mode"],
                 data["name"],
                 request.user.get_username(),
+                time_limit=data["time_limit"],
+                on_timeout=data["on_timeout"],
             )
         except missions.RobotBusyElsewhere as error:
             return Response({"robot": [str(error)]}, status=status.HTTP_409_CONFLICT)

@@ -22,6 +22,8 @@ from .models import Mission, Robot
 
 COMMANDS = ("pause", "resume", "skip", "cancel")
 REACHED = "reached"
+# The outcome of a waypoint not reached within its mission's time limit.
+TIMED_OUT = "timed out"
 # The longest note a mission keeps (a robot's reason for failing may be longer).
 NOTE_MAX = Mission._meta.get_field("note").max_length or 300
 
@@ -43,7 +45,8 @@ class RobotBusyElsewhere(MissionError):
 @dataclass(frozen=True)
 class Goal:
     """A goal to send: ``robot`` to ``map_id`` at (x, y, yaw), for ``mission``; ``note``
-    says why it is not the waypoint itself (moved off a spot another robot holds)."""
+    says why it is not the waypoint itself (moved off a spot another robot holds);
+    ``time_limit`` (s, 0: none) and ``on_timeout`` are the mission's (``Mission``)."""
 
     mission: int
     robot: str
@@ -52,6 +55,8 @@ class Goal:
     y: float
     yaw: float
     note: str = ""
+    time_limit: float = 0.0
+    on_timeout: str = "pause"
 
 
 def check_waypoints(building: Building, waypoints: Any) -> list[dict[str, Any]]:
@@ -88,9 +93,22 @@ def _check_reachable(submap: SubMap, n: int, x: float, y: float) -> None:
 
 @transaction.atomic
 def start(
-    building: Building, robot: Robot, waypoints: Any, mode: str, name: str, by: str
+    building: Building,
+    robot: Robot,
+    waypoints: Any,
+    mode: str,
+    name: str,
+    by: str,
+    *,
+    time_limit: float = 300.0,
+    on_timeout: str = "pause",
 ) -> Mission:
-    """Start a mission; the robot's active one, if any, is cancelled."""
+    """Start a mission; the robot's active one, if any, is cancelled. Each waypoint has
+    ``time_limit`` seconds (0: no limit), then is skipped or pauses it (``on_timeout``)."""
+    if on_timeout not in Mission.OnTimeout.values:
+        raise MissionError("on_timeout: skip or pause", field="on_timeout")
+    if not 0.0 <= time_limit < 1e6:
+        raise MissionError("time_limit: seconds, 0 (no limit) or more", field="time_limit")
     if mode not in Mission.Mode.values:
         raise MissionError("mode: once or patrol")
     if not robot.buildings.filter(pk=building.pk).exists():
@@ -103,7 +121,14 @@ def start(
         )
     active.update(state=Mission.State.CANCELLED, note=f"replaced by a mission of {by}")
     return Mission.objects.create(
-        building=building, robot=robot, waypoints=clean, mode=mode, name=name, created_by=by
+        building=building,
+        robot=robot,
+        waypoints=clean,
+        mode=mode,
+        name=name,
+        created_by=by,
+        time_limit=time_limit,
+        on_timeout=on_timeout,
     )
 
 
@@ -154,24 +179,42 @@ def _advance(mission: Mission) -> None:
         mission.note = "every waypoint reached"
 
 
-def record_outcomes(outcomes: Mapping[int, str]) -> None:
+def record_outcomes(outcomes: Mapping[int, str]) -> set[int]:
     """What robots reported of the goals sent for missions: REACHED moves the mission on;
-    anything else (the robot's reason for failing) pauses it, with that reason. Mission by
-    mission where the database refuses one (``write_batch``); raises ``BatchInterrupted``
-    with the missions not recorded when the database cannot be reached."""
-    write_batch(sorted(outcomes), partial(_record, outcomes=outcomes), "a mission's outcome")
+    TIMED_OUT skips the waypoint or pauses the mission (its ``on_timeout``); anything else
+    (the robot's reason for failing) pauses it, with that reason. Returns the missions
+    whose outcome was recorded (those still running). Mission by mission where the
+    database refuses one (``write_batch``); raises ``BatchInterrupted`` with the missions
+    not recorded when the database cannot be reached."""
+    recorded: set[int] = set()
+    write = partial(_record, outcomes=outcomes, recorded=recorded)
+    refused = write_batch(sorted(outcomes), write, "a mission's outcome")
+    return recorded - set(refused)
 
 
-def _record(pks: Sequence[int], outcomes: Mapping[int, str]) -> None:
+def _record(pks: Sequence[int], outcomes: Mapping[int, str], recorded: set[int]) -> None:
     # read again on each try: a try that failed changed nothing (its transaction is gone)
     for mission in Mission.objects.filter(pk__in=pks, state=Mission.State.RUNNING):
+        recorded.add(mission.pk)
         outcome = outcomes[mission.pk]
         if outcome == REACHED:
             _advance(mission)
             mission.sent = -1
+        elif outcome == TIMED_OUT:
+            _timed_out(mission)
         else:
             mission.state, mission.note = Mission.State.PAUSED, f"paused: {outcome}"[:NOTE_MAX]
         mission.save()
+
+
+def _timed_out(mission: Mission) -> None:
+    """The current waypoint was not reached within the time limit: skipped or paused."""
+    late = f"waypoint {mission.index + 1} not reached within {mission.time_limit:g} s"
+    if mission.on_timeout == Mission.OnTimeout.SKIP:
+        _advance(mission)
+        mission.sent, mission.note = -1, f"{late}: skipped"
+    else:
+        mission.state, mission.note = Mission.State.PAUSED, f"paused: {late}"
 
 
 def _refusal(mission: Mission, point: Mapping[str, Any]) -> str:
@@ -213,6 +256,8 @@ def goals_due(robots: Iterable[str]) -> list[Goal]:
                 point["x"],
                 point["y"],
                 point["yaw"],
+                time_limit=mission.time_limit,
+                on_timeout=mission.on_timeout,
             )
         )
         mission.sent = mission.index

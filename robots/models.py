@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from django.core.validators import RegexValidator
+from django.core.validators import MinValueValidator, RegexValidator
 from django.db import models
 
 from maps.models import Building
@@ -54,11 +54,17 @@ class Mission(models.Model):
     The server that serves the robot sends each goal and moves on when the robot reports
     it reached it (``telemetry.missions``); ``sent`` is the index of the goal sent last
     (-1: none since the last start or change). A robot has at most one active mission.
+    A waypoint not reached ``time_limit`` seconds after its goal was sent (0: no limit)
+    is skipped or pauses the mission, as ``on_timeout`` says.
     """
 
     class Mode(models.TextChoices):
         ONCE = "once"
         PATROL = "patrol"
+
+    class OnTimeout(models.TextChoices):
+        SKIP = "skip"
+        PAUSE = "pause"
 
     class State(models.TextChoices):
         RUNNING = "running"
@@ -78,6 +84,8 @@ class Mission(models.Model):
     index = models.PositiveIntegerField(default=0)
     laps = models.PositiveIntegerField(default=0)
     sent = models.IntegerField(default=-1)
+    time_limit = models.FloatField(default=300.0, validators=[MinValueValidator(0.0)])
+    on_timeout = models.CharField(max_length=10, choices=OnTimeout.choices, default=OnTimeout.PAUSE)
     note = models.CharField(max_length=300, blank=True)
     created_by = models.CharField(max_length=150, blank=True)
     created = models.DateTimeField(auto_now_add=True)

@@ -93,6 +93,11 @@ class EventLog:
         what the server did to it (moved it off another robot's spot)."""
         self._add(self.deriver.goal_sent(robot, actor, msg, self.clock(), note))
 
+    def waypoint_timed_out(self, robot: str, waypoint: Mapping[str, Any], then: str) -> None:
+        """``robot`` did not reach its mission's ``waypoint`` in time; ``then`` says what
+        followed (``EventDeriver.waypoint_timed_out``)."""
+        self._add(self.deriver.waypoint_timed_out(robot, waypoint, then, self.clock()))
+
     def stopped(self, robot: str, actor: str, done: Mapping[str, Any]) -> None:
         """``actor`` (a label) stopped ``robot``; ``done`` says how."""
         self._add(self.deriver.stopped(robot, actor, done, self.clock()))

@@ -106,7 +106,9 @@ class Hub:
         self.clients: dict[str, Client] = {}
         spots = Reservations(GOAL_CHECK_RADIUS)
         self.events = EventLog(deriver=EventDeriver(config.stuck_after, spots.blocking))
-        self.missions = MissionRunner(self._send_goal, self.robots, self._place_goal)
+        self.missions = MissionRunner(
+            self._send_goal, self.robots, self._place_goal, self._waypoint_late
+        )
         self.teleop = TeleopGate(config, self.bus, self.events)
         self.poses = PoseChecks(spots)
         self.stop = RobotStop(self.calls, self.teleop, self.events, lambda: self.relay)
@@ -276,6 +278,18 @@ class Hub:
             return f"{placed.refusal} ({goal.map_id})"
         x, y = placed.point
         return replace(goal, x=x, y=y, note=placed.message)
+
+    async def _waypoint_late(self, goal: Goal) -> None:
+        """A mission's goal not reached within its time limit (the waypoint is already
+        skipped or its mission paused): a paused mission's robot is halted where it is,
+        as STOP would, so it does not go on circling; an event says which."""
+        if goal.on_timeout == "skip":
+            then = "skipped, on to the next waypoint"
+        else:
+            halted = await self.stop.halt_here(goal.robot)
+            then = f"mission paused, the robot halted (goal {halted})"
+        waypoint = {"map_id": goal.map_id, "x": goal.x, "y": goal.y, "time_limit": goal.time_limit}
+        self.events.waypoint_timed_out(goal.robot, waypoint, then)
 
     def _send_goal(self, goal: Goal) -> None:
         """Send a mission's goal to its robot from the server itself; it holds its spot."""

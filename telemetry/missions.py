@@ -1,5 +1,6 @@
 """Runs the missions of the robots this process serves: sends each goal, and moves on when
-the robot reports it reached it.
+the robot reports it reached it, or when the goal's time limit passes (``late``: the
+waypoint is skipped or the mission paused, as the mission says).
 
 What robots report is read on the relay's path in memory (``status``); once a tick the
 runner records the outcomes and collects the goals due in one database call, off the loop.
@@ -32,22 +33,25 @@ FAILED = {4: "aborted", 5: "rejected", 9: "lost"}
 
 class MissionRunner:
     """``place`` gives each goal due its spot among the other robots' (the fleet rule):
-    the goal to send, or the reason it is refused, which pauses its mission."""
+    the goal to send, or the reason it is refused, which pauses its mission. ``late`` is
+    told of each goal not reached within its time limit (after its outcome is recorded)."""
 
     def __init__(
         self,
         send: Callable[[Goal], None],
         robots: Callable[[], set[str]],
         place: Callable[[Goal], Awaitable[Goal | str]],
+        late: Callable[[Goal], Awaitable[None]],
         interval: float = 1.0,
         clock: Callable[[], float] = time.monotonic,
     ) -> None:
         self.send = send
         self.robots = robots
         self.place = place
+        self.late = late
         self.interval = interval
         self.clock = clock
-        self._sent: dict[str, tuple[int, float]] = {}  # robot -> (mission, when sent)
+        self._sent: dict[str, tuple[Goal, float]] = {}  # robot -> (goal, when sent)
         self._outcomes: dict[int, str] = {}
         self._task: asyncio.Task[None] | None = None
 
@@ -60,10 +64,10 @@ class MissionRunner:
         latest = statuses[-1]
         code = latest.get("status") if isinstance(latest, Mapping) else None
         if code == SUCCEEDED:
-            self._outcomes[sent[0]] = missions.REACHED
+            self._outcomes[sent[0].mission] = missions.REACHED
         elif code in FAILED:
             reason = storable_text(str(latest.get("text") or "no reason"))
-            self._outcomes[sent[0]] = f"goal {FAILED[code]}: {reason}"
+            self._outcomes[sent[0].mission] = f"goal {FAILED[code]}: {reason}"
         else:
             return
         del self._sent[robot]
@@ -76,9 +80,10 @@ class MissionRunner:
         """Tick while this process serves robots."""
         while self.robots():
             await asyncio.sleep(self.interval)
+            late = self._late()
             outcomes, self._outcomes = self._outcomes, {}
             try:
-                goals = await database_sync_to_async(_tick)(self.robots(), outcomes)
+                goals, recorded = await database_sync_to_async(_tick)(self.robots(), outcomes)
             except BatchInterrupted as interrupted:
                 REPORT.failed("mission ticks held back", interrupted)
                 kept = {pk: outcomes[pk] for pk in interrupted.unwritten}
@@ -87,15 +92,31 @@ class MissionRunner:
             except Exception:  # the outcomes were recorded: never twice (a waypoint skipped)
                 logger.exception("the mission tick failed after recording its outcomes")
                 continue
+            for goal in late:
+                if goal.mission in recorded:  # not paused or replaced meanwhile
+                    await self.late(goal)
             for goal in goals:
                 placed = await self.place(goal)
                 if isinstance(placed, str):
                     self._outcomes[goal.mission] = placed
                     continue
-                self._sent[goal.robot] = (goal.mission, self.clock())
+                self._sent[goal.robot] = (placed, self.clock())
                 self.send(placed)
 
+    def _late(self) -> list[Goal]:
+        """The goals sent whose time limit passed: their outcome is TIMED_OUT."""
+        now = self.clock()
+        late = [
+            goal
+            for goal, sent_at in self._sent.values()
+            if goal.time_limit > 0 and now - sent_at > goal.time_limit
+        ]
+        for goal in late:
+            del self._sent[goal.robot]
+            self._outcomes[goal.mission] = missions.TIMED_OUT
+        return late
 
-def _tick(robots: set[str], outcomes: dict[int, str]) -> list[Goal]:
-    missions.record_outcomes(outcomes)
-    return missions.goals_due(robots)
+
+def _tick(robots: set[str], outcomes: dict[int, str]) -> tuple[list[Goal], set[int]]:
+    recorded = missions.record_outcomes(outcomes)
+    return missions.goals_due(robots), recorded

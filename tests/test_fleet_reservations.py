@@ -145,7 +145,7 @@ def set_rule(rule: FleetRule) -> None:
 @live
 async def test_a_goal_where_another_robot_stands_is_moved_and_the_operator_told(rosbridge, demo):
     operator, tokens = demo
-    robot_0 = await robot_at(rosbridge, tokens["robot_0"], (20.0, 25.0))
+    robot_0 = await robot_at(rosbridge, tokens["robot_0"], (21.0, 24.0))
     await robot_at(rosbridge, tokens["robot_1"], SPOT)
     page = await operator_page(rosbridge, operator)
     await page.send(op="publish", topic="/robot_0/goal", msg=goal(*SPOT))
@@ -163,7 +163,7 @@ async def test_a_goal_where_another_robot_stands_is_moved_and_the_operator_told(
 async def test_two_robots_sent_to_one_spot_by_a_refusing_building(rosbridge, demo):
     operator, tokens = demo
     await database_sync_to_async(set_rule)(FleetRule.REFUSE)
-    robot_0 = await robot_at(rosbridge, tokens["robot_0"], (20.0, 25.0))
+    robot_0 = await robot_at(rosbridge, tokens["robot_0"], (21.0, 24.0))
     robot_1 = await robot_at(rosbridge, tokens["robot_1"], (19.0, 25.0))
     page = await operator_page(rosbridge, operator)
     await page.send(op="publish", topic="/robot_0/goal", msg=goal(*SPOT))
@@ -213,7 +213,7 @@ async def test_a_mission_waypoint_held_by_a_robot_pauses_its_mission_with_the_re
     _, tokens = demo
     await database_sync_to_async(set_rule)(FleetRule.REFUSE)
     await robot_at(rosbridge, tokens["robot_1"], SPOT)
-    robot_0 = await robot_at(rosbridge, tokens["robot_0"], (20.0, 25.0))
+    robot_0 = await robot_at(rosbridge, tokens["robot_0"], (21.0, 24.0))
     mission = await database_sync_to_async(start_mission)("robot_0", SPOT)
     deadline = time.monotonic() + 20
     while (state := await database_sync_to_async(mission_state)(mission.pk))[0] == "running":
@@ -228,7 +228,7 @@ async def test_a_mission_waypoint_held_by_a_robot_pauses_its_mission_with_the_re
 async def test_a_mission_waypoint_held_by_a_robot_is_moved_by_the_moving_rule(rosbridge, demo):
     _, tokens = demo
     await robot_at(rosbridge, tokens["robot_1"], SPOT)
-    robot_0 = await robot_at(rosbridge, tokens["robot_0"], (20.0, 25.0))
+    robot_0 = await robot_at(rosbridge, tokens["robot_0"], (21.0, 24.0))
     await database_sync_to_async(start_mission)("robot_0", SPOT)
     sent = await robot_0.receive_until(lambda f: f.get("op") == "publish", wait=20)
     at = sent["msg"]["pose"]["position"]

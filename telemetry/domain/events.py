@@ -45,6 +45,7 @@ class Kind(StrEnum):
     BUNDLE_FETCHED = "bundle_fetched"
     MAP_VERSION_CHANGED = "map_version_changed"
     ROBOT_STOPPED = "robot_stopped"
+    WAYPOINT_TIMED_OUT = "waypoint_timed_out"
     ALERT_CLEARED = "alert_cleared"
 
 
@@ -363,6 +364,30 @@ class EventDeriver:
         return [
             EventDraft(
                 now, Kind.ROBOT_STOPPED, Severity.WARNING, robot, text, actor, watch.building, done
+            )
+        ]
+
+    def waypoint_timed_out(
+        self, robot: str, waypoint: Mapping[str, Any], then: str, now: float
+    ) -> list[EventDraft]:
+        """``robot`` did not reach its mission's ``waypoint`` (``map_id``, ``x``, ``y``,
+        ``time_limit``) in time; ``then`` says what followed (skipped, or paused)."""
+        watch = self._watches.get(robot) or _Watch()
+        text = (
+            f"{robot} did not reach its waypoint in {waypoint['map_id']} "
+            f"({waypoint['x']:.2f}, {waypoint['y']:.2f}) within {waypoint['time_limit']:g} s: "
+            f"{then}"
+        )
+        return [
+            EventDraft(
+                now,
+                Kind.WAYPOINT_TIMED_OUT,
+                Severity.WARNING,
+                robot,
+                text,
+                "server",
+                watch.building,
+                {**waypoint, "then": then},
             )
         ]
 
