@@ -17,6 +17,7 @@ import pytest
 from channels.db import database_sync_to_async
 from django.contrib.auth.models import User
 from django.core.management import call_command
+from rest_framework.test import APIClient
 
 from maps.domain.reservations import FleetRule, Reservations
 from maps.models import Building
@@ -79,7 +80,9 @@ def test_an_active_goal_holds_its_spot_until_the_robot_says_it_is_over():
     spots = Reservations(RADIUS, clock=lambda: now[0])
     spots.stand("r1", "b/m", 5.0, 5.0)
     spots.aim("r1", "b/m@v3", (0.0, 0.0))
-    assert spots.holder("b/m", (0.1, 0.0), "r2").describe() == "r1 is going to (0.00, 0.00)"
+    held = spots.holder("b/m", (0.1, 0.0), "r2")
+    assert held is not None
+    assert held.describe() == "r1 is going to (0.00, 0.00)"
     spots.goal_over("r1")  # the status of the goal before: within the grace
     assert spots.holder("b/m", (0.1, 0.0), "r2") is not None
     now[0] = 2.0
@@ -233,3 +236,17 @@ async def test_a_mission_waypoint_held_by_a_robot_is_moved_by_the_moving_rule(ro
     sent = await robot_0.receive_until(lambda f: f.get("op") == "publish", wait=20)
     at = sent["msg"]["pose"]["position"]
     assert math.dist((at["x"], at["y"]), SPOT) >= 2 * RADIUS
+
+
+@live
+def test_a_building_admin_sets_the_fleet_rule_and_nothing_else_is_one(demo):
+    client = APIClient()
+    client.force_authenticate(User.objects.get(username="admin"))
+    url = "/api/buildings/boccioni_1/"
+    answer = client.patch(url, {"fleet_rule": "sideways"}, format="json")
+    assert answer.status_code == 400
+    assert "fleet_rule" in answer.json()
+    answer = client.patch(url, {"fleet_rule": "refuse"}, format="json")
+    assert (answer.status_code, answer.json()["fleet_rule"]) == (200, "refuse")
+    client.force_authenticate(User.objects.get(username="operator"))
+    assert client.patch(url, {"fleet_rule": "move"}, format="json").status_code == 403
