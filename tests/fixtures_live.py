@@ -262,11 +262,12 @@ def agent_process(
 
 
 def fleet_process(
-    server_url: str, tokens: Path, count: int, log: Path
+    server_url: str, tokens: Path, count: int, log: Path, *options: str
 ) -> contextlib.AbstractContextManager[Path]:
     """Run the demo's robots as ``make demo`` does: one agent process for ``count`` robots
-    of a ``seed_demo`` tokens file, at their default start and real time."""
-    return _agent(server_url, log, "--tokens-file", str(tokens), "--count", str(count))
+    of a ``seed_demo`` tokens file, at their default start and real time unless
+    ``options`` (the agent's) say otherwise."""
+    return _agent(server_url, log, "--tokens-file", str(tokens), "--count", str(count), *options)
 
 
 @contextlib.contextmanager
