@@ -121,3 +121,26 @@ def test_a_goal_where_another_robot_stands_is_moved_and_said_where_it_was_presse
         [goal] = sent  # the spot the server gave, as the page sent it
         at = goal["msg"]["pose"]["position"]
         assert math.dist((at["x"], at["y"]), STANDING) >= 0.45  # pressed within pixels
+
+
+def test_the_floor_plan_moves_a_goal_where_another_robot_stands_and_says_so(
+    other_robot: str, context: BrowserContext, demo: Demo
+) -> None:
+    speaking = threading.Event()
+    speaking.set()
+    standing = speaking_robot(demo, speaking, token=other_robot, at=(ATRIUM_1, *STANDING))
+    with speaking_robot(demo, speaking), standing:
+        page = open_plan(context, demo)
+        sent = goals_sent(page)
+        page.reload()
+        select_robot(page)
+        page.click("#tool-goal")
+        press_and_drag_on_plan(page, *STANDING, 0.0)
+        plan = page.locator("#floor-plan")
+        expect(plan).to_have_attribute("data-moved", f"{ROBOT}:{ATRIUM_1}", timeout=15_000)
+        expect(page.locator("#plan-hint")).to_contain_text(f"Goal sent to {ROBOT} in Atrium1.")
+        expect(page.locator("#plan-hint")).to_contain_text("robot_9 stands at (20.00, 23.20)")
+        screenshot(page, "plan-goal-moved")
+        [goal] = sent
+        at = goal["msg"]["pose"]["position"]
+        assert math.dist((at["x"], at["y"]), STANDING) >= 0.45

@@ -297,6 +297,7 @@ async function sendGoal({ pose, map }) {
   setGoal(plan.robots.get(name), mapId, placed.pose);
   hint(placed.note ? `Goal sent to ${name} in ${map}. ${placed.note}` : `Goal sent to ${name} in ${map}.`);
   if (placed.note) wrap.dataset.moved = `${name}:${mapId}`;
+  else delete wrap.dataset.moved;
   wrap.dataset.goal = `${name}:${mapId}`;
 }
 
