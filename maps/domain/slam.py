@@ -523,6 +523,18 @@ def optimise_graph(
 # --- occupancy -------------------------------------------------------------------------
 
 
+def occupancy_of(
+    views: Sequence[tuple[Pose, Scan]], params: SlamParams | None = None
+) -> tuple[Grid, tuple[float, float]]:
+    """The occupancy grid (row 0 = bottom; 100, 0, -1) of planar ``views`` (a scan and
+    the map-frame pose it was taken from), by the mapper's log-odds rule, and the
+    map-frame position of its cell (0, 0)'s corner; an empty grid for no views."""
+    log_odds = _LogOdds(params or SlamParams(), None)
+    for pose, scan in views:
+        log_odds.add(Keyframe(pose, scan, scan.points()))
+    return log_odds.grid()
+
+
 class _LogOdds:
     """A growing log-odds grid; each keyframe's scan is added once."""
 
