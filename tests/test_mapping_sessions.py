@@ -188,6 +188,7 @@ async def test_a_robot_that_disconnects_leaves_its_partial_map_to_resume_or_disc
     assert resumed.json()["state"] == "running"
     await runner.sync()
     worker = runner.workers[session.pk]
+    assert isinstance(worker, mapping_runner.LaserWorker)
     assert len(worker.mapper.keyframes) == kept.stats["keyframes"]
     for odom, scan in messages[200:300]:
         hub.send("/r1/odom", odom)

@@ -44,9 +44,9 @@ def known_room() -> np.ndarray:
 def test_the_grid_from_a_known_rooms_depth_has_its_walls_and_its_free_floor() -> None:
     camera = Camera(world_from_grid(known_room(), (0.0, 0.0), RESOLUTION), seed=1)
     views = []
-    for x, y in [(1.5, 2.0), (3.0, 2.0), (4.5, 2.0), (3.0, 1.2), (3.0, 2.8)]:
+    for at_x, at_y in [(1.5, 2.0), (3.0, 2.0), (4.5, 2.0), (3.0, 1.2), (3.0, 2.8)]:
         for k in range(12):
-            pose = (x, y, k * math.pi / 6)
+            pose = (at_x, at_y, k * math.pi / 6)
             _, depth = camera.capture(pose)
             assert depth is not None
             views.append((pose, obstacle_scan(depth, Intrinsics())))
@@ -150,7 +150,7 @@ def test_depth_that_is_not_finite_or_does_not_match_the_image_is_refused() -> No
 def camera_messages(poses: list[Pose]) -> list[tuple[dict[str, Any], ...]]:
     """What a camera-only robot publishes for each pose: image, compressedDepth,
     camera_info, all of one stamp."""
-    out = []
+    out: list[tuple[dict[str, Any], ...]] = []
     for index, (image, depth) in enumerate(rendered(poses, 1)):
         stamp = 50.0 + 0.2 * index
         info = messages.camera_info("camera_optical_frame", 640, 480, 525, 525, 319.5, 239.5, stamp)
@@ -224,3 +224,19 @@ async def test_a_visual_session_maps_from_camera_frames_and_publishes_its_keyfra
     assert len(stored) >= 6
     assert {k.robot for k in stored} == {"r1"}
     assert not await Keyframe.objects.exclude(submap=made).aexists()  # r2 gave nothing
+
+
+def test_a_visual_map_resumes_from_its_saved_state_and_places_the_next_frame() -> None:
+    poses = [compose(START, (0.1 * i, 0.0, 0.0)) for i in range(8)]
+    given = frames(poses)
+    mapper = VisualMapper(default_vocabulary(), START)
+    for frame in given[:7]:
+        mapper.add(frame)
+    again = VisualMapper.resumed(mapper.state(), default_vocabulary())
+    assert again.path == mapper.path
+    assert len(again.scans) == len(mapper.scans) >= 2
+    with pytest.raises(KeyframeError, match="in order"):
+        again.add(given[6])  # already mapped before the stop
+    again.add(given[7])
+    assert again.stats.relocalised == 1  # searched against every keyframe, as a wake-up
+    assert math.dist(again.pose[:2], poses[7][:2]) < 0.05
