@@ -9,7 +9,7 @@ the robot's centre: it ends at the nearest point of that column within the heigh
 no return, free as far as the laser mapper frees one (``SlamParams.free_range``). A
 column with no usable reading at all (too near, too far, no depth) says nothing and is
 left out. These planar scans, at the keyframes' optimised poses, go through the laser
-mapper's log-odds occupancy (``slam.occupancy_of``), so a visual session's grid follows
+mapper's log-odds occupancy (``slam.LogOddsGrid``), so a visual session's grid follows
 exactly the same thresholds as a laser session's (map_saver's 0.65 and 0.196).
 
 Nothing here imports Django.
@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from maps.domain.keyframes import DEPTH_RANGE, Depth, Intrinsics, Mount
-from maps.domain.slam import Grid, Scan, SlamParams, occupancy_of
+from maps.domain.slam import Grid, LogOddsGrid, Scan, SlamParams
 from robots.domain.se2 import Pose
 
 STRIDE = 4
@@ -78,5 +78,9 @@ def obstacle_scan(
 def grid_of_views(
     views: Sequence[tuple[Pose, Scan]], resolution: float = 0.05
 ) -> tuple[Grid, tuple[float, float]]:
-    """The occupancy grid of ``obstacle_scan`` views at their poses (see the module)."""
-    return occupancy_of(views, SlamParams(resolution=resolution))
+    """The occupancy grid (row 0 = bottom; 100, 0, -1) of ``obstacle_scan`` views at
+    their poses, and the map-frame position of its cell (0, 0)'s corner."""
+    log_odds = LogOddsGrid(SlamParams(resolution=resolution), None)
+    for pose, scan in views:
+        log_odds.add_view(pose, scan)
+    return log_odds.grid()

@@ -21,8 +21,8 @@ import numpy as np
 
 from maps.domain.keyframes import Depth, Image, Intrinsics
 from maps.domain.keyframes import Keyframe as Features
-from maps.domain.slam import Grid, Scan
-from maps.domain.visual_grid import grid_of_views, obstacle_scan
+from maps.domain.slam import Grid, LogOddsGrid, Scan, SlamParams
+from maps.domain.visual_grid import obstacle_scan
 from maps.domain.visual_input import depth_image, finite_depth, grey_image, intrinsics_of, stamp_of
 from maps.domain.visual_slam import Edge, State, VisualSlam
 from maps.domain.vocabulary import Vocabulary
@@ -80,6 +80,8 @@ class VisualMapper:
         self.scans: list[Scan] = []  # one per keyframe, in its robot frame
         self.stats = VisualMapStats()
         self.last_stamp = -math.inf
+        self._log_odds: LogOddsGrid | None = None  # made again after a loop closure
+        self._in_grid = 0  # keyframes the log-odds grid holds
 
     @property
     def pose(self) -> Pose:
@@ -102,6 +104,8 @@ class VisualMapper:
             raise
         self.last_stamp = frame.stamp
         self._count(tracked.state, tracked.loop_closed)
+        if tracked.loop_closed:
+            self._log_odds = None  # the keyframes moved
         if tracked.keyframe:
             self.scans.append(obstacle_scan(frame.depth, frame.intrinsics, self.slam.mount))
             self.stats.keyframes += 1
@@ -122,8 +126,16 @@ class VisualMapper:
         self.stats.loop_closures += loop_closed
 
     def grid(self) -> tuple[Grid, tuple[float, float]]:
-        """The occupancy grid of the keyframes' depth at their optimised poses."""
-        return grid_of_views(list(zip(self.path, self.scans, strict=True)), self.resolution)
+        """The occupancy grid of the keyframes' depth at their optimised poses: the new
+        keyframes added to the grid so far, or all of them again after a loop closure."""
+        if self._log_odds is None:
+            self._log_odds = LogOddsGrid(SlamParams(resolution=self.resolution), None)
+            self._in_grid = 0
+        views = list(zip(self.path, self.scans, strict=True))
+        for pose, scan in views[self._in_grid :]:
+            self._log_odds.add_view(pose, scan)
+        self._in_grid = len(views)
+        return self._log_odds.grid()
 
     def keyframes(self) -> list[Features]:
         """The keyframes at their optimised poses: the sub-map's relocalisation map."""
