@@ -26,6 +26,7 @@ from maps.models import Building, Keyframe, MappingSession, SubMap
 from robots.agent.sim.camera import Camera
 from robots.agent.sim.world import world_from_grid
 from robots.domain.se2 import Pose, compose
+from robots.models import Robot
 from telemetry.domain import messages
 from tests.conftest import FakeHub, client_for, make_robot
 from tests.test_mapping_sessions import _drained, _session, _until, online
@@ -240,3 +241,24 @@ def test_a_visual_map_resumes_from_its_saved_state_and_places_the_next_frame() -
     again.add(given[7])
     assert again.stats.relocalised == 1  # searched against every keyframe, as a wake-up
     assert math.dist(again.pose[:2], poses[7][:2]) < 0.05
+
+
+def stamped(stamp: float) -> dict[str, Any]:
+    return {"header": {"stamp": {"sec": int(stamp), "nanosec": round(stamp % 1 * 1e9)}}}
+
+
+def test_frames_beyond_the_queue_drop_the_oldest_and_the_session_says_so() -> None:
+    session = MappingSession(pk=1, robot=Robot(name="r1"), kind=MappingSession.VISUAL)
+    worker = mapping_runner.worker_for(session)
+    assert isinstance(worker, mapping_runner.VisualWorker)
+    for index in range(10):
+        worker.on_depth(stamped(10 + index))  # depth first, then its image: either order
+        worker.on_image(stamped(10 + index))
+    worker.on_image(stamped(30))  # an image whose depth never comes: not a frame
+    assert len(worker.queue) == mapping_runner.QUEUE_FRAMES
+    assert worker.dropped == 10 - mapping_runner.QUEUE_FRAMES
+    assert worker.queue[0][1] == stamped(10 + 10 - mapping_runner.QUEUE_FRAMES)
+    assert "6 frames dropped" in worker._figures()["behind"]
+    worker.on_image({"format": "jpeg"})  # no stamp: pairs with nothing, refused at once
+    assert worker.bad_input == 1
+    assert "no header.stamp" in worker.refusal
