@@ -14,7 +14,8 @@ import pytest
 from asgiref.sync import sync_to_async
 from django.contrib.auth.models import User
 
-from benchmarks.visual_tracking import START, rendered
+from benchmarks.visual_tracking import START, corridor_tour, rendered
+from maps.domain.demo_building import demo_building
 from maps.domain.keyframes import Intrinsics
 from maps.domain.visual_grid import grid_of_views, obstacle_scan
 from maps.domain.visual_mapping import Frame, VisualMapper, frame_of
@@ -262,3 +263,29 @@ def test_frames_beyond_the_queue_drop_the_oldest_and_the_session_says_so() -> No
     worker.on_image({"format": "jpeg"})  # no stamp: pairs with nothing, refused at once
     assert worker.bad_input == 1
     assert "no header.stamp" in worker.refusal
+
+
+def test_a_tour_out_and_back_closes_a_loop_and_its_grid_agrees_with_the_building() -> None:
+    poses = corridor_tour(length=3.0, step=0.1, turn=math.radians(10.0))
+    mapper = VisualMapper(default_vocabulary(), START)
+    for index, frame in enumerate(frames(poses)):
+        mapper.add(frame)
+        if index % 10 == 0:
+            mapper.grid()  # as the session saves it: keyframes added as they come
+    assert mapper.stats.loop_closures >= 1
+    assert mapper.stats.lost == 0
+    assert math.dist(mapper.pose[:2], poses[-1][:2]) < 0.03
+    grid, origin = mapper.grid()  # made again from the keyframes the loop moved
+    building = demo_building()
+    truth = building.world
+    rows, cols = np.nonzero(grid >= 0)
+    x = origin[0] + (cols + 0.5) * building.resolution
+    y = origin[1] + (rows + 0.5) * building.resolution
+    truth_rows = np.floor((y - building.world_origin[1]) / building.resolution).astype(int)
+    truth_cols = np.floor((x - building.world_origin[0]) / building.resolution).astype(int)
+    assert ((truth_rows >= 0) & (truth_cols >= 0)).all()
+    expected = truth[truth_rows, truth_cols]
+    both = expected >= 0
+    agreement = (grid[rows, cols][both] == expected[both]).mean()
+    assert both.sum() > 5000  # the corridor, metres of it
+    assert agreement > 0.95  # the rest: walls found half a cell to one side
