@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import io
 import math
+import weakref
 from dataclasses import dataclass
 from typing import Any
 
@@ -82,6 +83,7 @@ class VisualMapper:
         self.last_stamp = -math.inf
         self._log_odds: LogOddsGrid | None = None  # made again after a loop closure
         self._in_grid = 0  # keyframes the log-odds grid holds
+        self._blobs: weakref.WeakKeyDictionary[Features, bytes] = weakref.WeakKeyDictionary()
 
     @property
     def pose(self) -> Pose:
@@ -146,7 +148,7 @@ class VisualMapper:
     def state(self) -> bytes:
         """Keyframes, their scans, the graph's edges and the pose as ``.npz`` bytes (no
         pickle): what ``resumed`` and publishing read."""
-        blobs = [k.to_bytes() for k in self.slam.keyframes]
+        blobs = [self._bytes_of(k) for k in self.slam.keyframes]
         beams = max((len(s.ranges) for s in self.scans), default=0)
         ranges = np.full((len(self.scans), beams), np.nan)
         angles = np.full((len(self.scans), beams), np.nan)
@@ -155,7 +157,7 @@ class VisualMapper:
             angles[row, : len(scan.angles)] = scan.angles
         edges = [(i, j, *rel, *sig, float(loop)) for i, j, rel, sig, loop in self.slam.edges]
         out = io.BytesIO()
-        np.savez_compressed(
+        np.savez(  # the keyframes are compressed already; the rest is small
             out,
             blobs=np.frombuffer(b"".join(blobs), np.uint8),
             sizes=np.array([len(b) for b in blobs], np.int64),
@@ -167,6 +169,13 @@ class VisualMapper:
             last_stamp=np.array(self.last_stamp),
         )
         return out.getvalue()
+
+    def _bytes_of(self, keyframe: Features) -> bytes:
+        """``keyframe.to_bytes()``, made once per keyframe (a loop closure makes new ones)."""
+        found = self._blobs.get(keyframe)
+        if found is None:
+            found = self._blobs[keyframe] = keyframe.to_bytes()
+        return found
 
     @classmethod
     def resumed(cls, data: bytes, vocabulary: Vocabulary, resolution: float = 0.05) -> VisualMapper:

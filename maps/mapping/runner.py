@@ -35,6 +35,7 @@ import contextlib
 import json
 import logging
 import math
+import threading
 import time
 from collections import deque
 from collections.abc import Callable
@@ -106,6 +107,9 @@ class SessionWorker:
         self._saved_at = 0.0
         self._started = time.monotonic()
         self.on_saved: Callable[[], None] | None = None
+        # Mapping and snapshots take turns: a stopped task's last batch may still be
+        # running in its thread when ``stop`` writes the final snapshot.
+        self._mapping = threading.Lock()
 
     # --- the taps: on the hot path, O(1) ----------------------------------------------
 
@@ -167,6 +171,10 @@ class SessionWorker:
             await self._save()
 
     def _process(self, batch: list[Any]) -> None:
+        with self._mapping:
+            self._process_locked(batch)
+
+    def _process_locked(self, batch: list[Any]) -> None:
         started = time.thread_time()
         for item in batch:
             try:
@@ -195,6 +203,10 @@ class SessionWorker:
             self.on_saved()
 
     def _snapshot(self) -> tuple[Any, ...] | None:
+        with self._mapping:
+            return self._snapshot_locked()
+
+    def _snapshot_locked(self) -> tuple[Any, ...] | None:
         started = time.thread_time()
         grid, origin = self._grid()
         if not grid.size:
