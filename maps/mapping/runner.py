@@ -5,11 +5,14 @@ Each server process runs one ``MappingRunner`` beside its rosbridge hub. Every
 to *this* process (in the scaled mode, the robot's process does its mapping, wherever
 the session was started) and starts a ``SessionWorker`` for each new one.
 
-A worker taps the robot's ``scan`` and ``odom`` topics on the hub (``hub.tap``, the one
-way to tap the topic bus, ``telemetry.hub``): the tap only appends
-the message to a bounded queue (``QUEUE_SCANS``; the oldest is dropped, and counted,
-when SLAM falls behind), so publishing costs the relay one dict look-up and one append.
-SLAM (``maps.domain.slam``) runs on the queue in a worker thread; every ``SAVE_EVERY``
+A worker taps its robot's topics on the hub (``hub.tap``, the one way to tap the topic
+bus, ``telemetry.hub``): a laser session's ``scan`` and ``odom`` (``LaserWorker``), a
+visual session's camera image, compressedDepth, camera_info and ``odom``
+(``VisualWorker``, which pairs an image and a depth image of one stamp into a frame).
+The tap only appends to a bounded queue (``QUEUE_SCANS`` scans, ``QUEUE_FRAMES``
+frames; the oldest is dropped, and counted, when SLAM falls behind), so publishing
+costs the relay a dict look-up and an append. SLAM (``maps.domain.slam``, or
+``maps.domain.visual_mapping``) runs on the queue in a worker thread; every ``SAVE_EVERY``
 seconds the map so far, the corrected path, the figures and the keyframes are written to
 the session, which is what pages and the API read. Pages are told rather than left to
 poll: after each write, and when a worker starts or stops, the runner publishes the
