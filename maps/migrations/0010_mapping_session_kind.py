@@ -6,7 +6,7 @@ from django.db import migrations, models
 class Migration(migrations.Migration):
 
     dependencies = [
-        ('maps', '0008_proposal_robots'),
+        ('maps', '0009_building_fleet_rule'),
     ]
 
     operations = [
