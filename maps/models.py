@@ -188,7 +188,8 @@ class MappingSession(models.Model):
 
     The server process the robot is connected to runs its SLAM and writes the map so far
     here every few seconds (``grid_pgm``: a map_saver PGM with its origin and resolution),
-    with the corrected path and the keyframes it needs to resume."""
+    with the corrected path and the keyframes it needs to resume. A ``laser`` session maps
+    from the robot's scans, a ``visual`` one from its camera's image and depth."""
 
     RUNNING, INTERRUPTED, FINISHED, PUBLISHED, DISCARDED = (
         "running",
@@ -199,8 +200,11 @@ class MappingSession(models.Model):
     )
     STATES = [(s, s) for s in (RUNNING, INTERRUPTED, FINISHED, PUBLISHED, DISCARDED)]
     OPEN = (RUNNING, INTERRUPTED)
+    LASER, VISUAL = "laser", "visual"
+    KINDS = [(LASER, "laser: scans and odometry"), (VISUAL, "visual: an RGB-D camera")]
 
     robot = models.ForeignKey("robots.Robot", models.CASCADE, related_name="mapping_sessions")
+    kind = models.CharField(max_length=8, choices=KINDS, default=LASER)
     building = models.ForeignKey(Building, models.CASCADE, related_name="mapping_sessions")
     code = models.CharField(max_length=40, validators=[code_validator])
     submap = models.ForeignKey(

@@ -72,6 +72,41 @@ def test_an_admin_maps_with_a_robot_watches_the_map_grow_and_publishes_it(
     assert versions.json()["versions"][0]["note"] == "the porch, mapped by robot_0"
 
 
+@pytest.fixture
+def camera_only_robot(demo: Demo, tmp_path: Path):
+    """``robot_0`` with an RGB-D camera and no laser, depth with every frame, in Corridor A
+    facing its textured length."""
+    options = ("--sensors", "rgbd", "--depth-rate", "5", "--no-visual", "--start", "5,23,0")
+    with agent_process(
+        demo.server.url, demo.tokens[ROBOT], tmp_path / "agent.log", *options
+    ) as log:
+        yield log
+
+
+def test_an_admin_starts_a_visual_session_and_sees_its_figures(
+    camera_only_robot: Path, context: BrowserContext, demo: Demo
+) -> None:
+    page = open_as(context, demo, "admin", f"/robots/{ROBOT}/")
+    give_up = time.monotonic() + 60
+    while not robot_online(page, demo):  # it has no map to show: asked of the fleet
+        assert time.monotonic() < give_up, "the robot never came online"
+        page.wait_for_timeout(250)
+    page.fill("#mapping-start input[name=code]", "Lobby")
+    page.select_option("#mapping-start select[name=kind]", "visual")
+    page.click("#mapping-start button[type=submit]")
+    expect(page.locator("#mapping-state")).to_have_text(f"{BUILDING}/Lobby: running")
+    figures = page.locator("#mapping-figures")
+    expect(figures).to_contain_text("0 frames lost", timeout=60_000)  # mapped from the camera
+    expect(figures).to_contain_text("1 keyframes")
+    sessions = page.request.get(demo.url(f"/api/mapping/sessions/?robot={ROBOT}"))
+    assert sessions.json()[0]["kind"] == "visual"
+
+
+def robot_online(page: Page, demo: Demo) -> bool:
+    fleet = page.request.get(demo.url("/api/fleet/")).json()
+    return any(entry["robot"] == ROBOT and entry["online"] for entry in fleet)
+
+
 def sessions_asked(page: Page) -> list[float]:
     """When (monotonic seconds) ``page`` asks for the robot's mapping sessions from now on."""
     asked: list[float] = []

@@ -93,7 +93,7 @@ def test_it_rejects_outsider(robot: Robot, outsider: User, operator: User) -> No
 
 def test_scans_beyond_the_queue_drop_the_oldest() -> None:
     session = MappingSession(pk=1, robot=Robot(name="r1"), start_x=0, start_y=0, start_yaw=0)
-    worker = mapping_runner.SessionWorker(session)
+    worker = mapping_runner.LaserWorker(session)
     for index in range(100):
         worker.on_scan({"index": index})
     assert len(worker.queue) == mapping_runner.QUEUE_SCANS
@@ -188,6 +188,7 @@ async def test_a_robot_that_disconnects_leaves_its_partial_map_to_resume_or_disc
     assert resumed.json()["state"] == "running"
     await runner.sync()
     worker = runner.workers[session.pk]
+    assert isinstance(worker, mapping_runner.LaserWorker)
     assert len(worker.mapper.keyframes) == kept.stats["keyframes"]
     for odom, scan in messages[200:300]:
         hub.send("/r1/odom", odom)

@@ -222,7 +222,7 @@ class Mapper:
         self._matched_odom: Pose | None = None
         self._field: _Field | None = None
         self._prior = prior
-        self._log_odds: _LogOdds | None = _LogOdds(self.params, prior)
+        self._log_odds: LogOddsGrid | None = LogOddsGrid(self.params, prior)
         self._edges: list[tuple[int, int, Pose, tuple[float, float, float], bool]] = []
         self._last_loop_try = 0
         self._resuming = False
@@ -368,7 +368,7 @@ class Mapper:
         """The occupancy grid so far (row 0 = bottom; 100, 0, -1) and the map-frame
         position of its cell (0, 0)'s corner."""
         if self._log_odds is None:
-            self._log_odds = _LogOdds(self.params, self._prior)
+            self._log_odds = LogOddsGrid(self.params, self._prior)
             for keyframe in self.keyframes:
                 self._log_odds.add(keyframe)
         return self._log_odds.grid()
@@ -523,8 +523,9 @@ def optimise_graph(
 # --- occupancy -------------------------------------------------------------------------
 
 
-class _LogOdds:
-    """A growing log-odds grid; each keyframe's scan is added once."""
+class LogOddsGrid:
+    """A growing log-odds grid; each keyframe's scan is added once (``add``; ``add_view``
+    for a scan and its pose), ``grid`` reads it as 100, 0, -1 by the thresholds."""
 
     CHUNK = 256  # cells the grid grows by at a time, so it is seldom copied
 
@@ -561,6 +562,10 @@ class _LogOdds:
         flat[free_cells] += p.log_miss
         flat[hit_cells] += p.log_hit
         np.clip(flat, -p.log_clamp, p.log_clamp, out=flat)
+
+    def add_view(self, pose: Pose, scan: Scan) -> None:
+        """Add ``scan`` taken from map-frame ``pose``."""
+        self.add(Keyframe(pose, scan, scan.points()))
 
     def _cells(self, points: Floats) -> npt.NDArray[np.intp]:
         res = self.params.resolution

@@ -24,6 +24,7 @@ from PIL import Image as PILImage
 from maps.domain.keyframes import Depth, Image, Intrinsics
 from maps.exceptions import KeyframeError
 from telemetry.domain.messages import depth_of
+from telemetry.domain.times import parse_stamp
 
 MAX_IMAGES = 8
 """Images one relocalisation request may carry."""
@@ -103,6 +104,37 @@ def depth_image(msg: Any, shape: tuple[int, ...], max_pixels: int) -> Depth:
             f"{shape[1]}x{shape[0]} image it must be registered to",
         )
     return depth
+
+
+def finite_depth(msg: Any) -> None:
+    """Raise KeyframeError when a raw ``32FC1`` depth image holds readings that are not
+    finite numbers (NaN, inf): a mapping session takes 0 for "no reading", so a
+    non-finite value is a fault of the sender, never silently a hole. The other forms
+    (millimetres in 16 bits, compressedDepth PNGs) cannot hold one."""
+    if not isinstance(msg, Mapping) or msg.get("encoding") != "32FC1":
+        return
+    try:
+        data = base64.b64decode(str(msg.get("data", "")), validate=True)
+    except (binascii.Error, ValueError):
+        return  # depth_image says what is wrong with it
+    kind = ">f4" if msg.get("is_bigendian") else "<f4"
+    values = np.frombuffer(data[: len(data) // 4 * 4], kind)
+    bad = int((~np.isfinite(values)).sum())
+    if bad:
+        raise KeyframeError(
+            "depth", f"{bad} readings are not finite numbers: send 0 where there is no reading"
+        )
+
+
+def stamp_of(msg: Any, field: str) -> float:
+    """``header.stamp`` of a message in seconds; raises KeyframeError without one."""
+    header = msg.get("header") if isinstance(msg, Mapping) else None
+    value = header.get("stamp") if isinstance(header, Mapping) else None
+    try:
+        sec, nanosec = parse_stamp(value if isinstance(value, Mapping) else {})
+    except ValueError:
+        raise KeyframeError(field, "header.stamp (sec, nanosec) is required") from None
+    return sec + nanosec / 1e9
 
 
 def intrinsics_of(msg: Any, shape: tuple[int, ...]) -> Intrinsics:

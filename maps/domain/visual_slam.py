@@ -140,6 +140,37 @@ class VisualSlam:
         """Loop closures as (older, newer) keyframe positions."""
         return list(self._graph.loops)
 
+    @property
+    def edges(self) -> list[Edge]:
+        """The graph's edges ``(i, j, pose of j in i's frame, sigmas, loop)``."""
+        return list(self._graph.edges)
+
+    @property
+    def travelled_at(self) -> list[float]:
+        """Metres tracked when each keyframe was made."""
+        return list(self._graph.travelled)
+
+    @classmethod
+    def resumed(
+        cls,
+        vocabulary: Vocabulary,
+        keyframes: list[Keyframe],
+        edges: list[Edge],
+        travelled_at: list[float],
+        pose: Pose,
+        intrinsics: Intrinsics | None = None,
+    ) -> VisualSlam:
+        """A map holding ``keyframes`` tied by ``edges`` (as a stopped one had them). Its
+        first frame is searched against every keyframe, as a wake-up is: the robot may
+        have moved while nobody was tracking it."""
+        slam = cls(vocabulary, pose, intrinsics)
+        slam._graph = _Graph(list(keyframes), list(travelled_at), list(edges), [])
+        slam.travelled = max(travelled_at, default=0.0)
+        for position, keyframe in enumerate(keyframes):
+            slam._index.add(position, "", keyframe)
+        slam._lost = bool(keyframes)
+        return slam
+
     def track(self, image: Image, depth: Depth, odometry: Pose | None = None) -> Tracked:
         """Place one frame (grey ``image``, registered ``depth`` in metres, the wheel
         ``odometry`` pose of its instant if any) and grow the map with it.

@@ -5,11 +5,14 @@ Each server process runs one ``MappingRunner`` beside its rosbridge hub. Every
 to *this* process (in the scaled mode, the robot's process does its mapping, wherever
 the session was started) and starts a ``SessionWorker`` for each new one.
 
-A worker taps the robot's ``scan`` and ``odom`` topics on the hub (``hub.tap``, the one
-way to tap the topic bus, ``telemetry.hub``): the tap only appends
-the message to a bounded queue (``QUEUE_SCANS``; the oldest is dropped, and counted,
-when SLAM falls behind), so publishing costs the relay one dict look-up and one append.
-SLAM (``maps.domain.slam``) runs on the queue in a worker thread; every ``SAVE_EVERY``
+A worker taps its robot's topics on the hub (``hub.tap``, the one way to tap the topic
+bus, ``telemetry.hub``): a laser session's ``scan`` and ``odom`` (``LaserWorker``), a
+visual session's camera image, compressedDepth, camera_info and ``odom``
+(``VisualWorker``, which pairs an image and a depth image of one stamp into a frame).
+The tap only appends to a bounded queue (``QUEUE_SCANS`` scans, ``QUEUE_FRAMES``
+frames; the oldest is dropped, and counted, when SLAM falls behind), so publishing
+costs the relay a dict look-up and an append. SLAM (``maps.domain.slam``, or
+``maps.domain.visual_mapping``) runs on the queue in a worker thread; every ``SAVE_EVERY``
 seconds the map so far, the corrected path, the figures and the keyframes are written to
 the session, which is what pages and the API read. Pages are told rather than left to
 poll: after each write, and when a worker starts or stops, the runner publishes the
@@ -35,6 +38,7 @@ import contextlib
 import json
 import logging
 import math
+import threading
 import time
 from collections import deque
 from collections.abc import Callable
@@ -42,15 +46,19 @@ from concurrent.futures import ThreadPoolExecutor
 from typing import Any, Protocol
 
 from asgiref.sync import sync_to_async
+from django.conf import settings
 
 from cloudnav_web.batches import UNREACHABLE
 from cloudnav_web.outage import REPORT
 from telemetry.domain import names
 from telemetry.domain.bus import OnMessage
 from telemetry.domain.messages import pose_of
+from telemetry.domain.video import stamp_seconds
 
 from ..domain.slam import Mapper, Scan, SlamParams
-from ..exceptions import OutsideExtent
+from ..domain.visual_mapping import VisualMapper, frame_of
+from ..domain.vocabulary import default_vocabulary
+from ..exceptions import KeyframeError, OutsideExtent
 from ..models import MappingSession
 from . import sessions
 
@@ -81,21 +89,20 @@ class TopicTaps(Protocol):
 
 
 class SessionWorker:
-    """SLAM of one session, fed by taps on its robot's topics."""
+    """The mapping of one session, fed by taps on its robot's topics: the taps queue what
+    they get (bounded: the oldest is dropped, and counted, when mapping falls behind), a
+    worker thread maps the queue, and the map so far is written every ``SAVE_EVERY``
+    seconds. ``LaserWorker`` and ``VisualWorker`` say what is tapped, mapped and written."""
 
-    def __init__(self, session: MappingSession, prior: Any = None, resume: bytes = b"") -> None:
+    queue_size = QUEUE_SCANS
+
+    def __init__(self, session: MappingSession) -> None:
         self.session_pk = session.pk
         self.robot = session.robot.name
-        self.params = SlamParams()
-        start = (session.start_x, session.start_y, session.start_yaw)
-        if resume:
-            self.mapper = Mapper.resumed(resume, self.params, prior)
-        else:
-            self.mapper = Mapper(self.params, start, prior)
-        self.queue: deque[tuple[dict[str, Any] | None, dict[str, Any]]] = deque(maxlen=QUEUE_SCANS)
+        self.queue: deque[Any] = deque(maxlen=self.queue_size)
         self.dropped = 0
-        self.bad_scans = 0
-        self.refusal = ""  # why the last scan refused was refused
+        self.bad_input = 0
+        self.refusal = ""  # why the last input refused was refused
         self.cpu = 0.0
         self._odom: dict[str, Any] | None = None
         self._wake = asyncio.Event()
@@ -103,16 +110,23 @@ class SessionWorker:
         self._saved_at = 0.0
         self._started = time.monotonic()
         self.on_saved: Callable[[], None] | None = None
+        # Mapping and snapshots take turns: a stopped task's last batch may still be
+        # running in its thread when ``stop`` writes the final snapshot.
+        self._mapping = threading.Lock()
 
     # --- the taps: on the hot path, O(1) ----------------------------------------------
+
+    def taps(self) -> list[tuple[str, Callable[[dict[str, Any]], None]]]:
+        """``(topic suffix, callback)`` of each topic of the robot the worker is fed by."""
+        raise NotImplementedError
 
     def on_odom(self, msg: dict[str, Any]) -> None:
         self._odom = msg
 
-    def on_scan(self, msg: dict[str, Any]) -> None:
+    def _queue(self, item: Any) -> None:
         if len(self.queue) == self.queue.maxlen:
             self.dropped += 1
-        self.queue.append((self._odom, msg))
+        self.queue.append(item)
         self._wake.set()
 
     # --- the work ------------------------------------------------------------------------
@@ -159,25 +173,26 @@ class SessionWorker:
         if time.monotonic() - self._saved_at >= SAVE_EVERY:
             await self._save()
 
-    def _process(self, batch: list[tuple[dict[str, Any] | None, dict[str, Any]]]) -> None:
+    def _process(self, batch: list[Any]) -> None:
+        with self._mapping:
+            self._process_locked(batch)
+
+    def _process_locked(self, batch: list[Any]) -> None:
         started = time.thread_time()
-        for odom_msg, scan_msg in batch:
+        for item in batch:
             try:
-                self._add(odom_msg, scan_msg)
+                self._add(item)
             except OutsideExtent as error:
                 self.refusal = str(error)
-            except ValueError as error:
-                self.bad_scans += 1
+            except (ValueError, KeyframeError) as error:
+                self.bad_input += 1
                 self.refusal = str(error)
         self.cpu += time.thread_time() - started
 
-    def _add(self, odom_msg: dict[str, Any] | None, scan_msg: dict[str, Any]) -> None:
-        """Raises ValueError for a message that is no scan, OutsideExtent for a pose
-        beyond the session's extent."""
-        odom = _odom_pose(odom_msg)
-        scan = Scan.from_message(scan_msg, self.params.usable_range)
-        if odom is not None:
-            self.mapper.add(odom, scan)
+    def _add(self, item: Any) -> None:
+        """Map one queued item. Raises ValueError or KeyframeError for bad input,
+        OutsideExtent for a pose beyond the session's extent."""
+        raise NotImplementedError
 
     async def _save(self) -> None:
         self._saved_at = time.monotonic()
@@ -191,25 +206,177 @@ class SessionWorker:
             self.on_saved()
 
     def _snapshot(self) -> tuple[Any, ...] | None:
+        with self._mapping:
+            return self._snapshot_locked()
+
+    def _snapshot_locked(self) -> tuple[Any, ...] | None:
         started = time.thread_time()
-        grid, origin = self.mapper.grid()
+        grid, origin = self._grid()
         if not grid.size:
             return None
-        state = self.mapper.state()
+        state = self._state()
         self.cpu += time.thread_time() - started
-        path = list(self.mapper.path)
-        return grid, origin, self.params.resolution, path, self._figures(), state
+        return grid, origin, self._resolution(), self._path(), self._figures(), state
+
+    def _grid(self) -> tuple[Any, tuple[float, float]]:
+        raise NotImplementedError
+
+    def _state(self) -> bytes:
+        raise NotImplementedError
+
+    def _resolution(self) -> float:
+        raise NotImplementedError
+
+    def _path(self) -> list[tuple[float, float, float]]:
+        raise NotImplementedError
+
+    def _stats(self) -> dict[str, Any]:
+        raise NotImplementedError
 
     def _figures(self) -> dict[str, Any]:
         elapsed = max(1e-6, time.monotonic() - self._started)
         return {
-            **self.mapper.stats.__dict__,
+            **self._stats(),
             "dropped": self.dropped,
-            "bad_scans": self.bad_scans,
+            "bad_scans": self.bad_input,
             "refusal": self.refusal,
             "cpu_share": round(self.cpu / elapsed, 4),
-            "pose": list(self.mapper.pose),
         }
+
+
+class LaserWorker(SessionWorker):
+    """2D SLAM (``maps.domain.slam``) on the robot's ``scan`` and ``odom``."""
+
+    def __init__(self, session: MappingSession, prior: Any = None, resume: bytes = b"") -> None:
+        super().__init__(session)
+        self.params = SlamParams()
+        start = (session.start_x, session.start_y, session.start_yaw)
+        if resume:
+            self.mapper = Mapper.resumed(resume, self.params, prior)
+        else:
+            self.mapper = Mapper(self.params, start, prior)
+
+    def taps(self) -> list[tuple[str, Callable[[dict[str, Any]], None]]]:
+        return [(names.SCAN, self.on_scan), (names.ODOM, self.on_odom)]
+
+    def on_scan(self, msg: dict[str, Any]) -> None:
+        self._queue((self._odom, msg))
+
+    def _add(self, item: tuple[dict[str, Any] | None, dict[str, Any]]) -> None:
+        odom_msg, scan_msg = item
+        odom = _odom_pose(odom_msg)
+        scan = Scan.from_message(scan_msg, self.params.usable_range)
+        if odom is not None:
+            self.mapper.add(odom, scan)
+
+    def _grid(self) -> tuple[Any, tuple[float, float]]:
+        return self.mapper.grid()
+
+    def _state(self) -> bytes:
+        return self.mapper.state()
+
+    def _resolution(self) -> float:
+        return self.params.resolution
+
+    def _path(self) -> list[tuple[float, float, float]]:
+        return list(self.mapper.path)
+
+    def _stats(self) -> dict[str, Any]:
+        return {**self.mapper.stats.__dict__, "pose": list(self.mapper.pose)}
+
+
+QUEUE_FRAMES = 4
+"""Camera frames (image, depth, camera_info) waiting for visual SLAM at most."""
+PAIRING = 8
+"""Images (and depth images) kept while they wait for the other half of their frame."""
+
+
+class VisualWorker(SessionWorker):
+    """Visual SLAM (``maps.domain.visual_mapping``) on the robot's camera: each colour
+    image and the depth image of the same stamp make a frame, with the latest
+    ``camera_info`` and ``odom``. A half whose other half does not come within
+    ``PAIRING`` frames is forgotten (a robot sends depth with fewer of its images)."""
+
+    queue_size = QUEUE_FRAMES
+
+    def __init__(self, session: MappingSession, resume: bytes = b"") -> None:
+        super().__init__(session)
+        vocabulary = default_vocabulary()
+        if resume:
+            self.mapper = VisualMapper.resumed(resume, vocabulary)
+        else:
+            start = (session.start_x, session.start_y, session.start_yaw)
+            self.mapper = VisualMapper(vocabulary, start)
+        self._images: dict[float, dict[str, Any]] = {}
+        self._depths: dict[float, dict[str, Any]] = {}
+        self._info: dict[str, Any] | None = None
+        self.max_pixels = settings.CLOUDNAV_MAX_IMAGE_PIXELS
+
+    def taps(self) -> list[tuple[str, Callable[[dict[str, Any]], None]]]:
+        return [
+            (names.CAMERA_IMAGE, self.on_image),
+            (names.CAMERA_DEPTH, self.on_depth),
+            (names.CAMERA_INFO, self.on_camera_info),
+            (names.ODOM, self.on_odom),
+        ]
+
+    def on_camera_info(self, msg: dict[str, Any]) -> None:
+        self._info = msg
+
+    def on_image(self, msg: dict[str, Any]) -> None:
+        self._pair(msg, self._images, self._depths, image_first=True)
+
+    def on_depth(self, msg: dict[str, Any]) -> None:
+        self._pair(msg, self._depths, self._images, image_first=False)
+
+    def _pair(
+        self,
+        msg: dict[str, Any],
+        mine: dict[float, dict[str, Any]],
+        theirs: dict[float, dict[str, Any]],
+        image_first: bool,
+    ) -> None:
+        stamp = stamp_seconds(msg)
+        if stamp is None:  # it pairs with nothing: refused here, never queued
+            self.bad_input += 1
+            self.refusal = "a camera message with no header.stamp pairs with nothing"
+            return
+        other = theirs.pop(stamp, None)
+        if other is None:
+            mine[stamp] = msg
+            while len(mine) > PAIRING:
+                del mine[next(iter(mine))]
+            return
+        image, depth = (msg, other) if image_first else (other, msg)
+        self._queue((_odom_pose(self._odom), image, depth, self._info))
+
+    def _add(self, item: Any) -> None:
+        odometry, image, depth, info = item
+        self.mapper.add(frame_of(image, depth, info, odometry, self.max_pixels))
+
+    def _grid(self) -> tuple[Any, tuple[float, float]]:
+        return self.mapper.grid()
+
+    def _state(self) -> bytes:
+        return self.mapper.state()
+
+    def _resolution(self) -> float:
+        return self.mapper.resolution
+
+    def _path(self) -> list[tuple[float, float, float]]:
+        return self.mapper.path
+
+    def _stats(self) -> dict[str, Any]:
+        behind = f"falling behind: {self.dropped} frames dropped" if self.dropped else ""
+        return {**self.mapper.stats.__dict__, "pose": list(self.mapper.pose), "behind": behind}
+
+
+def worker_for(session: MappingSession, prior: Any = None, resume: bytes = b"") -> SessionWorker:
+    """The worker of ``session``'s kind (a visual map starts afresh: the camera's map is
+    not matched against the grid it updates)."""
+    if session.kind == MappingSession.VISUAL:
+        return VisualWorker(session, resume)
+    return LaserWorker(session, prior, resume)
 
 
 def _odom_pose(msg: dict[str, Any] | None) -> tuple[float, float, float] | None:
@@ -267,12 +434,12 @@ class MappingRunner:
         for pk in running - self.workers.keys():
             found = await sync_to_async(_session_start)(pk)
             if found is not None:
-                worker = SessionWorker(*found)
+                worker = worker_for(*found)
                 worker.on_saved = lambda w=worker: self._told(w.robot, w.session_pk, "saved")
                 self.workers[pk] = worker
                 self._taps[pk] = [
-                    self.hub.tap(f"/{worker.robot}/scan", _message_to(worker.on_scan)),
-                    self.hub.tap(f"/{worker.robot}/odom", _message_to(worker.on_odom)),
+                    self.hub.tap(names.robot_topic(worker.robot, suffix), _message_to(callback))
+                    for suffix, callback in worker.taps()
                 ]
                 worker.start()
                 self._told(worker.robot, pk, "started")

@@ -31,18 +31,26 @@ from ..domain.mapfile import (
     map_yaml_text,
 )
 from ..domain.versions import Reason
-from ..exceptions import MappingError
+from ..domain.visual_mapping import stored_keyframes
+from ..exceptions import KeyframeError, MappingError
 from ..models import Building, MappingSession, SubMap, SubMapVersion
+from ..visual import store
 
 PATH_POINTS = 2000
 """Corrected poses kept for the page at most (the path is thinned evenly beyond)."""
 
 
 def start(
-    robot: Robot, building: Building, code: str, by: Any = None, update: bool = False
+    robot: Robot,
+    building: Building,
+    code: str,
+    by: Any = None,
+    update: bool = False,
+    kind: str = MappingSession.LASER,
 ) -> MappingSession:
     """Open a session for ``robot`` building sub-map ``code`` of ``building``: a new one,
-    or (``update``) a new version of the existing one, made on its current version.
+    or (``update``) a new version of the existing one, made on its current version; of
+    ``kind`` ``laser`` (scans) or ``visual`` (an RGB-D camera).
 
     Raises MappingError when the robot is offline or not registered here, already has an
     open session, or the code is taken (new) or unknown (update)."""
@@ -56,7 +64,7 @@ def start(
         raise MappingError(f"{building.code} has no sub-map {code} to update.")
     if not update and submap is not None:
         raise MappingError(f"{building.code}/{code} exists: update it, or choose a new code.")
-    return _open(robot, building, code, submap, by, state)
+    return _open(robot, building, code, submap, by, state, kind)
 
 
 def _open(
@@ -66,6 +74,7 @@ def _open(
     submap: SubMap | None,
     by: Any,
     state: RobotState,
+    kind: str,
 ) -> MappingSession:
     person = by if getattr(by, "is_authenticated", False) and by.pk else None
     pose = [v if v is not None and math.isfinite(v) else 0.0 for v in (state.x, state.y, state.yaw)]
@@ -74,6 +83,7 @@ def _open(
             return MappingSession.objects.create(
                 robot=robot,
                 building=building,
+                kind=kind,
                 code=code,
                 submap=submap,
                 based_on=submap.revision if submap is not None else None,
@@ -212,5 +222,20 @@ def publish(session: MappingSession, by: Any = None, note: str = "") -> SubMapVe
             session.building, session.code, loaded, author=by, note=why, reason=Reason.MAPPING
         )
         made = submap.versions.get(number=submap.revision)
+    if session.kind == MappingSession.VISUAL:
+        _register_keyframes(made.submap, session)
     change_state(session, MappingSession.PUBLISHED, (MappingSession.FINISHED,))
     return made
+
+
+def _register_keyframes(submap: SubMap, session: MappingSession) -> int:
+    """Make a visual session's keyframes ``submap``'s relocalisation map (replacing the
+    keyframes it had: they belong to the map this version replaces); returns how many
+    were stored (near-duplicates are dropped). Raises MappingError for a state that
+    cannot be read."""
+    try:
+        keyframes = stored_keyframes(bytes(session.keyframes)) if session.keyframes else []
+    except (ValueError, KeyframeError) as error:
+        raise MappingError(f"The session's keyframes cannot be read: {error}") from None
+    store.clear(submap)
+    return sum(store.save(submap, session.robot.name, k) is not None for k in keyframes)

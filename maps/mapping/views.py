@@ -36,6 +36,11 @@ class StartSerializer(serializers.Serializer[Any]):
     update = serializers.BooleanField(  # type: ignore[assignment]
         default=False, help_text="true: a new version of the existing sub-map `code`"
     )
+    kind = serializers.ChoiceField(
+        choices=MappingSession.KINDS,
+        default=MappingSession.LASER,
+        help_text="laser: from scans and odometry; visual: from an RGB-D camera's image and depth",
+    )
 
 
 class SessionSerializer(serializers.ModelSerializer[MappingSession]):
@@ -54,6 +59,7 @@ class SessionSerializer(serializers.ModelSerializer[MappingSession]):
             "robot",
             "building",
             "code",
+            "kind",
             "map_id",
             "based_on",
             "state",
@@ -124,7 +130,9 @@ class SessionList(APIView):
         robot = Robot.objects.filter(name=data["robot"], buildings=building).first()
         if robot is None:
             raise NotFound(f"No robot {data['robot']} in {building.code}.")
-        session = sessions.start(robot, building, data["code"], request.user, data["update"])
+        session = sessions.start(
+            robot, building, data["code"], request.user, data["update"], data["kind"]
+        )
         return Response(_document(session), status=status.HTTP_201_CREATED)
 
 

@@ -40,9 +40,12 @@ async function show(session) {
   if (start) start.hidden = Boolean(session && OPEN.includes(session.state));
   if (!session) return;
   const s = session.stats || {};
+  const visual = session.kind === "visual";
+  const dropped = `${s.dropped ?? 0} ${visual ? "frames" : "scans"} dropped`;
+  const lost = visual ? ` · ${s.lost ?? 0} frames lost · ${s.refused ?? 0} refused` : "";
   $("mapping-figures").textContent = session.snapshot
-    ? `${session.size[0]}×${session.size[1]} cells · ${s.keyframes ?? 0} keyframes · ${s.loop_closures ?? 0} loop closures · ${s.dropped ?? 0} scans dropped · ${fixed(100 * (s.cpu_share ?? 0), 1)} % CPU`
-    : "waiting for the robot's scans…";
+    ? `${session.size[0]}×${session.size[1]} cells · ${s.keyframes ?? 0} keyframes · ${s.loop_closures ?? 0} loop closures · ${dropped}${lost} · ${fixed(100 * (s.cpu_share ?? 0), 1)} % CPU`
+    : `waiting for the robot's ${visual ? "camera" : "scans"}…`;
   if (session.reason) say("info", session.reason);
   if (session.snapshot && session.snapshot !== state.snapshot) {
     view.setGrid(await api.get(`${sessionsUrl}${session.id}/grid`));
@@ -93,6 +96,7 @@ async function start(event) {
       building: config.buildings[0],
       code: form.code.value,
       update: form.update.value === "true",
+      kind: form.kind.value,
     });
     state.snapshot = 0;
     say("ok", "Mapping: drive the robot around; the map grows here.");

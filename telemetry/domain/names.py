@@ -59,6 +59,11 @@ LOCALISATION = "localisation"
 BATTERY = "battery"
 MAPPING = "mapping"
 GOAL = "goal"
+ODOM = "odom"
+SCAN = "scan"
+CAMERA_IMAGE = "camera/image/compressed"
+CAMERA_DEPTH = "camera/depth/image/compressedDepth"
+CAMERA_INFO = "camera/camera_info"
 
 
 def absolute(name: str, namespace: str = "") -> str:
