@@ -29,7 +29,7 @@ from maps.models import Building
 from robots.models import Robot
 from telemetry.domain import names
 from telemetry.domain.events import EventDeriver, EventDraft, Kind, Severity
-from telemetry.domain.messages import pose_of
+from telemetry.domain.messages import published_pose_of
 from telemetry.domain.storable import storable, storable_text
 
 from .models import Event
@@ -78,7 +78,7 @@ class EventLog:
         """A message on one of ``robot``'s OBSERVED topics."""
         now = self.clock()
         if kind == names.POSE:
-            pose = pose_of(msg)
+            pose = published_pose_of(msg)
             if pose is not None:
                 self.deriver.pose(robot, pose.map_id, pose.x, pose.y, now)
         elif kind == names.NAV_STATUS:

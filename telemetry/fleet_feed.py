@@ -12,7 +12,7 @@ from maps.domain.reservations import Reservations
 from robots.fleet import FleetTracker
 from telemetry.cross_process import CrossProcess
 from telemetry.domain import names
-from telemetry.domain.messages import goal_live, pose_of, string_of
+from telemetry.domain.messages import goal_live, published_pose_of, string_of
 from telemetry.domain.protocol import Json
 from telemetry.events import OBSERVED, EventLog
 from telemetry.missions import MissionRunner
@@ -76,7 +76,7 @@ class FleetFeed:
         robot_pk, kind = tracked
         robot = names.first_segment(name)
         if kind == names.POSE:
-            pose = pose_of(msg)
+            pose = published_pose_of(msg)
             if pose is not None:
                 self.tracker.pose(robot_pk, pose)
                 self.spots.stand(robot, pose.map_id, pose.x, pose.y)

@@ -19,6 +19,8 @@ from __future__ import annotations
 
 import asyncio
 import functools
+import logging
+import weakref
 from collections.abc import Awaitable, Callable
 from typing import Any
 
@@ -31,6 +33,7 @@ AsgiSend = Callable[[dict[str, Any]], Awaitable[None]]
 # Frames held for the next loop turn, per connection, before it counts as not writable.
 PENDING_LIMIT = 256 * 1024
 SCOPE_KEY = "cloudnav.transport_send"
+logger = logging.getLogger(__name__)
 
 
 class TransportProbe:
@@ -74,6 +77,43 @@ def cap_incoming(protocol: Any, max_frame_bytes: int) -> None:
     protocol.maxFramePayloadSize = protocol.maxMessagePayloadSize = limit
 
 
+class NextTurn:
+    """The sinks of one event loop that have frames waiting, flushed together by one
+    callback at the start of the loop's next turn: a message fanned out to many
+    connections schedules one callback, not one per connection."""
+
+    def __init__(self, loop: asyncio.AbstractEventLoop) -> None:
+        self.loop = loop
+        self._sinks: list[DaphneSink] = []
+
+    def flush_soon(self, sink: DaphneSink) -> None:
+        self._sinks.append(sink)
+        if len(self._sinks) == 1:
+            self.loop.call_soon(self._flush)
+
+    def _flush(self) -> None:
+        sinks, self._sinks = self._sinks, []
+        for sink in sinks:
+            try:
+                sink.flush()
+            except Exception:  # one connection's failure must not hold the others' frames
+                logger.exception("a WebSocket flush failed")
+
+
+_turns: weakref.WeakKeyDictionary[asyncio.AbstractEventLoop, NextTurn] = (
+    weakref.WeakKeyDictionary()
+)
+
+
+def next_turn() -> NextTurn:
+    """Return the running loop's ``NextTurn``."""
+    loop = asyncio.get_running_loop()
+    turn = _turns.get(loop)
+    if turn is None:
+        turn = _turns[loop] = NextTurn(loop)
+    return turn
+
+
 @implementer(IPushProducer)
 class DaphneSink:
     """Synchronous writes to a daphne WebSocket, paused while Twisted's buffer is full.
@@ -94,6 +134,7 @@ class DaphneSink:
         self.socket = getattr(self.transport, "socket", None) if plain else None
         self._pending: list[bytes] = []
         self._pending_bytes = 0
+        self._turn = next_turn()
         # daphne leaves its HTTP channel registered as the producer of the upgraded
         # transport, where it no longer does anything; take its place.
         if self.transport.producer is not None:
@@ -122,9 +163,10 @@ class DaphneSink:
         self._pending.append(data)
         self._pending_bytes += len(data)
         if len(self._pending) == 1:
-            asyncio.get_running_loop().call_soon(self._flush)
+            self._turn.flush_soon(self)
 
-    def _flush(self) -> None:
+    def flush(self) -> None:
+        """Write the frames of this turn (``NextTurn`` calls this at the start of the next)."""
         data = b"".join(self._pending)
         self._pending.clear()
         self._pending_bytes = 0

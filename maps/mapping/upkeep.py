@@ -43,7 +43,7 @@ import numpy as np
 from django.db import transaction
 
 from telemetry.domain.bus import OnMessage, Topic
-from telemetry.domain.messages import pose_of
+from telemetry.domain.messages import published_pose_of
 from telemetry.domain.times import parse_stamp
 
 from .. import services, versions
@@ -159,7 +159,7 @@ class UpkeepRunner:
 
     def _on_pose(self, robot: _Robot) -> OnMessage:
         def on_pose(_topic: Topic, msg: dict[str, Any]) -> None:
-            found, stamp = pose_of(msg), _stamp_of(msg)
+            found, stamp = published_pose_of(msg), _stamp_of(msg)
             if found is None or stamp is None or not found.map_id:
                 return
             if not math.isfinite(found.x + found.y + found.yaw):

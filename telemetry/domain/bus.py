@@ -37,7 +37,7 @@ from typing import Protocol
 
 from telemetry.exceptions import LimitReached, TypeConflict, UnknownTopic
 
-from .encoding import Outgoing, Wire
+from .encoding import Outgoing, Variant, Wire
 from .limits import ConnectionLimits, Holdings, check_room
 from .names import canonical_type
 from .protocol import Json, PublishFrame
@@ -130,6 +130,7 @@ class Subscription:
         "requests",
         "spelling",
         "throttle",
+        "variant",
     )
 
     def __init__(self, bus: TopicBus, peer: Peer, spelling: str) -> None:
@@ -141,6 +142,7 @@ class Subscription:
         self.queue_length = 0
         self.fragment_size: int | None = None
         self.compression = "none"
+        self.variant: Variant = ("none", None, spelling)
         self.last_sent = float("-inf")
         self._queue: deque[Outgoing] = deque()
         self._timer: Cancellable | None = None
@@ -168,6 +170,7 @@ class Subscription:
         sizes = [p.fragment_size for p in params if p.fragment_size is not None]
         self.fragment_size = min(sizes) if sizes else None
         self.compression = "cbor" if any(p.compression == "cbor" for p in params) else "none"
+        self.variant = (self.compression, self.fragment_size, self.spelling)
         self._queue = deque(self._queue, maxlen=self.queue_length or None)
         if self.throttle == 0:
             self._flush()
@@ -175,14 +178,16 @@ class Subscription:
     def offer(self, out: Outgoing, now: float) -> None:
         """Send ``out`` now, drop it, or queue it, as the throttle and queue say."""
         if self.throttle == 0 or (now - self.last_sent >= self.throttle and not self._queue):
-            self._send(out, now)
+            # ``_send`` written out: this line runs once per subscriber per message
+            self.last_sent = now
+            self.peer.deliver(out.wire_of(self.variant))
         elif self.queue_length:
             self._queue.append(out)
             self._arm(now)
 
     def _send(self, out: Outgoing, now: float) -> None:
         self.last_sent = now
-        self.peer.deliver(out.wire(self.compression, self.fragment_size, self.spelling))
+        self.peer.deliver(out.wire_of(self.variant))
 
     def _arm(self, now: float) -> None:
         if self._timer is None:
@@ -372,7 +377,7 @@ class TopicBus:
         if topic.latched:
             topic.last = out
         now = self.clock()
-        for subscription in list(topic.subscriptions.values()):
+        for subscription in tuple(topic.subscriptions.values()):
             subscription.offer(out, now)
 
     def receive_remote(

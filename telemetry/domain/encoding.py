@@ -32,6 +32,9 @@ from .protocol import OutFrame
 
 _fragment_ids = itertools.count(1)
 
+Variant = tuple[str, int | None, str | None]
+"""How one subscriber receives a message: ``(compression, fragment_size, topic spelling)``."""
+
 
 def _base64(value: Any) -> str:
     if isinstance(value, bytes | bytearray | memoryview):
@@ -146,17 +149,22 @@ class Outgoing:
 
     def __init__(self, frame: OutFrame | dict[str, Any]) -> None:
         self.frame = frame
-        self._variants: dict[tuple[str, int | None, str | None], Wire] = {}
+        self._variants: dict[Variant, Wire] = {}
 
     def wire(
         self, compression: str = "none", fragment_size: int | None = None, topic: str | None = None
     ) -> Wire:
         """Return the encoding for one variant, encoding it on first use only."""
-        key = (compression, fragment_size, topic)
-        wire = self._variants.get(key)
+        return self.wire_of((compression, fragment_size, topic))
+
+    def wire_of(self, variant: Variant) -> Wire:
+        """``wire(*variant)``: fan-out keeps each subscriber's variant as one tuple, so
+        the look-up per subscriber builds nothing."""
+        wire = self._variants.get(variant)
         if wire is None:
+            compression, fragment_size, topic = variant
             frame = self.frame
             if topic is not None and frame.get("topic") != topic:
                 frame = {**frame, "topic": topic}
-            wire = self._variants[key] = encode(frame, compression, fragment_size)
+            wire = self._variants[variant] = encode(frame, compression, fragment_size)
         return wire

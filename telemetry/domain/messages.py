@@ -629,7 +629,9 @@ def _compressed_depth_of(msg: Message, max_pixels: int) -> NDArray[np.float32] |
 
 def yaw_of(q: Mapping[str, Any]) -> float:
     """Return the rotation about z of a quaternion ``{x, y, z, w}``, in radians."""
-    x, y, z, w = (float(q.get(k, 0.0) or 0.0) for k in ("x", "y", "z", "w"))
+    get = q.get  # four plain look-ups: this runs for every pose the server hears
+    x, y = float(get("x", 0.0) or 0.0), float(get("y", 0.0) or 0.0)
+    z, w = float(get("z", 0.0) or 0.0), float(get("w", 0.0) or 0.0)
     return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
 
 
@@ -647,6 +649,27 @@ def pose_of(msg: Message) -> Pose2D | None:
         )
     except (KeyError, TypeError, ValueError, AttributeError):
         return None
+
+
+_last_published: tuple[Message, Pose2D | None] = ({}, None)
+
+
+def published_pose_of(msg: Message) -> Pose2D | None:
+    """``pose_of`` for a message on the topic bus, parsed once however many readers ask.
+
+    The fleet state, the event log and map upkeep each read the pose of every robot's
+    ``pose`` message; the bus hands them the same object, which no one changes (see
+    ``telemetry.domain.bus``), so the newest answer is kept with the message it came
+    from and given again for that very object. The message is held, so its identity
+    cannot pass to another one meanwhile.
+    """
+    global _last_published
+    last = _last_published  # one read: another event loop's thread may replace it
+    if last[0] is msg:
+        return last[1]
+    pose = pose_of(msg)
+    _last_published = (msg, pose)
+    return pose
 
 
 def goal_of(msg: Message) -> Pose2D | None:
