@@ -100,9 +100,7 @@ class NextTurn:
                 logger.exception("a WebSocket flush failed")
 
 
-_turns: weakref.WeakKeyDictionary[asyncio.AbstractEventLoop, NextTurn] = (
-    weakref.WeakKeyDictionary()
-)
+_turns: weakref.WeakKeyDictionary[asyncio.AbstractEventLoop, NextTurn] = weakref.WeakKeyDictionary()
 
 
 def next_turn() -> NextTurn:

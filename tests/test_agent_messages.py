@@ -19,6 +19,8 @@ from telemetry.domain.messages import (
     goal_of,
     initial_pose_of,
     path_message,
+    pose_of,
+    published_pose_of,
     status_array,
     twist_of,
     yaw_of,
@@ -109,3 +111,16 @@ def test_robots_come_from_a_token_or_from_the_tokens_file(tmp_path: Path):
         tokens_of(arguments(["--server", "h:1", "--tokens-file", str(tokens), "--count", "3"]))
     with pytest.raises(SystemExit):
         arguments(["--server", "h:1", "--token", "t", "--time-scale", "0"])
+
+
+def test_a_published_pose_is_parsed_once_for_every_reader_of_that_message() -> None:
+    msg = {
+        "header": {"frame_id": "b/F"},
+        "pose": {"position": {"x": 1.0, "y": 2.0}, "orientation": {"z": 0.0, "w": 1.0}},
+    }
+    first = published_pose_of(msg)
+    assert first == pose_of(msg)
+    assert published_pose_of(msg) is first  # the same message: the same answer, not parsed
+    other = {**msg, "pose": {"position": {"x": 3.0, "y": 2.0}}}
+    assert published_pose_of(other) == pose_of(other) != first
+    assert published_pose_of({"pose": None}) is None

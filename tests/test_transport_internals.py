@@ -26,7 +26,7 @@ from daphne.ws_protocol import WebSocketProtocol
 from twisted.internet import tcp
 
 from telemetry.domain.encoding import Wire
-from telemetry.transport import DaphneSink, cap_incoming, daphne_protocol
+from telemetry.transport import DaphneSink, cap_incoming, daphne_protocol, next_turn
 
 # The versions whose internals transport.py was read against. A new version in
 # requirements.txt fails here: read transport.py's assumptions against it, then update.
@@ -88,6 +88,15 @@ def test_twisted_tcp_transports_have_what_the_sink_touches() -> None:
 def connection() -> Iterator[tuple[WebSocketProtocol, socket.socket]]:
     """Daphne's protocol on a Twisted TCP transport over a real loopback connection,
     past its handshake; with the client's end of the socket."""
+    yield from open_connection()
+
+
+@pytest.fixture
+def another_connection() -> Iterator[tuple[WebSocketProtocol, socket.socket]]:
+    yield from open_connection()
+
+
+def open_connection() -> Iterator[tuple[WebSocketProtocol, socket.socket]]:
     listener = socket.create_server(("127.0.0.1", 0))
     client = socket.create_connection(listener.getsockname())
     accepted, peer = listener.accept()
@@ -139,3 +148,24 @@ async def test_the_sink_writes_frames_straight_to_the_socket_as_producer(
     assert not sink.writable()
     sink.close()
     assert protocol.transport.producer is None
+
+
+async def test_sinks_written_in_one_turn_all_leave_at_the_next_by_one_callback(
+    connection: tuple[WebSocketProtocol, socket.socket],
+    another_connection: tuple[WebSocketProtocol, socket.socket],
+) -> None:
+    (first, first_client), (second, second_client) = connection, another_connection
+    sinks = [DaphneSink(first, lambda: None), DaphneSink(second, lambda: None)]
+    loop = asyncio.get_running_loop()
+    scheduled = len(loop._ready)  # type: ignore[attr-defined]  # asyncio's run queue
+    wires = [Wire((b'{"op":"publish","n":%d}' % n,), binary=False) for n in range(2)]
+    for sink in sinks:
+        for wire in wires:
+            sink.write(wire)
+    assert len(loop._ready) == scheduled + 1  # type: ignore[attr-defined]
+    assert sinks[0]._turn is sinks[1]._turn is next_turn()
+    await asyncio.sleep(0)
+    expected = b"".join(wire.framed() for wire in wires)
+    for client in (first_client, second_client):
+        client.settimeout(2)
+        assert client.recv(1000) == expected
