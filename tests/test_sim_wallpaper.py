@@ -8,7 +8,7 @@ import math
 import cv2
 import numpy as np
 
-from robots.agent.perception import CameraModel, TagDetector
+from robots.agent.perception import CameraModel, TagDetector, pinhole_calibration
 from robots.agent.sim.camera import Camera
 from robots.agent.sim.world import demo_world
 from telemetry.domain.messages import camera_info, depth_image, depth_of
@@ -74,5 +74,11 @@ def test_depth_and_camera_info_messages_round_trip() -> None:
     assert np.nanmax(np.abs(back[finite] - depth[finite])) <= 0.0006
     assert depth_of(message, max_pixels=1000) is None
     assert depth_of({**message, "data": message["data"][:-8]}, 640 * 480) is None
-    info = camera_info("camera_optical_frame", 640, 480, 525.0, 525.0, 319.5, 239.5, 3.0)
+    info = camera_info("camera_optical_frame", pinhole_calibration(CameraModel()), 3.0)
     assert info["K"] == [525.0, 0.0, 319.5, 0.0, 525.0, 239.5, 0.0, 0.0, 1.0]
+    assert info["P"] == [525.0, 0.0, 319.5, 0.0, 0.0, 525.0, 239.5, 0.0, 0.0, 0.0, 1.0, 0.0]
+    assert (info["width"], info["height"], info["header"]["frame_id"]) == (
+        640,
+        480,
+        "camera_optical_frame",
+    )

@@ -8,8 +8,9 @@ they subscribe, publish and call.
 - ``StackReadings``: the book a navigation stack backend keeps (the sub-map on ``/map``,
   the pose source's latest pose, the planner's plan, the goal's progress).
 - ``write_map_files``: a sub-map as map-server files, for a ``LoadMap`` service.
-- ``bridge_arguments`` and ``serve``: the command line and the run loop of the node: the
-  robot's software (tag detector, Maps Supervisor, relocalisation) relaying to the cloud.
+- ``bridge_parser``, ``run_bridge`` and ``serve``: the command line, the startup and the
+  run loop of the node: the robot's software (tag detector, Maps Supervisor,
+  relocalisation) relaying to the cloud.
 
 ROS messages are read by attribute (``msg.pose.pose.position.x``), which ROS 1 and ROS 2
 messages share; only their array fields differ in case (``K`` and ``k``), which callers
@@ -27,10 +28,10 @@ import signal
 import tempfile
 import threading
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Coroutine, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, TypedDict
 
 import cv2
 import httpx
@@ -47,7 +48,7 @@ from robots.agent.stack import StackDriver, StackPoseTracker
 from robots.agent.supervisor import BundleCache, MapsSupervisor
 from robots.domain.params import RobotConfig
 from robots.domain.se2 import Point, Pose
-from telemetry.domain.messages import Json, Odometry, laser_scan, odometry
+from telemetry.domain.messages import Json, Odometry, ScanGeometry, laser_scan, odometry
 
 logger = logging.getLogger(__name__)
 
@@ -95,6 +96,19 @@ def planar_covariance(values: Sequence[float]) -> NDArray[np.float64]:
     """The (x, y, yaw) 3x3 of ROS's 6x6 covariance."""
     full = np.asarray(values, dtype=np.float64).reshape(6, 6)
     return full[np.ix_(PLANAR, PLANAR)]
+
+
+def scan_geometry(msg: Any) -> ScanGeometry:
+    """The beams and range of a ``sensor_msgs/LaserScan``."""
+    return {
+        "angle_min": msg.angle_min,
+        "angle_max": msg.angle_max,
+        "angle_increment": msg.angle_increment,
+        "time_increment": msg.time_increment,
+        "scan_time": msg.scan_time,
+        "range_min": msg.range_min,
+        "range_max": msg.range_max,
+    }
 
 
 def camera_model_of(
@@ -212,18 +226,7 @@ class DriverReadings:
         with self._lock:
             spec = self._scan
         return dict(
-            laser_scan(
-                spec.header.frame_id,
-                ranges.tolist(),
-                seconds,
-                angle_min=spec.angle_min,
-                angle_max=spec.angle_max,
-                angle_increment=spec.angle_increment,
-                time_increment=spec.time_increment,
-                scan_time=spec.scan_time,
-                range_min=spec.range_min,
-                range_max=spec.range_max,
-            )
+            laser_scan(spec.header.frame_id, ranges.tolist(), seconds, **scan_geometry(spec))
         )
 
     def odometry_message(self, seconds: float) -> Odometry:
@@ -325,13 +328,16 @@ def write_map_files(
 # --- the node ---------------------------------------------------------------------------
 
 
-def bridge_arguments(
-    parser: argparse.ArgumentParser, stack_name: str, action: str, plan_topic: str, load: str
+def bridge_parser(
+    prog: str, doc: str | None, stack_name: str, action: str, plan_topic: str, load: str
 ) -> argparse.ArgumentParser:
-    """The options both bridges take; ``stack_name`` names the ``--navigation`` choice of
-    the robot's own stack (``move_base``, ``nav2``) and the flag of its action's name
-    (``--move-base``, ``--nav2-action``), ``action`` that name's default, ``load`` what
-    ``--load-map`` is (a ``LoadMap`` service's name)."""
+    """The command line both bridges take (described by ``doc``'s first line), to which
+    each adds its own; ``stack_name`` names the ``--navigation`` choice of the robot's own
+    stack (``move_base``, ``nav2``) and the flag of its action's name (``--move-base``,
+    ``--nav2-action``), ``action`` that name's default, ``load`` what ``--load-map`` is (a
+    ``LoadMap`` service's name)."""
+    summary = (doc or "").split("\n")[0]
+    parser = argparse.ArgumentParser(prog=prog, description=summary)
     parser.add_argument("--server", required=True, help="the server, http://host:port or ws://...")
     parser.add_argument("--token", required=True, help="the robot's token")
     parser.add_argument("--node", default="cloudnav_bridge", help="the ROS node's name")
@@ -354,9 +360,48 @@ def bridge_arguments(
     return parser
 
 
-def map_dir_of(options: argparse.Namespace) -> Path:
-    """Where map-server files go: ``--map-dir``, else a new temporary directory."""
-    return Path(options.map_dir or tempfile.mkdtemp(prefix="cloudnav-maps-"))
+class DriverTopics(TypedDict):
+    """The robot's drivers' topics, as both backends' hardware takes them."""
+
+    odom: str
+    scan: str
+    camera: str
+    camera_info: str
+    cmd_vel: str
+
+
+class StackOptions(TypedDict):
+    """The navigation stack's settings, as both backends' stacks take them."""
+
+    action: str
+    pose_source: str
+    base_frame: str
+    plan_topic: str
+    load_map: str | None
+    map_dir: Path
+
+
+def driver_topics(options: argparse.Namespace) -> DriverTopics:
+    return {
+        "odom": options.odom,
+        "scan": options.scan,
+        "camera": options.camera,
+        "camera_info": options.camera_info,
+        "cmd_vel": options.cmd_vel,
+    }
+
+
+def stack_options(options: argparse.Namespace) -> StackOptions:
+    """``map_dir``: where ``LoadMap``'s files go: ``--map-dir``, else a new temporary
+    directory."""
+    return {
+        "action": options.action,
+        "pose_source": options.pose_source,
+        "base_frame": options.base_frame,
+        "plan_topic": options.plan_topic,
+        "load_map": options.load_map,
+        "map_dir": Path(options.map_dir or tempfile.mkdtemp(prefix="cloudnav-maps-")),
+    }
 
 
 @dataclass
@@ -379,10 +424,11 @@ def navigation(bridge: Bridge, options: argparse.Namespace, config: RobotConfig)
     return StackPoseTracker(bridge.stack), StackDriver(bridge.stack, config)
 
 
-async def serve(options: argparse.Namespace, bridge: Bridge, config: RobotConfig) -> None:
+async def serve(options: argparse.Namespace, bridge: Bridge) -> None:
     """Run the robot's software on ``bridge`` and relay to the cloud until SIGINT or
     SIGTERM (or cancelled); on the way out, the stack's goal is cancelled and the robot
     stopped. The cloud going away leaves it running on its held bundles and reconnecting."""
+    config = RobotConfig(camera_rate=options.camera_rate)
     http_base, ws_url = endpoints(options.server)
     http = httpx.AsyncClient(
         base_url=http_base, headers={"Authorization": f"Token {options.token}"}, timeout=10.0
@@ -403,6 +449,23 @@ async def serve(options: argparse.Namespace, bridge: Bridge, config: RobotConfig
         bridge.hardware.command(0.0, 0.0)
         await client.close()
         await http.aclose()
+
+
+async def run_bridge(
+    options: argparse.Namespace, hardware: Callable[[], Any], stack: Callable[[], Any]
+) -> None:
+    """A backend's node, its ROS client library initialised: the robot's drivers
+    (``hardware()``, built off the event loop: it waits for their first messages) and
+    navigation stack (``stack()``; none with ``--navigation agent``), then ``serve``."""
+    keep_own_logs(options.log_level)
+    drivers = await asyncio.to_thread(hardware)
+    await serve(options, Bridge(drivers, None if options.navigation == "agent" else stack()))
+
+
+def run_node(options: argparse.Namespace, main: Coroutine[Any, Any, None]) -> None:
+    """Run a backend's ``main`` in a new event loop, logging at ``--log-level``."""
+    logging.basicConfig(level=options.log_level, format=LOG_FORMAT)
+    asyncio.run(main)
 
 
 def keep_own_logs(level: str) -> None:

@@ -57,6 +57,7 @@ from maps.domain.tagart import qr_offset as tag_qr_offset
 from maps.domain.tagpayload import TagPayload, parse_payload
 from maps.exceptions import TagPayloadError
 from robots.domain.se2 import Pose, angle_between
+from telemetry.domain.messages import PinholeCalibration
 
 Image = NDArray[np.uint8]
 Matrix = NDArray[np.float64]
@@ -100,6 +101,22 @@ class CameraModel:
         """A direction from the optical to the base frame (no offset)."""
         v = np.asarray(vector, np.float64)
         return np.stack([v[..., 2], -v[..., 0], -v[..., 1]], axis=-1)
+
+
+def pinhole_calibration(model: CameraModel) -> PinholeCalibration:
+    """The calibration a camera driver publishes for ``model`` (its ``CameraInfo`` but
+    the header): size, K, no distortion (``plumb_bob``, zeros), R the identity and P
+    ``[K | 0]`` (a monocular camera)."""
+    fx, fy, cx, cy = model.fx, model.fy, model.cx, model.cy
+    return {
+        "height": model.height,
+        "width": model.width,
+        "distortion_model": "plumb_bob",
+        "D": [0.0] * 5,
+        "K": [fx, 0.0, cx, 0.0, fy, cy, 0.0, 0.0, 1.0],
+        "R": [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
+        "P": [fx, 0.0, cx, 0.0, 0.0, fy, cy, 0.0, 0.0, 0.0, 1.0, 0.0],
+    }
 
 
 @dataclass(frozen=True)

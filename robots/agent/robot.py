@@ -52,7 +52,7 @@ from robots.agent.depth_scan import seen_obstacles
 from robots.agent.hardware import Hardware, compressed_image_message, encode_jpeg
 from robots.agent.localisation import ParticleFilter, odometry_delta
 from robots.agent.navigation import LegDriver, LocalObstacles, Navigator
-from robots.agent.perception import TagDetection, TagDetector
+from robots.agent.perception import TagDetection, TagDetector, pinhole_calibration
 from robots.agent.relocalise import PoseEstimate
 from robots.agent.supervisor import BundleError, MapsSupervisor, SubMap
 from robots.agent.visual import LOST_SPREAD, TRUSTED_SPREAD, VisualMap, spread
@@ -449,14 +449,11 @@ class Robot(Generic[H]):
         await self.publisher.publish("camera/image/compressed", message)
 
     async def _publish_depth(self, depth: NDArray[np.float32]) -> None:
-        model = self.hardware.camera_model
         frame_id = "camera_optical_frame"
         await self.publisher.publish(DEPTH_TOPIC, compressed_depth(frame_id, depth, self.stamp))
         if self.config.raw_depth:
             await self.publisher.publish(RAW_DEPTH_TOPIC, depth_image(frame_id, depth, self.stamp))
-        info = camera_info(
-            frame_id, model.width, model.height, model.fx, model.fy, model.cx, model.cy, self.stamp
-        )
+        info = camera_info(frame_id, pinhole_calibration(self.hardware.camera_model), self.stamp)
         await self.publisher.publish("camera/camera_info", info)
 
     # --- pacing ------------------------------------------------------------------------

@@ -29,7 +29,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from robots.agent.hardware import encode_jpeg
-from robots.agent.perception import CameraModel
+from robots.agent.perception import CameraModel, pinhole_calibration
 from robots.agent.relocalise import PoseEstimate
 from robots.domain.se2 import Pose
 from telemetry.domain.messages import camera_info, compressed_depth, compressed_image
@@ -154,8 +154,7 @@ def keyframe_document(
 
 
 def camera_info_of(model: CameraModel) -> Any:
-    m = model
-    return camera_info("camera", m.width, m.height, m.fx, m.fy, m.cx, m.cy, 0.0)
+    return camera_info("camera", pinhole_calibration(model), 0.0)
 
 
 def mount_of(model: CameraModel) -> dict[str, float]:

@@ -128,10 +128,9 @@ class Odometry(TypedDict):
     twist: TwistWithCovariance
 
 
-class LaserScan(TypedDict):
-    """``sensor_msgs/LaserScan``: ``scan``; a range without a return is ``None``."""
+class ScanGeometry(TypedDict):
+    """A ``sensor_msgs/LaserScan`` but its header and readings: its beams and range."""
 
-    header: Header
     angle_min: float
     angle_max: float
     angle_increment: float
@@ -139,6 +138,12 @@ class LaserScan(TypedDict):
     scan_time: float
     range_min: float
     range_max: float
+
+
+class LaserScan(ScanGeometry):
+    """``sensor_msgs/LaserScan``: ``scan``; a range without a return is ``None``."""
+
+    header: Header
     ranges: list[float | None]
     intensities: list[float]
 
@@ -199,10 +204,10 @@ class Image(TypedDict):
     data: str
 
 
-class CameraInfo(TypedDict):
-    """``sensor_msgs/CameraInfo``: ``camera/camera_info`` (a pinhole camera, no distortion)."""
+class PinholeCalibration(TypedDict):
+    """A ``sensor_msgs/CameraInfo`` but its header: a pinhole camera's calibration, in
+    ROS 1's (and rosbridge's) names; ROS 2 spells the matrices ``d``, ``k``, ``r``, ``p``."""
 
-    header: Header
     height: int
     width: int
     distortion_model: str
@@ -210,6 +215,12 @@ class CameraInfo(TypedDict):
     K: list[float]
     R: list[float]
     P: list[float]
+
+
+class CameraInfo(PinholeCalibration):
+    """``sensor_msgs/CameraInfo``: ``camera/camera_info``."""
+
+    header: Header
 
 
 class KeyValue(TypedDict):
@@ -536,21 +547,10 @@ def compressed_depth(
     }
 
 
-def camera_info(
-    frame_id: str, width: int, height: int, fx: float, fy: float, cx: float, cy: float,
-    stamp: Stamp,
-) -> CameraInfo:  # fmt: skip
-    """``sensor_msgs/CameraInfo`` of an undistorted pinhole camera."""
-    return {
-        "header": header(frame_id, stamp),
-        "height": height,
-        "width": width,
-        "distortion_model": "plumb_bob",
-        "D": [0.0] * 5,
-        "K": [fx, 0.0, cx, 0.0, fy, cy, 0.0, 0.0, 1.0],
-        "R": [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
-        "P": [fx, 0.0, cx, 0.0, 0.0, fy, cy, 0.0, 0.0, 0.0, 1.0, 0.0],
-    }
+def camera_info(frame_id: str, calibration: PinholeCalibration, stamp: Stamp) -> CameraInfo:
+    """``sensor_msgs/CameraInfo`` of ``calibration``
+    (``robots.agent.perception.pinhole_calibration``)."""
+    return {"header": header(frame_id, stamp), **calibration}
 
 
 # --- readers ---------------------------------------------------------------------------

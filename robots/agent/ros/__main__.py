@@ -21,27 +21,23 @@ calls is shared with the ROS 2 bridge (``robots.agent.bridge``).
 from __future__ import annotations
 
 import argparse
-import asyncio
-import logging
 from collections.abc import Sequence
+from typing import Any
 
 from robots.agent.bridge import (
-    LOG_FORMAT,
-    Bridge,
-    bridge_arguments,
-    keep_own_logs,
-    map_dir_of,
-    serve,
+    bridge_parser,
+    driver_topics,
+    run_bridge,
+    run_node,
+    stack_options,
 )
 from robots.agent.ros import ros_path
-from robots.domain.params import RobotConfig
 
 
 def arguments(argv: Sequence[str] | None = None) -> argparse.Namespace:
-    summary = (__doc__ or "").split("\n")[0]
-    parser = argparse.ArgumentParser(prog="python -m robots.agent.ros", description=summary)
-    bridge_arguments(
-        parser,
+    parser = bridge_parser(
+        "python -m robots.agent.ros",
+        __doc__,
         "move_base",
         action="move_base",
         plan_topic="/move_base/NavfnROS/plan",
@@ -55,43 +51,26 @@ async def main(options: argparse.Namespace) -> None:
         raise SystemExit("ROS 1 is not installed (scripts/setup.sh installs it)")
     import rospy  # type: ignore[import-not-found,unused-ignore]
 
-    from robots.agent.ros.hardware import RosHardware
-
     rospy.init_node(options.node, disable_signals=True)
-    keep_own_logs(options.log_level)
-    hardware = await asyncio.to_thread(
-        RosHardware,
-        odom=options.odom,
-        scan=options.scan,
-        camera=options.camera,
-        camera_info=options.camera_info,
-        cmd_vel=options.cmd_vel,
-    )
     try:
-        await serve(
-            options, Bridge(hardware, stack(options)), RobotConfig(camera_rate=options.camera_rate)
-        )
+        await run_bridge(options, lambda: hardware(options), lambda: stack(options))
     finally:
         rospy.signal_shutdown("stopped")
 
 
-def stack(options: argparse.Namespace) -> object:
-    """The robot's move_base (None with ``--navigation agent``)."""
-    if options.navigation == "agent":
-        return None
+def hardware(options: argparse.Namespace) -> Any:
+    from robots.agent.ros.hardware import RosHardware
+
+    return RosHardware(**driver_topics(options))
+
+
+def stack(options: argparse.Namespace) -> Any:
+    """The robot's move_base."""
     from robots.agent.ros.navigation import RosNavigationStack
 
-    return RosNavigationStack(
-        action=options.action,
-        pose_source=options.pose_source,
-        base_frame=options.base_frame,
-        plan_topic=options.plan_topic,
-        load_map=options.load_map,
-        map_dir=map_dir_of(options),
-    )
+    return RosNavigationStack(**stack_options(options))
 
 
 if __name__ == "__main__":
     options = arguments()
-    logging.basicConfig(level=options.log_level, format=LOG_FORMAT)
-    asyncio.run(main(options))
+    run_node(options, main(options))

@@ -21,29 +21,24 @@ the ROS 1 bridge (``robots.agent.bridge``).
 from __future__ import annotations
 
 import argparse
-import asyncio
-import logging
 import threading
 from collections.abc import Sequence
 from typing import Any
 
 from robots.agent.bridge import (
-    LOG_FORMAT,
-    Bridge,
-    bridge_arguments,
-    keep_own_logs,
-    map_dir_of,
-    serve,
+    bridge_parser,
+    driver_topics,
+    run_bridge,
+    run_node,
+    stack_options,
 )
-from robots.domain.params import RobotConfig
 
 
 def arguments(argv: Sequence[str] | None = None) -> tuple[argparse.Namespace, list[str]]:
     """The bridge's options, and the arguments for rclpy (``--ros-args ...``)."""
-    summary = (__doc__ or "").split("\n")[0]
-    parser = argparse.ArgumentParser(prog="python -m robots.agent.ros2", description=summary)
-    bridge_arguments(
-        parser,
+    parser = bridge_parser(
+        "python -m robots.agent.ros2",
+        __doc__,
         "nav2",
         action="navigate_to_pose",
         plan_topic="/plan",
@@ -60,54 +55,36 @@ async def main(options: argparse.Namespace, ros_args: list[str]) -> None:
 
     rclpy.init(args=["robots.agent.ros2", *ros_args])
     node = rclpy.create_node(options.node)
-    keep_own_logs(options.log_level)
     executor = MultiThreadedExecutor()
     executor.add_node(node)
     spinning = threading.Thread(target=executor.spin, daemon=True)
     spinning.start()
     try:
-        hardware = await asyncio.to_thread(hardware_of, node, options)
-        config = RobotConfig(camera_rate=options.camera_rate)
-        await serve(options, Bridge(hardware, stack(node, options)), config)
+        await run_bridge(options, lambda: hardware(node, options), lambda: stack(node, options))
     finally:
         executor.shutdown()
         node.destroy_node()
         rclpy.try_shutdown()
 
 
-def hardware_of(node: Any, options: argparse.Namespace) -> Any:
+def hardware(node: Any, options: argparse.Namespace) -> Any:
     from robots.agent.ros2.hardware import Ros2Hardware
 
     return Ros2Hardware(
         node,
-        odom=options.odom,
-        scan=options.scan,
-        camera=options.camera,
+        **driver_topics(options),
         camera_type=options.camera_type,
-        camera_info=options.camera_info,
-        cmd_vel=options.cmd_vel,
         stamped=options.cmd_vel_stamped,
     )
 
 
 def stack(node: Any, options: argparse.Namespace) -> Any:
-    """The robot's Nav2 (None with ``--navigation agent``)."""
-    if options.navigation == "agent":
-        return None
+    """The robot's Nav2."""
     from robots.agent.ros2.navigation import Nav2Stack
 
-    return Nav2Stack(
-        node,
-        action=options.action,
-        pose_source=options.pose_source,
-        base_frame=options.base_frame,
-        plan_topic=options.plan_topic,
-        load_map=options.load_map,
-        map_dir=map_dir_of(options),
-    )
+    return Nav2Stack(node, **stack_options(options))
 
 
 if __name__ == "__main__":
     parsed, rest = arguments()
-    logging.basicConfig(level=parsed.log_level, format=LOG_FORMAT)
-    asyncio.run(main(parsed, rest))
+    run_node(parsed, main(parsed, rest))

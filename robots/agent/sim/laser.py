@@ -17,7 +17,7 @@ from numpy.typing import NDArray
 from robots.agent.sim.crowd import Movers, cast_discs
 from robots.agent.sim.world import World
 from robots.domain.se2 import Pose, ahead
-from telemetry.domain.messages import Json, laser_scan
+from telemetry.domain.messages import Json, ScanGeometry, laser_scan
 
 Ranges = NDArray[np.float32]
 
@@ -41,6 +41,18 @@ class LaserSpec:
     @property
     def angle_max(self) -> float:
         return self.angle_min + (self.beams - 1) * self.angle_increment
+
+    def geometry(self) -> ScanGeometry:
+        """Its scans' beams and range, as ``sensor_msgs/LaserScan`` holds them."""
+        return {
+            "angle_min": self.angle_min,
+            "angle_max": self.angle_max,
+            "angle_increment": self.angle_increment,
+            "time_increment": self.scan_time / self.beams,
+            "scan_time": self.scan_time,
+            "range_min": self.range_min,
+            "range_max": self.range_max,
+        }
 
     def angles(self) -> NDArray[np.float64]:
         """Beam angles in the laser frame, radians."""
@@ -84,18 +96,4 @@ class Laser:
 
         A plain dict rather than the ``LaserScan`` schema: experiments narrow a scan's
         field of view by rewriting its fields."""
-        spec = self.spec
-        return dict(
-            laser_scan(
-                frame_id,
-                ranges.tolist(),
-                seconds,
-                angle_min=spec.angle_min,
-                angle_max=spec.angle_max,
-                angle_increment=spec.angle_increment,
-                time_increment=spec.scan_time / spec.beams,
-                scan_time=spec.scan_time,
-                range_min=spec.range_min,
-                range_max=spec.range_max,
-            )
-        )
+        return dict(laser_scan(frame_id, ranges.tolist(), seconds, **self.spec.geometry()))

@@ -13,7 +13,8 @@ bench: Debian has no Nav2 and PyPI no nav2 wheels.
   map_server's ``LoadMap`` service on ``/map_server/load_map``.
 
 Each writes what it does as JSON lines (``Events``) for the tests to read: they run in the
-server's virtualenv, which has no rclpy.
+server's virtualenv, which has no rclpy. What is no rclpy call is shared with the ROS 1
+simulated robot (``robots.agent.sim.drivers``, ``robots.agent.sim.stand_in``).
 """
 
 from __future__ import annotations
@@ -53,23 +54,27 @@ from sensor_msgs.msg import (  # type: ignore[import-not-found,unused-ignore]
 from tf2_msgs.msg import TFMessage  # type: ignore[import-not-found,unused-ignore]
 
 from robots.agent.bridge import planar_covariance, pose_of, set_pose
-from robots.agent.hardware import encode_jpeg
-from robots.agent.navigation import Driver, DriveState, LocalObstacles
-from robots.agent.perception import CameraModel
-from robots.agent.robot import PoseTracker, particle_filter
+from robots.agent.navigation import Driver, DriveState
+from robots.agent.perception import pinhole_calibration
 from robots.agent.ros2 import stamp_seconds
 from robots.agent.ros2.navigation import LATCHED
+from robots.agent.sim.drivers import (
+    BASE_FRAME,
+    CAMERA_FRAME,
+    LASER_FRAME,
+    SimDrivers,
+    jpeg_fields,
+    scan_fields,
+    write_odometry,
+    write_transform,
+)
 from robots.agent.sim.hardware import SimHardware
-from robots.agent.supervisor import SubMap
-from robots.domain.se2 import Pose, compose, inverse
-from telemetry.domain.messages import laser_scan
+from robots.agent.sim.stand_in import StandInStack, plan_poses
+from robots.domain.se2 import Pose
+from telemetry.domain.messages import PinholeCalibration
 
-CAMERA_EVERY = 2
-"""Body steps between camera frames (5 Hz at the 10 Hz step)."""
 CONTROL_PERIOD = 0.1
 """Seconds between the action server's control steps."""
-PARTICLES = 200
-"""The stand-in AMCL's particles after an initial pose."""
 NAV2_CMD_VEL = "cmd_vel_nav"
 """Where the stand-in's controller publishes, as Nav2's controller server does (Nav2's
 velocity smoother passes it on to ``cmd_vel``; the body obeys both): so a test tells the
@@ -95,19 +100,18 @@ class Events:
 # --- the robot's drivers -------------------------------------------------------------
 
 
-class Ros2Body:
+class Ros2Body(SimDrivers):
     """``hardware`` on ROS 2 topics (see the module's docstring); ``events`` gets every
     ``cmd_vel`` with the time it came."""
 
     def __init__(self, node: Node, hardware: SimHardware, events: Events) -> None:
-        self.node, self.hardware, self.events = node, hardware, events
+        super().__init__(hardware)
+        self.node, self.events = node, events
         self._odom = node.create_publisher(Odometry, "odom", 10)
         self._scan = node.create_publisher(LaserScan, "scan", qos_profile_sensor_data)
         self._camera = node.create_publisher(CompressedImage, "camera/image/compressed", 1)
         self._camera_info = node.create_publisher(CameraInfo, "camera/camera_info", 1)
         self._tf = node.create_publisher(TFMessage, "/tf", 100)
-        self._commands: list[tuple[float, float]] = []
-        self._lock = threading.Lock()
         for topic in ("cmd_vel", NAV2_CMD_VEL):
             node.create_subscription(Twist, topic, self._obeying(topic), 10)
 
@@ -116,70 +120,41 @@ class Ros2Body:
 
     def _on_cmd_vel(self, topic: str, msg: Any) -> None:
         self.events.write("cmd_vel", topic=topic, linear=msg.linear.x, angular=msg.angular.z)
-        with self._lock:
-            self._commands.append((msg.linear.x, msg.angular.z))  # obeyed at the next step
+        self.command(msg.linear.x, msg.angular.z)
 
-    def step(self, seconds: float, ticks: int) -> None:
-        """Obey the commands that came, advance ``seconds``, publish what is due."""
-        with self._lock:
-            commands, self._commands = self._commands, []
-        for command in commands:
-            self.hardware.command(*command)
-        self.hardware.advance(seconds)
+    def publish(self, camera: bool) -> None:
         stamp = self.node.get_clock().now().to_msg()
-        self._publish_odometry(stamp)
-        self._publish_scan(stamp)
-        if ticks % CAMERA_EVERY == 0:
-            self._publish_image(stamp)
-
-    def _publish_odometry(self, stamp: Any) -> None:
-        msg = Odometry()
-        msg.header.stamp, msg.header.frame_id = stamp, "odom"
-        msg.child_frame_id = "base_footprint"
-        set_pose(msg.pose.pose, self.hardware.odom_pose)
-        linear, angular = self.hardware.reported_velocity
-        msg.twist.twist.linear.x, msg.twist.twist.angular.z = float(linear), float(angular)
-        self._odom.publish(msg)
-        self._tf.publish(TFMessage(transforms=[transform(msg.header, "base_footprint",
-                                                         self.hardware.odom_pose)]))  # fmt: skip
-
-    def _publish_scan(self, stamp: Any) -> None:
-        spec = self.hardware.laser.spec
-        msg = LaserScan()
-        msg.header.stamp, msg.header.frame_id = stamp, "base_scan"
-        msg.angle_min, msg.angle_max = spec.angle_min, spec.angle_max
-        msg.angle_increment, msg.scan_time = spec.angle_increment, spec.scan_time
-        msg.time_increment = spec.scan_time / spec.beams
-        msg.range_min, msg.range_max = spec.range_min, spec.range_max
-        msg.ranges = [float(r) for r in self.hardware.scan()]
-        self._scan.publish(msg)
-
-    def _publish_image(self, stamp: Any) -> None:
-        msg = CompressedImage()
-        msg.header.stamp, msg.header.frame_id = stamp, "camera_optical_frame"
-        msg.format, msg.data = "jpeg", encode_jpeg(self.hardware.image(), 90)
-        self._camera.publish(msg)
-        self._camera_info.publish(camera_info(msg.header, self.hardware.camera_model))
+        odom = Odometry()
+        odom.header.stamp = stamp
+        write_odometry(odom, self.hardware)
+        self._odom.publish(odom)
+        odom_to_base = transform(odom.header, BASE_FRAME, self.hardware.odom_pose)
+        self._tf.publish(TFMessage(transforms=[odom_to_base]))
+        scan = LaserScan(**scan_fields(self.hardware))
+        scan.header.stamp, scan.header.frame_id = stamp, LASER_FRAME
+        self._scan.publish(scan)
+        if camera:
+            image = CompressedImage(**jpeg_fields(self.hardware))
+            image.header.stamp, image.header.frame_id = stamp, CAMERA_FRAME
+            self._camera.publish(image)
+            calibration = pinhole_calibration(self.hardware.camera_model)
+            self._camera_info.publish(camera_info(image.header, calibration))
 
 
-def camera_info(header: Any, model: CameraModel) -> Any:
-    """The ``sensor_msgs/CameraInfo`` of ``model``: a pinhole camera, no distortion."""
-    msg = CameraInfo()
-    msg.header, msg.width, msg.height = header, model.width, model.height
-    msg.distortion_model, msg.d = "plumb_bob", [0.0] * 5
-    msg.k = [model.fx, 0.0, model.cx, 0.0, model.fy, model.cy, 0.0, 0.0, 1.0]
-    msg.r = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]
-    msg.p = [model.fx, 0.0, model.cx, 0.0, 0.0, model.fy, model.cy, 0.0, 0.0, 0.0, 1.0, 0.0]
-    return msg
+def camera_info(header: Any, calibration: PinholeCalibration) -> Any:
+    """The ``sensor_msgs/CameraInfo`` of ``calibration``: ROS 2 spells its matrices in
+    lower case (ROS 1's ``K`` is ``k``)."""
+    c = calibration
+    return CameraInfo(
+        header=header, height=c["height"], width=c["width"],
+        distortion_model=c["distortion_model"], d=c["D"], k=c["K"], r=c["R"], p=c["P"],
+    )  # fmt: skip
 
 
 def transform(header: Any, child: str, pose: Pose) -> Any:
     """tf ``header.frame_id -> child`` of ``pose``."""
     msg = TransformStamped()
-    msg.header, msg.child_frame_id = header, child
-    msg.transform.translation.x, msg.transform.translation.y = float(pose[0]), float(pose[1])
-    o = msg.transform.rotation
-    o.z, o.w = math.sin(pose[2] / 2), math.cos(pose[2] / 2)
+    write_transform(msg, header, child, pose)
     return msg
 
 
@@ -193,12 +168,8 @@ class Nav2StandIn:
 
     def __init__(self, node: Node, events: Events) -> None:
         self.node, self.events = node, events
+        self.stack = StandInStack()
         self._lock = threading.Lock()
-        self._odom: Any = None
-        self._tracker = PoseTracker(particle_filter(PARTICLES, 0))
-        self._placed = False
-        self._map: SubMap | None = None
-        self._obstacles: LocalObstacles | None = None
         self._goal = 0
         group = ReentrantCallbackGroup()
         self._cmd_vel = node.create_publisher(Twist, NAV2_CMD_VEL, 10)
@@ -227,56 +198,25 @@ class Nav2StandIn:
     def _on_initial(self, msg: Any) -> None:
         covariance = planar_covariance(msg.pose.covariance)
         self.events.write("initial_pose", pose=pose_of(msg.pose.pose), xx=covariance[0, 0])
-        with self._lock:
-            self._tracker.reset(pose_of(msg.pose.pose), covariance, self._tracker.odom)
-            self._placed = True
+        self.stack.on_initial_pose(msg)
 
     def _on_odom(self, msg: Any) -> None:
-        odom = pose_of(msg.pose.pose)
-        with self._lock:
-            self._odom = msg
-            self._tracker.odometry(odom)
-            pose = self._tracker.pose() if self._placed else None
-        if pose is None:
+        localised = self.stack.on_odom(msg)
+        if localised is None:
             return
+        pose, map_to_odom = localised
         estimate = PoseWithCovarianceStamped()
         estimate.header.stamp, estimate.header.frame_id = msg.header.stamp, "map"
         set_pose(estimate.pose.pose, pose)
         self._pose.publish(estimate)
-        map_to_odom = transform(estimate.header, "odom", compose(pose, inverse(odom)))
-        self._tf.publish(TFMessage(transforms=[map_to_odom]))
-
-    def pose(self) -> Pose | None:
-        with self._lock:
-            return self._tracker.pose() if self._placed else None
+        self._tf.publish(TFMessage(transforms=[transform(estimate.header, "odom", map_to_odom)]))
 
     def _on_map(self, msg: Any) -> None:
-        info = msg.info
-        grid = np.asarray(msg.data, dtype=np.int8).reshape(info.height, info.width)
-        submap = SubMap("", "map", "", "", grid, info.resolution, pose_of(info.origin), {}, (), ())
-        self.events.write("map", width=info.width, height=info.height)
-        with self._lock:
-            self._map = submap
-            self._tracker.set_map(submap)
+        self.events.write("map", width=msg.info.width, height=msg.info.height)
+        self.stack.on_map(msg)
 
     def _on_scan(self, msg: Any) -> None:
-        ranges = np.asarray(msg.ranges, dtype=np.float64)
-        angles = msg.angle_min + msg.angle_increment * np.arange(len(ranges))
-        self._obstacles = LocalObstacles.from_scan(ranges, angles)
-        scan = laser_scan(
-            msg.header.frame_id,
-            ranges.tolist(),
-            stamp_seconds(msg.header.stamp),
-            angle_min=msg.angle_min,
-            angle_max=msg.angle_max,
-            angle_increment=msg.angle_increment,
-            time_increment=msg.time_increment,
-            scan_time=msg.scan_time,
-            range_min=msg.range_min,
-            range_max=msg.range_max,
-        )
-        with self._lock:
-            self._tracker.scan(dict(scan))
+        self.stack.on_scan(msg, stamp_seconds(msg.header.stamp))
 
     def _on_load_map(self, request: Any, response: Any) -> Any:
         self.events.write("load_map", url=request.map_url)
@@ -320,7 +260,7 @@ class Nav2StandIn:
         return NavigateToPose.Result(error_code=0 if how == "succeed" else 9000)
 
     def _feedback(self, handle: Any, target: Pose) -> None:
-        pose = self.pose()
+        pose = self.stack.pose()
         if pose is None:
             return
         feedback = NavigateToPose.Feedback()
@@ -330,13 +270,8 @@ class Nav2StandIn:
 
     def _drive(self, driver: Driver, target: Pose) -> Any:
         """One control step; None while there is no map, pose or scan yet."""
-        pose, submap, obstacles, odom = self.pose(), self._map, self._obstacles, self._odom
-        if pose is None or submap is None or obstacles is None or odom is None:
-            return None
-        twist = odom.twist.twist
-        velocity = (twist.linear.x, twist.angular.z)
-        drive = driver.drive(target, submap, pose, velocity, obstacles, time.monotonic())
-        if drive.command is not None:
+        drive = self.stack.drive(driver, target)
+        if drive is not None and drive.command is not None:
             command = Twist()
             command.linear.x, command.angular.z = (float(v) for v in drive.command)
             self._cmd_vel.publish(command)
@@ -348,10 +283,9 @@ class Nav2StandIn:
     def _publish_plan(self, driver: Driver) -> None:
         msg = RosPath()
         msg.header.stamp, msg.header.frame_id = self.node.get_clock().now().to_msg(), "map"
-        for x, y in driver.path:
-            stamped = PoseStamped()
-            stamped.header = msg.header
-            set_pose(stamped.pose, (x, y, 0.0))
+        for pose in plan_poses(driver):
+            stamped = PoseStamped(header=msg.header)
+            set_pose(stamped.pose, pose)
             msg.poses.append(stamped)
         self._plan.publish(msg)
 

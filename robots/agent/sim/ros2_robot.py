@@ -15,27 +15,18 @@ virtualenv ``scripts/ros2_env.sh`` builds.
 from __future__ import annotations
 
 import argparse
-import time
 from collections.abc import Sequence
 from pathlib import Path
 
-from robots.agent.fleet import demo_start, parse_pose
+from robots.agent.sim.drivers import PERIOD, Pacer, demo_hardware, robot_arguments
 
-PERIOD = 0.1
-"""Seconds between the body's steps, odometry and scans (10 Hz)."""
 WATCHDOG = 1.0
 """Seconds the body obeys a command (the simulator's 0.5 s stopped it between the
 commands of a Nav2 stand-in held to 2 Hz on a loaded test machine)."""
-LONGEST_STEP = 0.5
-"""Seconds: a step the machine held up longer is cut to this (the body never jumps)."""
 
 
 def arguments(argv: Sequence[str] | None = None) -> argparse.Namespace:
-    parser = argparse.ArgumentParser(prog="python -m robots.agent.sim.ros2_robot")
-    parser.add_argument("node", choices=("body", "nav2", "watch"))
-    parser.add_argument("--cloud", default="http://127.0.0.1:8000", help="named by the tags")
-    parser.add_argument("--start", type=parse_pose, default=demo_start(0), help="x,y,yaw")
-    parser.add_argument("--seed", type=int, default=0)
+    parser = robot_arguments("python -m robots.agent.sim.ros2_robot", ("body", "nav2", "watch"))
     parser.add_argument("--events", type=Path, help="JSON lines of what the node does")
     return parser.parse_args(argv)
 
@@ -74,22 +65,12 @@ def main(options: argparse.Namespace) -> None:
 
 def body(node: object, options: argparse.Namespace, events: object) -> None:
     """The body, stepped every ``PERIOD`` seconds by a timer of ``node``."""
-    from robots.agent.sim.hardware import SimHardware
     from robots.agent.sim.ros2_nodes import Ros2Body
-    from robots.agent.sim.world import demo_world
 
-    hardware = SimHardware(demo_world(options.cloud), options.start, seed=options.seed)
+    hardware = demo_hardware(options)
     hardware.body.watchdog = WATCHDOG
-    robot = Ros2Body(node, hardware, events)  # type: ignore[arg-type]
-    clock = {"ticks": 0, "last": time.monotonic()}
-
-    def step() -> None:
-        now = time.monotonic()
-        clock["ticks"] += 1
-        robot.step(min(now - clock["last"], LONGEST_STEP), int(clock["ticks"]))
-        clock["last"] = now
-
-    node.create_timer(PERIOD, step)  # type: ignore[attr-defined]
+    robot, pacer = Ros2Body(node, hardware, events), Pacer()  # type: ignore[arg-type]
+    node.create_timer(PERIOD, lambda: robot.step(*pacer.tick()))  # type: ignore[attr-defined]
 
 
 if __name__ == "__main__":

@@ -14,42 +14,27 @@ on the wall clock. Needs a roscore (``ROS_MASTER_URI``) and Debian's ROS 1 packa
 from __future__ import annotations
 
 import argparse
-import time
 from collections.abc import Sequence
 
-from robots.agent.fleet import demo_start, parse_pose
 from robots.agent.ros import ros_path
-
-PERIOD = 0.1
-"""Seconds between the body's steps, odometry and scans (10 Hz)."""
-LONGEST_STEP = 0.5
-"""Seconds: a step the machine held up longer is cut to this (the body never jumps)."""
+from robots.agent.sim.drivers import PERIOD, Pacer, demo_hardware, robot_arguments
 
 
 def arguments(argv: Sequence[str] | None = None) -> argparse.Namespace:
-    parser = argparse.ArgumentParser(prog="python -m robots.agent.sim.ros_robot")
-    parser.add_argument("node", choices=("body", "move_base"))
-    parser.add_argument("--cloud", default="http://127.0.0.1:8000", help="named by the tags")
-    parser.add_argument("--start", type=parse_pose, default=demo_start(0), help="x,y,yaw")
-    parser.add_argument("--seed", type=int, default=0)
+    parser = robot_arguments("python -m robots.agent.sim.ros_robot", ("body", "move_base"))
     return parser.parse_args(argv)
 
 
 def run_body(options: argparse.Namespace) -> None:
     import rospy  # type: ignore[import-not-found,unused-ignore]
 
-    from robots.agent.sim.hardware import SimHardware
     from robots.agent.sim.ros_nodes import RosBody
-    from robots.agent.sim.world import demo_world
 
     rospy.init_node("sim_robot")
-    hardware = SimHardware(demo_world(options.cloud), options.start, seed=options.seed)
-    body, ticks, last = RosBody(hardware), 0, time.monotonic()
+    body, pacer = RosBody(demo_hardware(options)), Pacer()
     rate = rospy.Rate(1 / PERIOD)
     while not rospy.is_shutdown():
-        now, ticks = time.monotonic(), ticks + 1
-        body.step(min(now - last, LONGEST_STEP), ticks)
-        last = now
+        body.step(*pacer.tick())
         try:
             rate.sleep()
         except rospy.ROSInterruptException:
