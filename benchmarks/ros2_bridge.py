@@ -24,12 +24,12 @@ import re
 import subprocess
 import tempfile
 import time
-from datetime import datetime
 from pathlib import Path
 from typing import Any
 
+from benchmarks import ros_bridge
 from benchmarks.agent import ROOT, demo_server
-from benchmarks.ros_bridge import _summary, _tag_read, _window, node
+from benchmarks.ros_bridge import TAG_READ, logged_at, measured_window, node, summary
 
 NAME = "ros2-bridge"
 LOADED = re.compile(r"^(\d{4}-\d\d-\d\d \d\d:\d\d:\d\d,\d{3}) \S+ load_map \S+: loaded")
@@ -40,11 +40,7 @@ DOMAINS = itertools.count(os.getpid() % 50 + 1)
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--distro", choices=("jazzy", "kilted"), default="jazzy")
-    parser.add_argument("--samples", type=int, default=3, help="bridges started, tag reads")
-    parser.add_argument("--duration", type=float, default=20.0, help="wall seconds measured")
-    parser.add_argument("--warmup", type=float, default=5.0, help="wall seconds before")
-    parser.add_argument("--seed", type=int, default=0, help="the simulated robot's noise")
-    parser.add_argument("--json", action="store_true", help="print only the JSON object")
+    ros_bridge.add_arguments(parser)
 
 
 def run(options: dict[str, Any]) -> None:
@@ -53,18 +49,8 @@ def run(options: dict[str, Any]) -> None:
 
 
 def table(result: dict[str, Any]) -> str:
-    rows = [
-        f"sent per robot: {result['bytes_per_second']:.0f} B/s "
-        f"({result['bytes']} bytes in {result['seconds']:.1f} s)",
-        f"bridge CPU: {result['cpu_cores']:.3f} core",
-    ]
-    for key, what in (("tag_to_map_ms", "/map"), ("tag_to_load_map_ms", "LoadMap answer")):
-        found = result[key]
-        rows.append(
-            f"tag read -> {what}: median {found['median']:.0f} ms, worst {found['worst']:.0f} ms"
-            f" ({len(found['samples'])} samples)"
-        )
-    return "\n".join(rows)
+    delays = {"tag_to_map_ms": "/map", "tag_to_load_map_ms": "LoadMap answer"}
+    return "\n".join(ros_bridge.table_rows(result, delays))
 
 
 def ros2_venv(distro: str) -> Path:
@@ -136,12 +122,12 @@ def _measured(
             to_loaded.append(loaded)
             if sample == options["samples"] - 1:
                 time.sleep(options["warmup"])
-                window = _window(process.pid, url, options["duration"])
+                window = measured_window(process.pid, url, options["duration"])
     return {
         **window,
         "distro": options["distro"],
-        "tag_to_map_ms": _summary(to_map),
-        "tag_to_load_map_ms": _summary(to_loaded),
+        "tag_to_map_ms": summary(to_map),
+        "tag_to_load_map_ms": summary(to_loaded),
     }
 
 
@@ -151,11 +137,15 @@ def _tag_to_map_and_load(
     """Milliseconds from the bridge's ``tag N read`` to the next ``/map`` the watcher
     holds, and to the bridge's ``LoadMap`` answer."""
     seen, give_up = len(_maps(watched)), time.monotonic() + DEADLINE
-    while len(_maps(watched)) == seen or _tag_read(log) is None or _loaded(log) is None:
+    while (
+        len(_maps(watched)) == seen
+        or logged_at(log, TAG_READ) is None
+        or logged_at(log, LOADED) is None
+    ):
         if time.monotonic() > give_up or process.poll() is not None:
             raise RuntimeError(f"no tag read, /map and LoadMap:\n{log.read_text(errors='replace')}")
         time.sleep(0.05)
-    read, loaded = _tag_read(log), _loaded(log)
+    read, loaded = logged_at(log, TAG_READ), logged_at(log, LOADED)
     assert read is not None
     assert loaded is not None
     # The watcher stamps with the monotonic clock, the bridge's log with the wall clock.
@@ -178,11 +168,3 @@ def _maps(watched: Path) -> list[float]:
         return []
     lines = (json.loads(line) for line in watched.read_text().splitlines() if line.endswith("}"))
     return [event["t"] for event in lines if event["event"] == "map"]
-
-
-def _loaded(log: Path) -> float | None:
-    for line in log.read_text(errors="replace").splitlines():
-        found = LOADED.match(line)
-        if found:
-            return datetime.strptime(found[1], "%Y-%m-%d %H:%M:%S,%f").timestamp()
-    return None

@@ -41,6 +41,7 @@ DEADLINE = 180.0
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """The options of both ROS bridges' benchmarks."""
     parser.add_argument("--samples", type=int, default=3, help="bridges started, tag reads")
     parser.add_argument("--duration", type=float, default=20.0, help="wall seconds measured")
     parser.add_argument("--warmup", type=float, default=5.0, help="wall seconds before")
@@ -56,16 +57,24 @@ def run(options: dict[str, Any]) -> None:
 
 
 def table(result: dict[str, Any]) -> str:
-    return "\n".join(
-        [
-            f"sent per robot: {result['bytes_per_second']:.0f} B/s "
-            f"({result['bytes']} bytes in {result['seconds']:.1f} s)",
-            f"bridge CPU: {result['cpu_cores']:.3f} core",
-            f"tag read -> /map: median {result['tag_to_map_ms']['median']:.0f} ms, "
-            f"worst {result['tag_to_map_ms']['worst']:.0f} ms "
-            f"({len(result['tag_to_map_ms']['samples'])} samples)",
-        ]
-    )
+    return "\n".join(table_rows(result, {"tag_to_map_ms": "/map"}))
+
+
+def table_rows(result: dict[str, Any], delays: dict[str, str]) -> list[str]:
+    """The rows of a bridge's figures: bytes sent, CPU, and each of ``delays`` (the
+    result's key of a ``summary``: what it measures to)."""
+    rows = [
+        f"sent per robot: {result['bytes_per_second']:.0f} B/s "
+        f"({result['bytes']} bytes in {result['seconds']:.1f} s)",
+        f"bridge CPU: {result['cpu_cores']:.3f} core",
+    ]
+    for key, what in delays.items():
+        found = result[key]
+        rows.append(
+            f"tag read -> {what}: median {found['median']:.0f} ms, worst {found['worst']:.0f} ms"
+            f" ({len(found['samples'])} samples)"
+        )
+    return rows
 
 
 def measure(options: dict[str, Any]) -> dict[str, Any]:
@@ -104,32 +113,36 @@ def _measured(
             delays.append(_tag_to_map(log, arrivals, process))
             if sample == options["samples"] - 1:
                 time.sleep(options["warmup"])
-                window = _window(process.pid, url, options["duration"])
+                window = measured_window(process.pid, url, options["duration"])
     rospy.signal_shutdown("measured")
-    return {**window, "tag_to_map_ms": _summary(delays)}
+    return {**window, "tag_to_map_ms": summary(delays)}
 
 
 def _tag_to_map(log: Path, arrivals: list[float], process: subprocess.Popen[bytes]) -> float:
     """Milliseconds from the bridge's ``tag N read`` to the next ``/map`` here."""
     seen, give_up = len(arrivals), time.monotonic() + DEADLINE
-    while len(arrivals) == seen or _tag_read(log) is None:
+    while len(arrivals) == seen or logged_at(log, TAG_READ) is None:
         if time.monotonic() > give_up or process.poll() is not None:
             raise RuntimeError(f"no tag read and /map:\n{log.read_text(errors='replace')}")
         time.sleep(0.05)
-    read = _tag_read(log)
+    read = logged_at(log, TAG_READ)
     assert read is not None
     return (arrivals[seen] - read) * 1000
 
 
-def _tag_read(log: Path) -> float | None:
-    for line in log.read_text(errors="replace").splitlines():
-        found = TAG_READ.match(line)
+def logged_at(log: Path, line: re.Pattern[str]) -> float | None:
+    """When (wall-clock seconds) the first line of ``log`` matching ``line`` was logged
+    (its first group: the logging module's ``asctime``); None before one is."""
+    for text in log.read_text(errors="replace").splitlines():
+        found = line.match(text)
         if found:
             return datetime.strptime(found[1], "%Y-%m-%d %H:%M:%S,%f").timestamp()
     return None
 
 
-def _window(pid: int, url: str, duration: float) -> dict[str, Any]:
+def measured_window(pid: int, url: str, duration: float) -> dict[str, Any]:
+    """Bytes process ``pid`` sends the server at ``url`` and its CPU, over ``duration``
+    seconds."""
     port = int(url.rsplit(":", 1)[1])
     sent, cpu, wall = _acked(port), _cpu(pid), time.monotonic()
     time.sleep(duration)
@@ -159,7 +172,7 @@ def _cpu(pid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
-def _summary(delays: list[float]) -> dict[str, Any]:
+def summary(delays: list[float]) -> dict[str, Any]:
     return {
         "median": statistics.median(delays),
         "worst": max(delays),
@@ -167,26 +180,38 @@ def _summary(delays: list[float]) -> dict[str, Any]:
     }
 
 
-@contextlib.contextmanager
-def node(
+def start_node(
     env: dict[str, str], log: Path, *command: str, python: str = sys.executable
-) -> Iterator[subprocess.Popen[bytes]]:
-    """``python -m <command>`` in ``env`` (a private roscore's, a ROS 2 domain's), logging
-    to ``log``; stopped after."""
+) -> subprocess.Popen[bytes]:
+    """``python -m <command>`` in ``env`` (a private roscore's, a ROS 2 domain's) with the
+    repository on its path, its output in ``log``."""
     with log.open("wb") as out:
-        process = subprocess.Popen(
+        return subprocess.Popen(
             [python, "-m", *command],
             env={**env, "PYTHONPATH": str(ROOT)},
             cwd=ROOT,
             stdout=out,
             stderr=subprocess.STDOUT,
         )
+
+
+def stop_node(process: subprocess.Popen[Any]) -> None:
+    """Terminate ``process``; killed if it has not ended 30 s later."""
+    process.terminate()
+    try:
+        process.wait(timeout=30)
+    except subprocess.TimeoutExpired:
+        process.kill()
+        process.wait(timeout=30)
+
+
+@contextlib.contextmanager
+def node(
+    env: dict[str, str], log: Path, *command: str, python: str = sys.executable
+) -> Iterator[subprocess.Popen[bytes]]:
+    """``start_node``, stopped after."""
+    process = start_node(env, log, *command, python=python)
     try:
         yield process
     finally:
-        process.terminate()
-        try:
-            process.wait(timeout=30)
-        except subprocess.TimeoutExpired:
-            process.kill()
-            process.wait(timeout=30)
+        stop_node(process)

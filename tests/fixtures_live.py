@@ -342,6 +342,16 @@ async def until(
         await asyncio.sleep(0.02)
 
 
+def wait_for(done: Callable[[], Any], seconds: float, what: str) -> Any:
+    """Poll ``done`` until it returns something true, and return that; fail naming
+    ``what`` after ``seconds``."""
+    give_up = time.monotonic() + seconds
+    while not (value := done()):
+        assert time.monotonic() < give_up, f"timed out waiting for {what}"
+        time.sleep(0.05)
+    return value
+
+
 def video_stats(url: str, token: str, timeout: float = 10.0) -> list[dict[str, Any]]:
     """The live server's video relays, as ``/api/video/stats`` lists them to robot ``token``."""
     request = urllib.request.Request(

@@ -92,6 +92,38 @@ class Operator:
         odom = self.latest.get(f"/{ROBOT}/odom")
         return float(odom["twist"]["twist"]["linear"]["x"]) if odom else 0.0
 
+    async def watch(self, *topics: str) -> None:
+        """Subscribe to the robot's ``topics``."""
+        for topic in topics:
+            await self.send(op="subscribe", topic=f"/{ROBOT}/{topic}")
+
+    def entered(self, map_id: str) -> bool:
+        """Whether the robot's latest ``map_id`` is ``map_id`` (of any version)."""
+        held = self.latest.get(f"/{ROBOT}/map_id", {}).get("data", "")
+        return bool(held.split("@")[0] == map_id)
+
+    def status_text(self) -> str:
+        status = self.latest.get(f"/{ROBOT}/nav_status", {}).get("status_list", [])
+        return str(status[-1]["text"]) if status else ""
+
+    async def cancel_goal(self) -> None:
+        """Cancel the robot's goal, and wait until it says PREEMPTED."""
+        answer = await self.call(f"/{ROBOT}/cancel_goal", {}, "cancel")
+        assert answer["result"] is True
+        await self.until(lambda: self.last_status() == PREEMPTED, "PREEMPTED", 30)
+
+    async def teleop_until(self, reached: Callable[[], object], angular: float) -> None:
+        """Take the robot's teleop lock and turn it at ``angular`` until ``reached()``
+        (30 s at most)."""
+        lock = await self.call("/cloudnav/teleop_lock", {"robot": ROBOT}, "lock")
+        assert lock["values"]["success"] is True
+        turn = {"linear": {"x": 0.0, "y": 0, "z": 0}, "angular": {"x": 0, "y": 0, "z": angular}}
+        give_up = time.monotonic() + 30
+        while not reached():
+            assert time.monotonic() < give_up, "teleop never reached cmd_vel"
+            await self.send(op="publish", topic=f"/{ROBOT}/cmd_vel", msg=turn)
+            await self.read_for(0.1)
+
 
 def pose(map_id: str, x: float, y: float, yaw: float) -> dict[str, Any]:
     return {

@@ -6,20 +6,20 @@ cancel preempting it. Skipped where ROS 1 is not installed (``scripts/setup.sh``
 from __future__ import annotations
 
 import math
-import os
 import shutil
-import socket
 import subprocess
-import sys
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
 
+from benchmarks.ros_bridge import start_node, stop_node
 from robots.agent.ros import ros_path
+from tests.fixtures_live import wait_for
+from tests.test_agent_live import ACTIVE, CORRIDOR_A, PREEMPTED, ROBOT, START, Operator, pose
 
 pytestmark = [
     pytest.mark.skipif(
@@ -28,68 +28,21 @@ pytestmark = [
     pytest.mark.filterwarnings("ignore:notifyAll:DeprecationWarning"),
 ]
 
-ROOT = Path(__file__).resolve().parent.parent
 MAP_ID = "boccioni_1/CorridorA"
-ACTIVE, PREEMPTED = 1, 2
-
-
-def wait_for(done: Callable[[], Any], seconds: float, what: str) -> Any:
-    deadline = time.monotonic() + seconds
-    while time.monotonic() < deadline:
-        value = done()
-        if value:
-            return value
-        time.sleep(0.05)
-    raise AssertionError(f"timed out waiting for {what}")
-
-
-def free_port() -> int:
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        return int(probe.getsockname()[1])
 
 
 @pytest.fixture(scope="session")
-def ros_env(tmp_path_factory: pytest.TempPathFactory) -> Iterator[dict[str, str]]:
-    """A real roscore on a free port; the environment that reaches it."""
-    port = free_port()
-    env = dict(os.environ)
-    env.update(
-        ROS_MASTER_URI=f"http://127.0.0.1:{port}",
-        ROS_HOSTNAME="127.0.0.1",
-        ROS_HOME=str(tmp_path_factory.mktemp("ros_home")),
-    )
-    env.pop("PYTHONPATH", None)
-    core = subprocess.Popen(
-        ["roscore", "-p", str(port)],
-        env=env,
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
-        start_new_session=True,
-    )
-    try:
-        import rosgraph  # type: ignore[import-not-found,unused-ignore]
+def ros_env() -> Iterator[dict[str, str]]:
+    """A real roscore on a free port (this process's node reaches it too); the
+    environment that reaches it."""
+    from robots.agent.ros.master import private_roscore
 
-        master = rosgraph.Master("/probe", master_uri=env["ROS_MASTER_URI"])
-        wait_for(lambda: _online(master), 60, "roscore")
+    with private_roscore() as env:
         yield env
-    finally:
-        core.terminate()
-        core.wait(timeout=30)
-
-
-def _online(master: Any) -> bool:
-    try:
-        master.getPid()
-    except Exception:
-        return False
-    return True
 
 
 @pytest.fixture(scope="session")
 def node(ros_env: dict[str, str]) -> Iterator[None]:
-    for name in ("ROS_MASTER_URI", "ROS_HOSTNAME", "ROS_HOME"):
-        os.environ[name] = ros_env[name]
     import rospy  # type: ignore[import-not-found,unused-ignore]
 
     rospy.init_node("cloudnav_bridge_test", anonymous=True, disable_signals=True)
@@ -338,29 +291,24 @@ def test_the_tag_detector_uses_the_robots_camera_info(node: None) -> None:
     assert hardware("uncalibrated").camera_model == CameraModel()
 
 
-ROBOT = "robot_0"
-CORRIDOR_A = "boccioni_1/CorridorA"
-START = (8.0, 23.2, 0.0)
-
-
-def start_bridge(ros_env: dict[str, str], server: str, token: str) -> subprocess.Popen[str]:
+def start_bridge(ros_env: dict[str, str], log: Path, server: str, token: str) -> Any:
     """``python -m robots.agent.ros`` for ``robot_0``, as a robot would run it."""
-    return subprocess.Popen(
-        [
-            *(sys.executable, "-m", "robots.agent.ros", "--server", server, "--token", token),
-            *("--particles", "0", "--node", "cloudnav_bridge_robot_0", "--navigation", "agent"),
-        ],
-        env={**ros_env, "PYTHONPATH": str(ROOT)},
-        cwd=ROOT,
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
-        text=True,
+    return start_node(
+        ros_env,
+        log,
+        *("robots.agent.ros", "--server", server, "--token", token),
+        *("--particles", "0", "--node", "cloudnav_bridge_robot_0", "--navigation", "agent"),
     )
 
 
 @pytest.mark.slow
 async def test_the_bridge_node_carries_an_operators_goal_to_ros_and_survives_the_cloud(
-    node: None, ros_env: dict[str, str], daphne_server: Any, demo_token: str, operator_headers: Any
+    node: None,
+    ros_env: dict[str, str],
+    daphne_server: Any,
+    demo_token: str,
+    operator_headers: Any,
+    tmp_path: Path,
 ) -> None:
     import rospy  # type: ignore[import-not-found,unused-ignore]
     import websockets
@@ -368,7 +316,7 @@ async def test_the_bridge_node_carries_an_operators_goal_to_ros_and_survives_the
     from nav_msgs.msg import Odometry  # type: ignore[import-not-found,unused-ignore]
     from sensor_msgs.msg import LaserScan  # type: ignore[import-not-found,unused-ignore]
 
-    from tests.test_agent_live import Operator, pose, with_covariance
+    from tests.test_agent_live import with_covariance
 
     # The robot's drivers: a base standing still and a laser seeing open space.
     odom = Odometry()
@@ -390,29 +338,25 @@ async def test_the_bridge_node_carries_an_operators_goal_to_ros_and_survives_the
         lambda t: commands.append((time.monotonic(), t.linear.x, t.angular.z)),
     )
 
-    bridge = start_bridge(ros_env, daphne_server.url, demo_token)
+    bridge = start_bridge(ros_env, tmp_path / "bridge.log", daphne_server.url, demo_token)
     try:
         async with websockets.connect(
             daphne_server.rosbridge_url(), additional_headers=operator_headers
         ) as ws:
             operator = Operator(ws)
-            for topic in ("pose", "nav_status", "map_id", "odom"):
-                await operator.send(op="subscribe", topic=f"/{ROBOT}/{topic}")
+            await operator.watch("pose", "nav_status", "map_id", "odom")
             await operator.until(lambda: f"/{ROBOT}/odom" in operator.latest, "the bridge", 90)
 
             placed = with_covariance(pose(CORRIDOR_A, *START))
             await operator.send(op="publish", topic=f"/{ROBOT}/initialpose", msg=placed)
             await operator.until(lambda: f"/{ROBOT}/pose" in operator.latest, "a pose", 60)
-            entered = operator.latest[f"/{ROBOT}/map_id"]["data"]
-            assert entered.split("@")[0] == CORRIDOR_A  # "@v1": the map's version
+            assert operator.entered(CORRIDOR_A)
 
             goal = pose(CORRIDOR_A, 16, 23.2, 0)
             await operator.send(op="publish", topic=f"/{ROBOT}/goal", msg=goal)
             await operator.until(lambda: operator.last_status() == ACTIVE, "the goal taken", 60)
             await operator.until(lambda: any(c[1] > 0.05 for c in commands), "cmd_vel on ROS")
-            answer = await operator.call(f"/{ROBOT}/cancel_goal", {}, "cancel")
-            assert answer["result"] is True
-            await operator.until(lambda: operator.last_status() == PREEMPTED, "PREEMPTED")
+            await operator.cancel_goal()
 
             await operator.send(op="publish", topic=f"/{ROBOT}/goal", msg=goal)
             await operator.until(lambda: operator.last_status() == ACTIVE, "the goal again", 60)
@@ -439,27 +383,14 @@ BACK_IN_CORRIDOR_A = (14.0, 23.2, math.pi)
 TAG_1_APPROACH = (17.3, 22.6)  # 0.5 m in front of tag 1, which leads to Atrium 1
 SUCCEEDED = 3
 SUB_MAP_SIZES = {CORRIDOR_A: (392, 160), ATRIUM_1: (232, 232)}  # width, height
+TURNING = 0.4  # rad/s, the operator's teleop
 
 
-def start_node(ros_env: dict[str, str], log: Path, *command: str) -> subprocess.Popen[bytes]:
-    """``python -m <command>`` as a process on the test's roscore, its output in ``log``."""
-    with log.open("wb") as out:
-        return subprocess.Popen(
-            [sys.executable, "-m", *command],
-            env={**ros_env, "PYTHONPATH": str(ROOT)},
-            cwd=ROOT,
-            stdout=out,
-            stderr=subprocess.STDOUT,
-        )
-
-
-def stop_node(process: subprocess.Popen[Any]) -> None:
-    process.terminate()
-    try:
-        process.wait(timeout=30)
-    except subprocess.TimeoutExpired:
-        process.kill()
-        process.wait(timeout=30)
+def log_tails(directory: Path) -> str:
+    """The end of each ``*.log`` in ``directory``, for a failure's message."""
+    return "\n".join(
+        f"--- {p.name}\n{p.read_text(errors='replace')[-3000:]}" for p in directory.glob("*.log")
+    )
 
 
 class RosSide:
@@ -562,8 +493,6 @@ async def test_a_ros_robot_crosses_sub_maps_through_its_own_move_base(
 ) -> None:
     import websockets
 
-    from tests.test_agent_live import Operator, pose
-
     ros = RosSide()
     processes = [
         start_node(ros_env, tmp_path / "body.log", "robots.agent.sim.ros_robot", "body",
@@ -575,27 +504,19 @@ async def test_a_ros_robot_crosses_sub_maps_through_its_own_move_base(
     ]  # fmt: skip
 
     def logs() -> str:
-        tails = (
-            f"--- {p.name}\n{p.read_text(errors='replace')[-3000:]}" for p in tmp_path.glob("*.log")
-        )
         goals = [(round(t), g.target_pose.pose.position) for t, g in ros.goals]
         results = [(round(t), r.status.status) for t, r in ros.results]
-        return "\n".join(tails) + f"\ngoals: {goals}\nresults: {results}"
+        return log_tails(tmp_path) + f"\ngoals: {goals}\nresults: {results}"
 
     try:
         async with websockets.connect(
             daphne_server.rosbridge_url(), additional_headers=operator_headers
         ) as ws:
             operator = Operator(ws)
-            for topic in ("pose", "nav_status", "map_id", "plan"):
-                await operator.send(op="subscribe", topic=f"/{ROBOT}/{topic}")
-
-            def entered(map_id: str) -> bool:
-                held = operator.latest.get(f"/{ROBOT}/map_id", {}).get("data", "")
-                return bool(held.split("@")[0] == map_id)
+            await operator.watch("pose", "nav_status", "map_id", "plan")
 
             # Standing before the entrance tag, the robot reads it: Corridor A on /map.
-            await operator.until(lambda: entered(CORRIDOR_A), f"Corridor A\n{logs()}", 120)
+            await operator.until(lambda: operator.entered(CORRIDOR_A), f"Corridor A\n{logs()}", 120)
             wait_for(lambda: ros.maps, 30, "/map")
             info = echoed_map_info(ros_env)
             assert "width: 392" in info, info
@@ -617,16 +538,14 @@ async def test_a_ros_robot_crosses_sub_maps_through_its_own_move_base(
                 60,
             )
             await operator.until(lambda: operator.last_status() == ACTIVE, "ACTIVE", 30)
-            answer = await operator.call(f"/{ROBOT}/cancel_goal", {}, "cancel")
-            assert answer["result"] is True
-            await operator.until(lambda: operator.last_status() == PREEMPTED, "PREEMPTED", 30)
+            await operator.cancel_goal()
             assert ros.cancels
             assert ros.cancels[-1] >= sent
 
             # Sent again, it crosses into Atrium 1 by reading tag 1, and arrives.
             await operator.send(op="publish", topic=f"/{ROBOT}/goal", msg=goal)
             await operator.until(lambda: f"/{ROBOT}/plan" in operator.latest, "a plan", 60)
-            await operator.until(lambda: entered(ATRIUM_1), f"Atrium 1\n{logs()}", 240)
+            await operator.until(lambda: operator.entered(ATRIUM_1), f"Atrium 1\n{logs()}", 240)
             wait_for(lambda: ros.maps[-1].info.width == 232, 30, "Atrium 1 on /map")
             assert "width: 232" in echoed_map_info(ros_env)
             await operator.until(
@@ -639,19 +558,13 @@ async def test_a_ros_robot_crosses_sub_maps_through_its_own_move_base(
             back = pose(CORRIDOR_A, *BACK_IN_CORRIDOR_A)
             await operator.send(op="publish", topic=f"/{ROBOT}/goal", msg=back)
             await operator.until(lambda: operator.last_status() == ACTIVE, "ACTIVE again", 30)
-            lock = await operator.call("/cloudnav/teleop_lock", {"robot": ROBOT}, "lock")
-            assert lock["values"]["success"] is True
-            turn = {"linear": {"x": 0.0, "y": 0, "z": 0}, "angular": {"x": 0, "y": 0, "z": 0.4}}
             bridge = "/cloudnav_bridge_robot_0"
 
             def teleop_reached() -> bool:
-                return any(s == bridge and w == pytest.approx(0.4) for _, s, _, w in ros.commands)
+                turns = (w == pytest.approx(TURNING) for _, s, _, w in ros.commands if s == bridge)
+                return any(turns)
 
-            give_up = time.monotonic() + 30
-            while not teleop_reached():
-                assert time.monotonic() < give_up, "teleop never reached cmd_vel"
-                await operator.send(op="publish", topic=f"/{ROBOT}/cmd_vel", msg=turn)
-                await operator.read_for(0.1)
+            await operator.teleop_until(teleop_reached, TURNING)
             # Teleop has held the goal: the robot sends it again only after its last command
             # (on a slow machine it may have read tag 2 before the teleop began).
             teleop_ended = time.monotonic()
@@ -661,7 +574,7 @@ async def test_a_ros_robot_crosses_sub_maps_through_its_own_move_base(
         # stop, though the cloud's own stop can no longer come.
         def stopped_by_the_bridge() -> bool:
             mine = [(t, v, w) for t, s, v, w in ros.commands if s == bridge]
-            turning = [t for t, _, w in mine if w == pytest.approx(0.4)]
+            turning = [t for t, _, w in mine if w == pytest.approx(TURNING)]
             return any(t > turning[-1] and v == w == 0.0 for t, v, w in mine)
 
         wait_for(stopped_by_the_bridge, 30, "a stop after teleop")

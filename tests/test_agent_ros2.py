@@ -25,24 +25,21 @@ import numpy as np
 import pytest
 
 from benchmarks import ros2_bridge
-from tests.fixtures_live import worker_index
+from benchmarks.ros_bridge import start_node, stop_node
+from tests.fixtures_live import wait_for, worker_index
+from tests.test_agent_live import ACTIVE, CORRIDOR_A, ROBOT, Operator, pose
 from tests.test_agent_ros import (
     ATRIUM_1,
     BACK_IN_CORRIDOR_A,
-    CORRIDOR_A,
     IN_ATRIUM_1,
-    PREEMPTED,
-    ROBOT,
     SUB_MAP_SIZES,
     SUCCEEDED,
     TAG_1_APPROACH,
+    TURNING,
     cloud_grid,
-    stop_node,
-    wait_for,
+    log_tails,
 )
 
-ROOT = Path(__file__).resolve().parent.parent
-ACTIVE = 1
 TELEOP_HOLD = 0.5  # robots.agent.robot.TELEOP_HOLD: the dead-man's delay
 DOMAINS_PER_WORKER = 25
 _domains = itertools.count()
@@ -95,17 +92,12 @@ class Ros2Robot:
         return events
 
     def start(self, log: str, *command: str) -> subprocess.Popen[bytes]:
-        """``python -m <command>`` in the ROS 2 virtualenv, its output in ``log.log``."""
-        with (self.tmp_path / f"{log}.log").open("wb") as out:
-            return subprocess.Popen(
-                ["python", "-m", *command], env=self.env, cwd=ROOT, stdout=out, stderr=out
-            )
+        """``python -m <command>`` in the ROS 2 virtualenv (its ``python`` first on the
+        environment's PATH), its output in ``log.log``."""
+        return start_node(self.env, self.tmp_path / f"{log}.log", *command, python="python")
 
     def logs(self) -> str:
-        return "\n".join(
-            f"--- {p.name}\n{p.read_text(errors='replace')[-3000:]}"
-            for p in self.tmp_path.glob("*.log")
-        )
+        return log_tails(self.tmp_path)
 
     def goal_near(self, x: float, y: float, since: float = 0.0) -> bool:
         return any(math.dist((g["x"], g["y"]), (x, y)) < 0.05 for g in self.nav2.all("goal", since))
@@ -144,8 +136,6 @@ async def test_a_ros2_robot_crosses_sub_maps_through_nav2_and_stops_when_the_clo
 ) -> None:
     import websockets
 
-    from tests.test_agent_live import Operator, pose
-
     ros = ros2_robot
     bridge = ros.start(
         "bridge",
@@ -159,20 +149,13 @@ async def test_a_ros2_robot_crosses_sub_maps_through_nav2_and_stops_when_the_clo
             daphne_server.rosbridge_url(), additional_headers=operator_headers
         ) as ws:
             operator = Operator(ws)
-            for topic in ("pose", "nav_status", "map_id", "plan"):
-                await operator.send(op="subscribe", topic=f"/{ROBOT}/{topic}")
-
-            def entered(map_id: str) -> bool:
-                held = operator.latest.get(f"/{ROBOT}/map_id", {}).get("data", "")
-                return bool(held.split("@")[0] == map_id)
-
-            def status_text() -> str:
-                status = operator.latest.get(f"/{ROBOT}/nav_status", {}).get("status_list", [])
-                return str(status[-1]["text"]) if status else ""
+            await operator.watch("pose", "nav_status", "map_id", "plan")
 
             # Standing before the entrance tag, the robot reads it: Corridor A on /map,
             # cell for cell, as a separate transient-local subscriber reads it.
-            await operator.until(lambda: entered(CORRIDOR_A), f"Corridor A\n{ros.logs()}", 180)
+            await operator.until(
+                lambda: operator.entered(CORRIDOR_A), f"Corridor A\n{ros.logs()}", 180
+            )
             seen = wait_for(ros.watched_map, 60, "/map")
             assert (seen["width"], seen["height"]) == SUB_MAP_SIZES[CORRIDOR_A]
             grid = np.asarray(seen["cells"], dtype=np.int8).reshape(seen["height"], seen["width"])
@@ -191,17 +174,15 @@ async def test_a_ros2_robot_crosses_sub_maps_through_nav2_and_stops_when_the_clo
                 lambda: ros.goal_near(*TAG_1_APPROACH, since=sent), f"a goal\n{ros.logs()}", 60
             )
             await operator.until(lambda: operator.last_status() == ACTIVE, "ACTIVE", 30)
-            await operator.until(lambda: "m to go" in status_text(), "Nav2's feedback", 60)
-            answer = await operator.call(f"/{ROBOT}/cancel_goal", {}, "cancel")
-            assert answer["result"] is True
-            await operator.until(lambda: operator.last_status() == PREEMPTED, "PREEMPTED", 30)
+            await operator.until(lambda: "m to go" in operator.status_text(), "Nav2's feedback", 60)
+            await operator.cancel_goal()
             wait_for(lambda: ros.nav2.all("cancel", sent), 30, "the Nav2 goal cancelled")
 
             # Sent again, it crosses into Atrium 1 by reading tag 1 (LoadMap called with
             # Atrium 1's files), and the goal succeeds.
             await operator.send(op="publish", topic=f"/{ROBOT}/goal", msg=goal)
             await operator.until(lambda: f"/{ROBOT}/plan" in operator.latest, "a plan", 60)
-            await operator.until(lambda: entered(ATRIUM_1), f"Atrium 1\n{ros.logs()}", 480)
+            await operator.until(lambda: operator.entered(ATRIUM_1), f"Atrium 1\n{ros.logs()}", 480)
             wait_for(
                 lambda: (ros.watched_map() or {}).get("width") == SUB_MAP_SIZES[ATRIUM_1][0],
                 30,
@@ -222,18 +203,12 @@ async def test_a_ros2_robot_crosses_sub_maps_through_nav2_and_stops_when_the_clo
             back = pose(CORRIDOR_A, *BACK_IN_CORRIDOR_A)
             await operator.send(op="publish", topic=f"/{ROBOT}/goal", msg=back)
             await operator.until(lambda: operator.last_status() == ACTIVE, "ACTIVE again", 30)
-            lock = await operator.call("/cloudnav/teleop_lock", {"robot": ROBOT}, "lock")
-            assert lock["values"]["success"] is True
-            turn = {"linear": {"x": 0.0, "y": 0, "z": 0}, "angular": {"x": 0, "y": 0, "z": 0.4}}
 
             def turning() -> list[float]:
-                return [c["t"] for c in ros.bridge_commands() if c["angular"] == pytest.approx(0.4)]
+                turns = ros.bridge_commands()
+                return [c["t"] for c in turns if c["angular"] == pytest.approx(TURNING)]
 
-            give_up = time.monotonic() + 30
-            while not turning():
-                assert time.monotonic() < give_up, "teleop never reached cmd_vel"
-                await operator.send(op="publish", topic=f"/{ROBOT}/cmd_vel", msg=turn)
-                await operator.read_for(0.1)
+            await operator.teleop_until(turning, TURNING)
             # Teleop has held the goal: the robot sends it again only after its last command
             # (on a slow machine it may have read tag 2 before the teleop began).
             teleop_ended = time.monotonic()

@@ -19,8 +19,9 @@ import numpy as np
 import pytest
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
+from benchmarks.agent import ROOT
 from benchmarks.ros2_bridge import graph_env
-from tests.test_agent_ros2 import ROOT, ros2_venv  # noqa: F401 (a fixture)
+from tests.test_agent_ros2 import ros2_venv  # noqa: F401 (a fixture)
 
 GOAL = """geometry_msgs/PoseStamped pose
 string behavior_tree"""

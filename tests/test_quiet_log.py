@@ -5,7 +5,6 @@ the robot; what changed still is. Counted over a window on a real server and rob
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
 from pathlib import Path
 
 import httpx
@@ -18,6 +17,7 @@ from tests.fixtures_live import (
     LiveServers,
     agent_process,
     session_cookie,
+    wait_for,
 )
 
 pytestmark = pytest.mark.django_db(transaction=True)
@@ -29,13 +29,6 @@ CHECKS_IN_WINDOW = 3  # at least, every 2 s of the robot's clock, on a loaded ma
 
 def lines(log: Path) -> list[str]:
     return log.read_text(errors="replace").splitlines()
-
-
-def wait_for(condition: Callable[[], bool], seconds: float, what: str) -> None:
-    deadline = time.monotonic() + seconds
-    while not condition():
-        assert time.monotonic() < deadline, what
-        time.sleep(0.2)
 
 
 def test_unchanged_checks_are_not_logged_and_changes_are(
