@@ -85,6 +85,31 @@ def set_pose(msg: Any, pose: Pose) -> None:
     o.x, o.y, o.z, o.w = quaternion_of(pose[2])
 
 
+def pose_of_transform(transform: Any) -> Pose:
+    """The SE(2) pose of a ``geometry_msgs/Transform``."""
+    t = transform
+    return (t.translation.x, t.translation.y, yaw_of(t.rotation))
+
+
+def plan_of(msg: Any) -> list[Point]:
+    """The points of a ``nav_msgs/Path``."""
+    return [(p.pose.position.x, p.pose.position.y) for p in msg.poses]
+
+
+def write_grid_info(msg: Any, cells: NDArray[np.int8], resolution: float, origin: Pose) -> None:
+    """A ``nav_msgs/OccupancyGrid``'s ``info`` of ``cells`` (but ``map_load_time``); its
+    data each version writes its own way."""
+    msg.info.resolution = float(resolution)
+    msg.info.height, msg.info.width = (int(n) for n in cells.shape)
+    set_pose(msg.info.origin, origin)
+
+
+def write_initial_pose(msg: Any, pose: Pose, covariance: NDArray[np.float64]) -> None:
+    """A ``geometry_msgs/PoseWithCovarianceStamped``'s pose and covariance (x, y, yaw)."""
+    set_pose(msg.pose.pose, pose)
+    msg.pose.covariance = full_covariance(covariance)
+
+
 def full_covariance(planar: NDArray[np.float64]) -> list[float]:
     """ROS's 6x6 covariance (row-major, 36 values) of a 3x3 one of (x, y, yaw)."""
     full = np.zeros((6, 6))
@@ -323,6 +348,22 @@ def write_map_files(
     yaml_path = map_dir / f"{name}.yaml"
     yaml_path.write_text(map_yaml_text(exported))
     return str(yaml_path)
+
+
+def load_map_files(
+    ask: Callable[[str], None] | None,
+    map_dir: Path | None,
+    map_id: str,
+    cells: NDArray[np.int8],
+    resolution: float,
+    origin: Pose,
+) -> None:
+    """With a map server (``ask``) and ``map_dir``: the sub-map's map-server files written
+    and, off the control loop, ``ask`` called with their YAML's path."""
+    if ask is None or map_dir is None:
+        return
+    url = write_map_files(map_dir, map_id, cells, resolution, origin)
+    threading.Thread(target=ask, args=(url,), daemon=True).start()
 
 
 # --- the node ---------------------------------------------------------------------------

@@ -8,7 +8,6 @@ from tf (``map -> base_footprint``), the global planner's plan from its topic. C
 from __future__ import annotations
 
 import logging
-import threading
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -19,7 +18,6 @@ import rospy  # type: ignore[import-not-found,unused-ignore]
 from actionlib_msgs.msg import GoalStatus  # type: ignore[import-not-found,unused-ignore]
 from geometry_msgs.msg import (  # type: ignore[import-not-found,unused-ignore]
     PoseWithCovarianceStamped,
-    Quaternion,
 )
 from move_base_msgs.msg import (  # type: ignore[import-not-found,unused-ignore]
     MoveBaseAction,
@@ -36,11 +34,13 @@ from numpy.typing import NDArray
 
 from robots.agent.bridge import (
     StackReadings,
-    full_covariance,
+    load_map_files,
+    plan_of,
     pose_of,
-    quaternion_of,
-    write_map_files,
-    yaw_of,
+    pose_of_transform,
+    set_pose,
+    write_grid_info,
+    write_initial_pose,
 )
 from robots.agent.hardware import StackGoal
 from robots.domain.se2 import Point, Pose
@@ -60,10 +60,6 @@ STATES = {
     GoalStatus.RECALLED: StackGoal.NONE,
 }
 """actionlib's statuses as the Maps Supervisor's driver needs them."""
-
-
-def quaternion(yaw: float) -> Any:
-    return Quaternion(*quaternion_of(yaw))
 
 
 class RosNavigationStack:
@@ -110,19 +106,14 @@ class RosNavigationStack:
     def set_map(self, map_id: str, grid: Any, resolution: float, origin: Pose) -> None:
         cells = np.asarray(grid, dtype=np.int8)
         msg = OccupancyGrid()
-        msg.header.stamp = rospy.Time.now()
-        msg.header.frame_id = self.frame
+        msg.header.stamp, msg.header.frame_id = rospy.Time.now(), self.frame
         msg.info.map_load_time = msg.header.stamp
-        msg.info.resolution = float(resolution)
-        msg.info.height, msg.info.width = (int(n) for n in cells.shape)
-        msg.info.origin.position.x, msg.info.origin.position.y = origin[0], origin[1]
-        msg.info.origin.orientation = quaternion(origin[2])
+        write_grid_info(msg, cells, resolution, origin)
         msg.data = cells.ravel().tolist()
         self.readings.map_id = map_id
         self._map.publish(msg)
-        if self._load_map is not None and self._map_dir is not None:
-            url = write_map_files(self._map_dir, map_id, cells, resolution, origin)
-            threading.Thread(target=self._ask_map_server, args=(url,), daemon=True).start()
+        ask = None if self._load_map is None else self._ask_map_server
+        load_map_files(ask, self._map_dir, map_id, cells, resolution, origin)
 
     @property
     def map_id(self) -> str | None:
@@ -144,11 +135,8 @@ class RosNavigationStack:
         """Raises ValueError unless ``map_id`` is the sub-map on ``/map``."""
         self.readings.held(map_id)
         msg = PoseWithCovarianceStamped()
-        msg.header.stamp = rospy.Time.now()
-        msg.header.frame_id = self.frame
-        msg.pose.pose.position.x, msg.pose.pose.position.y = pose[0], pose[1]
-        msg.pose.pose.orientation = quaternion(pose[2])
-        msg.pose.covariance = full_covariance(covariance)
+        msg.header.stamp, msg.header.frame_id = rospy.Time.now(), self.frame
+        write_initial_pose(msg, pose, covariance)
         self.readings.placed(msg.header.stamp.to_sec())
         self._initial.publish(msg)
 
@@ -158,8 +146,7 @@ class RosNavigationStack:
         goal = MoveBaseGoal()
         goal.target_pose.header.stamp = rospy.Time.now()
         goal.target_pose.header.frame_id = self.frame
-        goal.target_pose.pose.position.x, goal.target_pose.pose.position.y = pose[0], pose[1]
-        goal.target_pose.pose.orientation = quaternion(pose[2])
+        set_pose(goal.target_pose.pose, pose)
         self._move_base.send_goal(goal)
         self._goal_sent = True
 
@@ -192,15 +179,13 @@ class RosNavigationStack:
         except (tf2_ros.LookupException, tf2_ros.ExtrapolationException,
                 tf2_ros.ConnectivityException):  # fmt: skip
             return
-        t = seen.transform
-        found = (t.translation.x, t.translation.y, yaw_of(t.rotation))
-        self.readings.on_pose(seen.header.stamp.to_sec(), found)
+        self.readings.on_pose(seen.header.stamp.to_sec(), pose_of_transform(seen.transform))
 
     def plan(self) -> tuple[int, Sequence[Point]]:
         return self.readings.plan()
 
     def _on_plan(self, msg: Any) -> None:
-        self.readings.on_plan([(p.pose.position.x, p.pose.position.y) for p in msg.poses])
+        self.readings.on_plan(plan_of(msg))
 
     def map_subscribers(self) -> int:
         """How many subscribers ``/map`` has connected."""

@@ -36,11 +36,13 @@ from rclpy.qos import (  # type: ignore[import-not-found,unused-ignore]
 
 from robots.agent.bridge import (
     StackReadings,
-    full_covariance,
+    load_map_files,
+    plan_of,
     pose_of,
+    pose_of_transform,
     set_pose,
-    write_map_files,
-    yaw_of,
+    write_grid_info,
+    write_initial_pose,
 )
 from robots.agent.hardware import StackGoal
 from robots.agent.ros2 import stamp_seconds
@@ -98,8 +100,7 @@ class TransformChain:
     def on_message(self, msg: Any) -> None:
         with self._lock:
             for seen in msg.transforms:
-                t = seen.transform
-                pose = (t.translation.x, t.translation.y, yaw_of(t.rotation))
+                pose = pose_of_transform(seen.transform)
                 stamp = stamp_seconds(seen.header.stamp)
                 self._parents[seen.child_frame_id] = (seen.header.frame_id, pose, stamp)
 
@@ -171,18 +172,14 @@ class Nav2Stack:
     def set_map(self, map_id: str, grid: Any, resolution: float, origin: Pose) -> None:
         cells = np.asarray(grid, dtype=np.int8)
         msg = OccupancyGrid()
-        msg.header.stamp = self._now()
-        msg.header.frame_id = self.frame
+        msg.header.stamp, msg.header.frame_id = self._now(), self.frame
         msg.info.map_load_time = msg.header.stamp
-        msg.info.resolution = float(resolution)
-        msg.info.height, msg.info.width = (int(n) for n in cells.shape)
-        set_pose(msg.info.origin, origin)
+        write_grid_info(msg, cells, resolution, origin)
         msg.data = array.array("b", cells.tobytes())
         self.readings.map_id = map_id
         self._map.publish(msg)
-        if self._load_map is not None and self._map_dir is not None:
-            url = write_map_files(self._map_dir, map_id, cells, resolution, origin)
-            threading.Thread(target=self._ask_map_server, args=(url,), daemon=True).start()
+        ask = None if self._load_map is None else self._ask_map_server
+        load_map_files(ask, self._map_dir, map_id, cells, resolution, origin)
 
     def _ask_map_server(self, url: str) -> None:
         """Call ``LoadMap`` (off the control loop); failures are logged."""
@@ -207,10 +204,8 @@ class Nav2Stack:
         """Raises ValueError unless ``map_id`` is the sub-map on ``/map``."""
         self.readings.held(map_id)
         msg = PoseWithCovarianceStamped()
-        msg.header.stamp = self._now()
-        msg.header.frame_id = self.frame
-        set_pose(msg.pose.pose, pose)
-        msg.pose.covariance = full_covariance(covariance)
+        msg.header.stamp, msg.header.frame_id = self._now(), self.frame
+        write_initial_pose(msg, pose, covariance)
         self.readings.placed(stamp_seconds(msg.header.stamp))
         self._initial.publish(msg)
 
@@ -229,7 +224,7 @@ class Nav2Stack:
         return self.readings.plan()
 
     def _on_plan(self, msg: Any) -> None:
-        self.readings.on_plan([(p.pose.position.x, p.pose.position.y) for p in msg.poses])
+        self.readings.on_plan(plan_of(msg))
 
     def progress(self) -> str:
         return self.readings.progress()
