@@ -92,6 +92,14 @@ class Operator:
         odom = self.latest.get(f"/{ROBOT}/odom")
         return float(odom["twist"]["twist"]["linear"]["x"]) if odom else 0.0
 
+    async def send_goal(self, goal: dict[str, Any]) -> None:
+        await self.send(op="publish", topic=f"/{ROBOT}/goal", msg=goal)
+
+    def distance_to(self, point: tuple[float, ...]) -> float:
+        """Metres from the robot's latest ``pose`` to ``point`` (x, y, ...)."""
+        here = self.latest[f"/{ROBOT}/pose"]["pose"]["position"]
+        return math.dist((here["x"], here["y"]), point[:2])
+
     async def watch(self, *topics: str) -> None:
         """Subscribe to the robot's ``topics``."""
         for topic in topics:

@@ -353,12 +353,12 @@ async def test_the_bridge_node_carries_an_operators_goal_to_ros_and_survives_the
             assert operator.entered(CORRIDOR_A)
 
             goal = pose(CORRIDOR_A, 16, 23.2, 0)
-            await operator.send(op="publish", topic=f"/{ROBOT}/goal", msg=goal)
+            await operator.send_goal(goal)
             await operator.until(lambda: operator.last_status() == ACTIVE, "the goal taken", 60)
             await operator.until(lambda: any(c[1] > 0.05 for c in commands), "cmd_vel on ROS")
             await operator.cancel_goal()
 
-            await operator.send(op="publish", topic=f"/{ROBOT}/goal", msg=goal)
+            await operator.send_goal(goal)
             await operator.until(lambda: operator.last_status() == ACTIVE, "the goal again", 60)
 
         daphne_server.stop()  # the cloud goes away: the robot drives on its held map
@@ -531,7 +531,7 @@ async def test_a_ros_robot_crosses_sub_maps_through_its_own_move_base(
             # The operator's goal in Atrium 1 reaches move_base as a goal to tag 1 first.
             sent = time.monotonic()
             goal = pose(ATRIUM_1, *IN_ATRIUM_1)
-            await operator.send(op="publish", topic=f"/{ROBOT}/goal", msg=goal)
+            await operator.send_goal(goal)
             await operator.until(
                 lambda: ros.goal_near(*TAG_1_APPROACH, since=sent),
                 f"a move_base goal\n{logs()}",
@@ -543,7 +543,7 @@ async def test_a_ros_robot_crosses_sub_maps_through_its_own_move_base(
             assert ros.cancels[-1] >= sent
 
             # Sent again, it crosses into Atrium 1 by reading tag 1, and arrives.
-            await operator.send(op="publish", topic=f"/{ROBOT}/goal", msg=goal)
+            await operator.send_goal(goal)
             await operator.until(lambda: f"/{ROBOT}/plan" in operator.latest, "a plan", 60)
             await operator.until(lambda: operator.entered(ATRIUM_1), f"Atrium 1\n{logs()}", 240)
             wait_for(lambda: ros.maps[-1].info.width == 232, 30, "Atrium 1 on /map")
@@ -551,12 +551,11 @@ async def test_a_ros_robot_crosses_sub_maps_through_its_own_move_base(
             await operator.until(
                 lambda: operator.last_status() == SUCCEEDED, f"SUCCEEDED\n{logs()}", 180
             )
-            here = operator.latest[f"/{ROBOT}/pose"]["pose"]["position"]
-            assert math.dist((here["x"], here["y"]), IN_ATRIUM_1[:2]) < 0.5
+            assert operator.distance_to(IN_ATRIUM_1) < 0.5
 
             # Back to Corridor A; teleop meanwhile, and the cloud goes away mid-teleop.
             back = pose(CORRIDOR_A, *BACK_IN_CORRIDOR_A)
-            await operator.send(op="publish", topic=f"/{ROBOT}/goal", msg=back)
+            await operator.send_goal(back)
             await operator.until(lambda: operator.last_status() == ACTIVE, "ACTIVE again", 30)
             bridge = "/cloudnav_bridge_robot_0"
 

@@ -169,7 +169,7 @@ async def test_a_ros2_robot_crosses_sub_maps_through_nav2_and_stops_when_the_clo
             # first; Nav2's feedback reaches the cloud; cancel cancels the Nav2 goal.
             sent = time.monotonic()
             goal = pose(ATRIUM_1, *IN_ATRIUM_1)
-            await operator.send(op="publish", topic=f"/{ROBOT}/goal", msg=goal)
+            await operator.send_goal(goal)
             await operator.until(
                 lambda: ros.goal_near(*TAG_1_APPROACH, since=sent), f"a goal\n{ros.logs()}", 60
             )
@@ -180,7 +180,7 @@ async def test_a_ros2_robot_crosses_sub_maps_through_nav2_and_stops_when_the_clo
 
             # Sent again, it crosses into Atrium 1 by reading tag 1 (LoadMap called with
             # Atrium 1's files), and the goal succeeds.
-            await operator.send(op="publish", topic=f"/{ROBOT}/goal", msg=goal)
+            await operator.send_goal(goal)
             await operator.until(lambda: f"/{ROBOT}/plan" in operator.latest, "a plan", 60)
             await operator.until(lambda: operator.entered(ATRIUM_1), f"Atrium 1\n{ros.logs()}", 480)
             wait_for(
@@ -196,12 +196,11 @@ async def test_a_ros2_robot_crosses_sub_maps_through_nav2_and_stops_when_the_clo
             await operator.until(
                 lambda: operator.last_status() == SUCCEEDED, f"SUCCEEDED\n{ros.logs()}", 360
             )
-            here = operator.latest[f"/{ROBOT}/pose"]["pose"]["position"]
-            assert math.dist((here["x"], here["y"]), IN_ATRIUM_1[:2]) < 0.5
+            assert operator.distance_to(IN_ATRIUM_1) < 0.5
 
             # Back to Corridor A; teleop meanwhile, and the cloud goes away mid-teleop.
             back = pose(CORRIDOR_A, *BACK_IN_CORRIDOR_A)
-            await operator.send(op="publish", topic=f"/{ROBOT}/goal", msg=back)
+            await operator.send_goal(back)
             await operator.until(lambda: operator.last_status() == ACTIVE, "ACTIVE again", 30)
 
             def turning() -> list[float]:

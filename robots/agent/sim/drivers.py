@@ -40,12 +40,14 @@ def write_odometry(msg: Any, hardware: SimHardware) -> None:
     msg.twist.twist.linear.x, msg.twist.twist.angular.z = float(linear), float(angular)
 
 
-def write_transform(msg: Any, header: Any, child: str, pose: Pose) -> None:
-    """A ``geometry_msgs/TransformStamped``: tf ``header.frame_id -> child`` of ``pose``."""
+def transform(msg: Any, header: Any, child: str, pose: Pose) -> Any:
+    """``msg``, a new ``geometry_msgs/TransformStamped``, as tf ``header.frame_id ->
+    child`` of ``pose``."""
     msg.header, msg.child_frame_id = header, child
     msg.transform.translation.x, msg.transform.translation.y = float(pose[0]), float(pose[1])
     o = msg.transform.rotation
     o.x, o.y, o.z, o.w = quaternion_of(pose[2])
+    return msg
 
 
 def scan_fields(hardware: SimHardware) -> dict[str, Any]:

@@ -65,11 +65,11 @@ from robots.agent.sim.drivers import (
     SimDrivers,
     jpeg_fields,
     scan_fields,
+    transform,
     write_odometry,
-    write_transform,
 )
 from robots.agent.sim.hardware import SimHardware
-from robots.agent.sim.stand_in import StandInStack, plan_poses
+from robots.agent.sim.stand_in import StandInStack, write_plan
 from robots.domain.se2 import Pose
 from telemetry.domain.messages import PinholeCalibration
 
@@ -128,8 +128,8 @@ class Ros2Body(SimDrivers):
         odom.header.stamp = stamp
         write_odometry(odom, self.hardware)
         self._odom.publish(odom)
-        odom_to_base = transform(odom.header, BASE_FRAME, self.hardware.odom_pose)
-        self._tf.publish(TFMessage(transforms=[odom_to_base]))
+        moved = transform(TransformStamped(), odom.header, BASE_FRAME, self.hardware.odom_pose)
+        self._tf.publish(TFMessage(transforms=[moved]))
         scan = LaserScan(**scan_fields(self.hardware))
         scan.header.stamp, scan.header.frame_id = stamp, LASER_FRAME
         self._scan.publish(scan)
@@ -149,13 +149,6 @@ def camera_info(header: Any, calibration: PinholeCalibration) -> Any:
         header=header, height=c["height"], width=c["width"],
         distortion_model=c["distortion_model"], d=c["D"], k=c["K"], r=c["R"], p=c["P"],
     )  # fmt: skip
-
-
-def transform(header: Any, child: str, pose: Pose) -> Any:
-    """tf ``header.frame_id -> child`` of ``pose``."""
-    msg = TransformStamped()
-    write_transform(msg, header, child, pose)
-    return msg
 
 
 # --- Nav2, as far as the bridge uses it ------------------------------------------------
@@ -209,7 +202,8 @@ class Nav2StandIn:
         estimate.header.stamp, estimate.header.frame_id = msg.header.stamp, "map"
         set_pose(estimate.pose.pose, pose)
         self._pose.publish(estimate)
-        self._tf.publish(TFMessage(transforms=[transform(estimate.header, "odom", map_to_odom)]))
+        seen = transform(TransformStamped(), estimate.header, "odom", map_to_odom)
+        self._tf.publish(TFMessage(transforms=[seen]))
 
     def _on_map(self, msg: Any) -> None:
         self.events.write("map", width=msg.info.width, height=msg.info.height)
@@ -283,10 +277,7 @@ class Nav2StandIn:
     def _publish_plan(self, driver: Driver) -> None:
         msg = RosPath()
         msg.header.stamp, msg.header.frame_id = self.node.get_clock().now().to_msg(), "map"
-        for pose in plan_poses(driver):
-            stamped = PoseStamped(header=msg.header)
-            set_pose(stamped.pose, pose)
-            msg.poses.append(stamped)
+        write_plan(msg, driver, PoseStamped)
         self._plan.publish(msg)
 
 

@@ -50,11 +50,11 @@ from robots.agent.sim.drivers import (
     SimDrivers,
     jpeg_fields,
     scan_fields,
+    transform,
     write_odometry,
-    write_transform,
 )
 from robots.agent.sim.hardware import SimHardware
-from robots.agent.sim.stand_in import StandInStack, plan_poses
+from robots.agent.sim.stand_in import StandInStack, write_plan
 from robots.domain.se2 import Pose
 
 CONTROL_RATE = 10.0
@@ -87,7 +87,8 @@ class RosBody(SimDrivers):
         odom.header.stamp = stamp
         write_odometry(odom, self.hardware)
         self._odom.publish(odom)
-        self._tf.sendTransform(transform(odom.header, BASE_FRAME, self.hardware.odom_pose))
+        moved = transform(TransformStamped(), odom.header, BASE_FRAME, self.hardware.odom_pose)
+        self._tf.sendTransform(moved)
         scan = LaserScan(**scan_fields(self.hardware))
         scan.header.stamp, scan.header.frame_id = stamp, LASER_FRAME
         self._scan.publish(scan)
@@ -97,13 +98,6 @@ class RosBody(SimDrivers):
             self._camera.publish(image)
             calibration = pinhole_calibration(self.hardware.camera_model)
             self._camera_info.publish(CameraInfo(header=image.header, **calibration))
-
-
-def transform(header: Any, child: str, pose: Pose) -> Any:
-    """tf ``header.frame_id -> child`` of ``pose``."""
-    msg = TransformStamped()
-    write_transform(msg, header, child, pose)
-    return msg
 
 
 # --- a minimal navigation stack --------------------------------------------------------
@@ -150,7 +144,7 @@ class MoveBaseStandIn:
         estimate.header.stamp, estimate.header.frame_id = rospy.Time.now(), "map"
         set_pose(estimate.pose.pose, pose)
         self._pose.publish(estimate)
-        self._tf.sendTransform(transform(estimate.header, "odom", map_to_odom))
+        self._tf.sendTransform(transform(TransformStamped(), estimate.header, "odom", map_to_odom))
 
     def _on_map(self, msg: Any) -> None:
         with self._lock:
@@ -206,8 +200,5 @@ class MoveBaseStandIn:
     def _publish_plan(self, driver: Driver) -> None:
         msg = Path()
         msg.header.stamp, msg.header.frame_id = rospy.Time.now(), "map"
-        for pose in plan_poses(driver):
-            stamped = PoseStamped(header=msg.header)
-            set_pose(stamped.pose, pose)
-            msg.poses.append(stamped)
+        write_plan(msg, driver, PoseStamped)
         self._plan.publish(msg)

@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from robots.agent.bridge import planar_covariance, pose_of, scan_geometry
+from robots.agent.bridge import planar_covariance, pose_of, scan_geometry, set_pose
 from robots.agent.navigation import Drive, Driver, LocalObstacles
 from robots.agent.robot import PoseTracker, particle_filter
 from robots.agent.supervisor import SubMap
@@ -90,6 +90,11 @@ class StandInStack:
         return driver.drive(target, submap, pose, velocity, obstacles, time.monotonic())
 
 
-def plan_poses(driver: Driver) -> list[Pose]:
-    """The poses of ``driver``'s plan, for a ``nav_msgs/Path`` (headings left at 0)."""
-    return [(x, y, 0.0) for x, y in driver.path]
+def write_plan(msg: Any, driver: Driver, pose_stamped: Any) -> None:
+    """A ``nav_msgs/Path`` (its header set) of ``driver``'s plan, each pose a new
+    ``pose_stamped`` (the version's ``geometry_msgs/PoseStamped``) under the path's
+    header, headings left at 0."""
+    for x, y in driver.path:
+        stamped = pose_stamped(header=msg.header)
+        set_pose(stamped.pose, (x, y, 0.0))
+        msg.poses.append(stamped)
