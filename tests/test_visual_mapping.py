@@ -24,6 +24,7 @@ from maps.exceptions import KeyframeError
 from maps.mapping import runner as mapping_runner
 from maps.mapping.runner import MappingRunner
 from maps.models import Building, Keyframe, MappingSession, SubMap
+from robots.agent.perception import CameraModel, pinhole_calibration
 from robots.agent.sim.camera import Camera
 from robots.agent.sim.world import world_from_grid
 from robots.domain.se2 import Pose, compose
@@ -153,9 +154,10 @@ def camera_messages(poses: list[Pose]) -> list[tuple[dict[str, Any], ...]]:
     """What a camera-only robot publishes for each pose: image, compressedDepth,
     camera_info, all of one stamp."""
     out: list[tuple[dict[str, Any], ...]] = []
+    calibration = pinhole_calibration(CameraModel())
     for index, (image, depth) in enumerate(rendered(poses, 1)):
         stamp = 50.0 + 0.2 * index
-        info = messages.camera_info("camera_optical_frame", 640, 480, 525, 525, 319.5, 239.5, stamp)
+        info = messages.camera_info("camera_optical_frame", calibration, stamp)
         depth_msg = messages.compressed_depth("camera_optical_frame", depth, stamp)
         out.append((image_message(image, stamp), dict(depth_msg), dict(info)))
     return out
