@@ -51,9 +51,9 @@ typecheck:
 # The coverage floor is stated in the README.
 COVERAGE_FLOOR := 80
 # pytest-xdist workers: the tests mostly wait on servers, robots and browsers they start,
-# so three share two cores (each worker has its own Redis database, ROS 2 domains and
+# so two share two cores (each worker has its own Redis database, ROS 2 domains and
 # keyframe directory; tests/fixtures_live.py).
-TEST_WORKERS ?= 3
+TEST_WORKERS ?= 2
 
 pytest:
 	$(BIN)/pytest -n $(TEST_WORKERS) --durations=30 --cov --cov-report=term --cov-fail-under=$(COVERAGE_FLOOR)

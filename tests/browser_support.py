@@ -27,11 +27,18 @@ from typing import Any
 import pytest
 from django.contrib.auth.models import User
 from django.core.management import call_command
-from playwright.sync_api import Browser, BrowserContext, Page, sync_playwright
+from playwright.sync_api import Browser, BrowserContext, Page, expect, sync_playwright
 
 from maps.domain.demo_building import demo_building
 from robots.agent.client import RosbridgeClient
 from tests.fixtures_live import BASE_DIR, LiveServer, agent_process, session_cookie
+
+ACTION_TIMEOUT_MS = 30_000
+"""How long a page action or wait may take: the pages answer in well under a second,
+but a live server, robots and browsers sharing two cores with other tests can stall."""
+EXPECT_TIMEOUT_MS = 15_000
+"""How long an ``expect`` keeps retrying by default (Playwright's own is 5 s)."""
+expect.set_options(timeout=EXPECT_TIMEOUT_MS)
 
 CHROMIUM = "/usr/bin/chromium"
 CHROMIUM_ARGS = [
@@ -91,7 +98,7 @@ def browser(demo: Demo) -> Iterator[Browser]:
 @pytest.fixture
 def context(browser: Browser) -> Iterator[BrowserContext]:
     opened = browser.new_context(viewport=VIEWPORT)  # type: ignore[arg-type]
-    opened.set_default_timeout(15_000)
+    opened.set_default_timeout(ACTION_TIMEOUT_MS)
     yield opened
     opened.close()
 
@@ -106,7 +113,7 @@ def sized(browser: Browser, request: pytest.FixtureRequest) -> Iterator[BrowserC
     phone."""
     phone = request.param["width"] < 600
     opened = browser.new_context(viewport=request.param, has_touch=phone)
-    opened.set_default_timeout(15_000)
+    opened.set_default_timeout(ACTION_TIMEOUT_MS)
     yield opened
     opened.close()
 

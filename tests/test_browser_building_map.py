@@ -23,7 +23,7 @@ from playwright.sync_api import Browser, BrowserContext, Page, expect
 from maps.domain.demo_building import demo_building
 from robots.agent.client import RosbridgeClient
 from telemetry.domain.messages import path_message, pose_stamped
-from tests.browser_support import BUILDING, ROBOT, Demo, open_as, screenshot
+from tests.browser_support import ACTION_TIMEOUT_MS, BUILDING, ROBOT, Demo, open_as, screenshot
 
 pytest_plugins = ["tests.browser_support"]
 pytestmark = [pytest.mark.browser, pytest.mark.django_db(transaction=True)]
@@ -82,7 +82,7 @@ def robot_drawn(page: Page, name: str, timeout: int = 45_000) -> None:
 def sized(browser: Browser, request: pytest.FixtureRequest) -> Iterator[BrowserContext]:
     """A browser context at desktop (1440x900) or phone (390x844) size."""
     opened = browser.new_context(viewport=request.param, has_touch=request.param is PHONE)
-    opened.set_default_timeout(15_000)
+    opened.set_default_timeout(ACTION_TIMEOUT_MS)
     yield opened
     opened.close()
 

@@ -17,7 +17,15 @@ from playwright.sync_api import Browser, BrowserContext, Page, Request, expect
 from maps import services
 from maps.domain.demo_building import demo_building
 from maps.models import ChangeProposal, SubMap
-from tests.browser_support import BUILDING, ROBOT, Demo, open_as, screenshot, world_to_page
+from tests.browser_support import (
+    ACTION_TIMEOUT_MS,
+    BUILDING,
+    ROBOT,
+    Demo,
+    open_as,
+    screenshot,
+    world_to_page,
+)
 from tests.fixtures_live import agent_process
 
 pytest_plugins = ["tests.browser_support"]
@@ -180,7 +188,7 @@ def corridor_with_a_proposal(demo: Demo) -> Corridor:
 @pytest.fixture
 def touch_context(browser: Browser) -> Iterator[BrowserContext]:
     opened = browser.new_context(viewport={"width": 1280, "height": 900}, has_touch=True)
-    opened.set_default_timeout(15_000)
+    opened.set_default_timeout(ACTION_TIMEOUT_MS)
     yield opened
     opened.close()
 

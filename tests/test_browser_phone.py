@@ -11,7 +11,7 @@ from collections.abc import Callable, Iterator
 import pytest
 from playwright.sync_api import Browser, BrowserContext, Page, expect
 
-from tests.browser_support import BUILDING, ROBOT, Demo, screenshot
+from tests.browser_support import ACTION_TIMEOUT_MS, BUILDING, ROBOT, Demo, screenshot
 
 pytest_plugins = ["tests.browser_support"]
 pytestmark = [pytest.mark.browser, pytest.mark.django_db(transaction=True)]
@@ -59,7 +59,7 @@ def pinch(page: Page, selector: str) -> None:
 @pytest.fixture
 def phone(browser: Browser) -> Iterator[BrowserContext]:
     opened = browser.new_context(viewport=PHONE, has_touch=True)  # type: ignore[arg-type]
-    opened.set_default_timeout(15_000)
+    opened.set_default_timeout(ACTION_TIMEOUT_MS)
     yield opened
     opened.close()
 

@@ -11,7 +11,7 @@ from typing import Any
 import pytest
 from playwright.sync_api import Browser, BrowserContext, Page, expect
 
-from tests.browser_support import BUILDING, ROBOT, Demo, open_as, screenshot
+from tests.browser_support import ACTION_TIMEOUT_MS, BUILDING, ROBOT, Demo, open_as, screenshot
 from tests.test_browser_building_map import open_plan, press_and_drag, select_robot
 
 pytest_plugins = ["tests.browser_support"]
@@ -24,7 +24,7 @@ FAR_GOAL = (16.0, 23.2, 0.0)  # the far end of Corridor A
 @pytest.fixture
 def phone(browser: Browser) -> Any:
     opened = browser.new_context(viewport=PHONE, has_touch=True)  # type: ignore[arg-type]
-    opened.set_default_timeout(15_000)
+    opened.set_default_timeout(ACTION_TIMEOUT_MS)
     yield opened
     opened.close()
 

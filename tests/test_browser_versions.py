@@ -25,6 +25,8 @@ pytest_plugins = ["tests.browser_support"]
 pytestmark = [pytest.mark.browser, pytest.mark.django_db(transaction=True)]
 
 CABINET_CELLS = 6 * 10
+ENTERING_DEADLINE = 90.0
+"""Seconds for the robot to take the new version: it must come to the tag and read it."""
 ACCEPT_TO_ROBOT_S = 10.0
 
 
@@ -79,7 +81,7 @@ def test_an_admin_compares_and_rolls_back_and_the_robot_takes_the_new_version(
     expect(page.locator("#versions-diff")).to_contain_text(f"{CABINET_CELLS} cells became occupied")
     screenshot(page, "submap-versions-compare")
 
-    deadline = time.monotonic() + 30
+    deadline = time.monotonic() + ENTERING_DEADLINE
     while held_version(demo, page) != 2:
         assert time.monotonic() < deadline, "the robot never entered Corridor A"
         time.sleep(0.2)
@@ -131,7 +133,7 @@ def test_an_admin_accepts_a_proposed_change_and_the_robot_takes_it(
     expect(page.locator("#versions-diff")).to_contain_text("Proposed: 16 cells")
     screenshot(page, "submap-proposed-change")
 
-    deadline = time.monotonic() + 30
+    deadline = time.monotonic() + ENTERING_DEADLINE
     while held_version(demo, page) != 1:
         assert time.monotonic() < deadline, "the robot never entered Corridor A"
         time.sleep(0.2)
