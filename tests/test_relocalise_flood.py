@@ -38,6 +38,7 @@ from tests.fixtures_live import LiveServer, LiveServers, session_cookie
 OPERATORS = 3
 ROBOT_CALLS = 5
 DEADLINE = 120.0
+BUSY = "the server is answering other relocalisation requests; ask again shortly"
 
 
 @pytest.fixture
@@ -86,6 +87,12 @@ class Asking:
     async def ask_until_stopped(self, socket: Any, images: list[CompressedImage]) -> None:
         while not self.stopped.is_set():
             reply = await ask(socket, images, "operator")
+            if reply["result"] is False and reply["values"] == BUSY:
+                # An operator asking again the instant its answer came can find the other
+                # two still waiting before a thread takes the next: the lane is full for
+                # that instant, and the answer says to ask again shortly.
+                await asyncio.sleep(0.05)
+                continue
             assert reply["result"] is True, reply
             self.answered.append(time.monotonic())
 
