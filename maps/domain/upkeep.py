@@ -47,7 +47,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
-from scipy.ndimage import binary_dilation
+from scipy.ndimage import binary_dilation, distance_transform_edt
 
 from maps.domain.slam import Scan
 from maps.domain.versions import cell_classes
@@ -67,6 +67,8 @@ class UpkeepParams:
     surface_margin: float = 0.075  # metres before a return not counted as crossed
     surface_depth: float = 0.025  # metres each return is moved along its beam
     max_range: float = 6.0  # metres: farther returns are not used
+    wall_tolerance: float = 0.05  # metres a return may end inside a stored wall at 0 m
+    wall_tolerance_per_m: float = 0.09  # ...and per metre of range (about 5 degrees)
     beams: int = 180  # beams used per scan at most (evenly taken)
 
 
@@ -133,7 +135,7 @@ class Evidence:
         self.origin = (float(origin[0]), float(origin[1]))
         self.resolution = resolution
         self.near_wall = binary_dilation(self.stored == 1, iterations=1)
-        self.in_wall = _in_walls(self.stored)
+        self.wall_depth = _wall_depths(self.stored, resolution)
         self.protected = tag_walls(tags, grid.shape, self.origin, resolution)
         shape = grid.shape
         self.occupied_passes: Counts = np.zeros(shape, np.uint16)
@@ -161,14 +163,18 @@ class Evidence:
         )
         hit_cells = self._cells(ends)
         inside = hit_cells[:, 0] >= 0
-        deep = np.zeros(len(ranges), bool)
-        deep[inside] = self.in_wall[hit_cells[inside, 0], hit_cells[inside, 1]]
+        within = np.zeros(len(ranges), bool)  # ends inside a stored wall, within tolerance
+        deep = np.zeros(len(ranges), bool)  # ...beyond it: the pose is off
+        depth = self.wall_depth[hit_cells[inside, 0], hit_cells[inside, 1]]
+        allowed = wall_tolerance(ranges[inside], p)
+        deep[inside] = depth > allowed
+        within[inside] = (depth > 0) & ~deep[inside]
         near = self.near_wall[hit_cells[inside, 0], hit_cells[inside, 1]] & ~deep[inside]
         if not len(near) or near.mean() < p.trust:
             self.untrusted += 1
             return False
         self.scans += 1
-        crossed = self._crossed(pose, ranges[~deep], angles[~deep])
+        crossed = self._crossed(pose, ranges, angles, within)
         counts = self._pass_of(robot)
         for cells, counted in ((hit_cells[inside], counts.hits), (crossed, counts.misses)):
             flat = np.unique(cells[:, 0] * self.stored.shape[1] + cells[:, 1])
@@ -186,16 +192,43 @@ class Evidence:
         return found
 
     def _crossed(
-        self, pose: Pose, ranges: npt.NDArray[np.float64], angles: npt.NDArray[np.float64]
+        self,
+        pose: Pose,
+        ranges: npt.NDArray[np.float64],
+        angles: npt.NDArray[np.float64],
+        in_wall: npt.NDArray[np.bool_] | None = None,
     ) -> Cells:
+        """Cells the beams crossed, up to ``surface_margin`` before each return; a beam
+        whose return ended inside a stored wall (``in_wall``) stops that margin before
+        it entered that wall: a pose a little off, not a wall gone."""
         p = self.params
         reach = np.clip(ranges - p.surface_margin, 0.0, None)
-        samples = math.ceil(float(reach.max(initial=0.0)) / (self.resolution / 2)) + 1
+        samples = math.ceil(float(ranges.max(initial=0.0)) / (self.resolution / 2)) + 1
         t = np.linspace(0.0, 1.0, samples)[None, :]
-        x = pose[0] + (reach * np.cos(angles))[:, None] * t
-        y = pose[1] + (reach * np.sin(angles))[:, None] * t
-        cells = self._cells(np.column_stack((x.ravel(), y.ravel())))
-        return cells[cells[:, 0] >= 0]
+        along = ranges[:, None] * t  # metres from the robot of each sample
+        x = pose[0] + (ranges * np.cos(angles))[:, None] * t
+        y = pose[1] + (ranges * np.sin(angles))[:, None] * t
+        cells = self._cells(np.column_stack((x.ravel(), y.ravel()))).reshape(-1, samples, 2)
+        if in_wall is not None and in_wall.any():
+            reach[in_wall] = np.minimum(
+                reach[in_wall], self._wall_entry(cells[in_wall], along[in_wall]) - p.surface_margin
+            )
+        kept = (along <= reach[:, None]).reshape(-1)
+        flat = cells.reshape(-1, 2)[kept]
+        return flat[flat[:, 0] >= 0]
+
+    def _wall_entry(self, cells: Cells, along: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
+        """Metres along each beam (its samples' ``cells`` and distances ``along``) where it
+        entered the stored wall its last sample is in."""
+        wall = np.zeros(cells.shape[:2], bool)
+        inside = cells[..., 0] >= 0
+        wall[inside] = self.stored[cells[inside][:, 0], cells[inside][:, 1]] == 1
+        trailing = np.argmin(wall[:, ::-1], axis=1)  # wall samples at the beam's end
+        trailing[wall.all(axis=1)] = wall.shape[1]
+        first = np.clip(wall.shape[1] - trailing, 0, wall.shape[1] - 1)
+        entry: npt.NDArray[np.float64] = along[np.arange(len(along)), first]
+        entry[trailing == wall.shape[1]] = 0.0
+        return entry
 
     def _cells(self, points: npt.NDArray[np.float64]) -> Cells:
         """(row, col) of each point; (-1, -1) outside the grid."""
@@ -262,14 +295,23 @@ class Evidence:
         )
 
 
-def _in_walls(stored: npt.NDArray[np.int8]) -> npt.NDArray[np.bool_]:
-    """Stored wall cells behind the faces of their wall (a face: a wall cell beside one
-    that is not wall), where no return of a true pose ends: returns are counted half a
-    cell deep, so they end in the face cell."""
-    wall: npt.NDArray[np.bool_] = stored == 1
-    faces: npt.NDArray[np.bool_] = binary_dilation(~wall, iterations=1)
-    inside: npt.NDArray[np.bool_] = wall & ~faces
-    return inside
+def _wall_depths(stored: npt.NDArray[np.int8], resolution: float) -> npt.NDArray[np.float64]:
+    """Metres each stored wall cell lies behind the face of its wall (0 for a face cell and
+    for every cell that is not wall)."""
+    wall = stored == 1
+    if not wall.any():
+        return np.zeros(stored.shape)
+    cells: npt.NDArray[np.float64] = distance_transform_edt(wall)
+    return np.clip(cells - 1.0, 0.0, None) * resolution
+
+
+def wall_tolerance(
+    ranges: npt.NDArray[np.float64], params: UpkeepParams
+) -> npt.NDArray[np.float64]:
+    """Metres a return at each range may end inside a stored wall and still be the wall
+    seen from a true pose: a beam's end moves with the pose's heading error times its
+    range (plus the position and range error), so a far return is allowed deeper."""
+    return params.wall_tolerance + params.wall_tolerance_per_m * ranges
 
 
 def _robots_per_cell(
