@@ -163,18 +163,17 @@ class Evidence:
         )
         hit_cells = self._cells(ends)
         inside = hit_cells[:, 0] >= 0
-        within = np.zeros(len(ranges), bool)  # ends inside a stored wall, within tolerance
-        deep = np.zeros(len(ranges), bool)  # ...beyond it: the pose is off
+        in_wall = np.zeros(len(ranges), bool)  # ends behind the face of a stored wall
+        deep = np.zeros(len(ranges), bool)  # ...deeper than a pose error could put it
         depth = self.wall_depth[hit_cells[inside, 0], hit_cells[inside, 1]]
-        allowed = wall_tolerance(ranges[inside], p)
-        deep[inside] = depth > allowed
-        within[inside] = (depth > 0) & ~deep[inside]
+        in_wall[inside] = depth > 0
+        deep[inside] = depth > wall_tolerance(ranges[inside], p)
         near = self.near_wall[hit_cells[inside, 0], hit_cells[inside, 1]] & ~deep[inside]
         if not len(near) or near.mean() < p.trust:
             self.untrusted += 1
             return False
         self.scans += 1
-        crossed = self._crossed(pose, ranges, angles, within)
+        crossed = self._crossed(pose, ranges, angles, in_wall & ~deep)
         counts = self._pass_of(robot)
         for cells, counted in ((hit_cells[inside], counts.hits), (crossed, counts.misses)):
             flat = np.unique(cells[:, 0] * self.stored.shape[1] + cells[:, 1])
@@ -198,37 +197,25 @@ class Evidence:
         angles: npt.NDArray[np.float64],
         in_wall: npt.NDArray[np.bool_] | None = None,
     ) -> Cells:
-        """Cells the beams crossed, up to ``surface_margin`` before each return; a beam
-        whose return ended inside a stored wall (``in_wall``) stops that margin before
-        it entered that wall: a pose a little off, not a wall gone."""
+        """Cells the beams crossed, up to ``surface_margin`` before each return. A beam
+        whose return ended inside a stored wall (``in_wall``) crosses no stored wall cell
+        within ``wall_tolerance`` of that wall's face: a pose error at its range could put
+        it there (a wall seen askew); deeper, only a wall gone lets a beam through."""
         p = self.params
         reach = np.clip(ranges - p.surface_margin, 0.0, None)
-        samples = math.ceil(float(ranges.max(initial=0.0)) / (self.resolution / 2)) + 1
+        samples = math.ceil(float(reach.max(initial=0.0)) / (self.resolution / 2)) + 1
         t = np.linspace(0.0, 1.0, samples)[None, :]
-        along = ranges[:, None] * t  # metres from the robot of each sample
-        x = pose[0] + (ranges * np.cos(angles))[:, None] * t
-        y = pose[1] + (ranges * np.sin(angles))[:, None] * t
-        cells = self._cells(np.column_stack((x.ravel(), y.ravel()))).reshape(-1, samples, 2)
+        x = pose[0] + (reach * np.cos(angles))[:, None] * t
+        y = pose[1] + (reach * np.sin(angles))[:, None] * t
+        cells = self._cells(np.column_stack((x.ravel(), y.ravel())))
+        kept = cells[:, 0] >= 0
         if in_wall is not None and in_wall.any():
-            reach[in_wall] = np.minimum(
-                reach[in_wall], self._wall_entry(cells[in_wall], along[in_wall]) - p.surface_margin
-            )
-        kept = (along <= reach[:, None]).reshape(-1)
-        flat = cells.reshape(-1, 2)[kept]
-        return flat[flat[:, 0] >= 0]
-
-    def _wall_entry(self, cells: Cells, along: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
-        """Metres along each beam (its samples' ``cells`` and distances ``along``) where it
-        entered the stored wall its last sample is in."""
-        wall = np.zeros(cells.shape[:2], bool)
-        inside = cells[..., 0] >= 0
-        wall[inside] = self.stored[cells[inside][:, 0], cells[inside][:, 1]] == 1
-        trailing = np.argmin(wall[:, ::-1], axis=1)  # wall samples at the beam's end
-        trailing[wall.all(axis=1)] = wall.shape[1]
-        first = np.clip(wall.shape[1] - trailing, 0, wall.shape[1] - 1)
-        entry: npt.NDArray[np.float64] = along[np.arange(len(along)), first]
-        entry[trailing == wall.shape[1]] = 0.0
-        return entry
+            allowed = np.repeat(wall_tolerance(ranges, p), samples)
+            asked = np.repeat(in_wall, samples) & kept
+            depth = self.wall_depth[cells[asked, 0], cells[asked, 1]]
+            wall = self.stored[cells[asked, 0], cells[asked, 1]] == 1
+            kept[asked] = ~wall | (depth > allowed[asked])
+        return cells[kept]
 
     def _cells(self, points: npt.NDArray[np.float64]) -> Cells:
         """(row, col) of each point; (-1, -1) outside the grid."""
