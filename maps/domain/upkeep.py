@@ -173,7 +173,7 @@ class Evidence:
             self.untrusted += 1
             return False
         self.scans += 1
-        crossed = self._crossed(pose, ranges, angles, in_wall & ~deep)
+        crossed = self._crossed(pose, ranges, angles, (in_wall & ~deep) | ~inside)
         counts = self._pass_of(robot)
         for cells, counted in ((hit_cells[inside], counts.hits), (crossed, counts.misses)):
             flat = np.unique(cells[:, 0] * self.stored.shape[1] + cells[:, 1])
