@@ -25,11 +25,25 @@ Each proposed cell carries the passes and the robots (distinct) that saw it so.
 
 The stretch of a beam just before its return (``surface_margin``) is not counted as
 crossed, so a surface seen from a slightly wrong pose does not erase itself. A return
-that ends *inside* a stored wall (behind its face cells) is a pose error, not a
-change (a wall that vanished lets beams through to what lies behind it): it counts
-against the scan's trust, and its beam crosses nothing. A heading a few degrees off (a
-tag read close up can give one) made the returns on one side of the wall faced end
-inside it, and the fleet proposed freeing that wall.
+may end *inside* a stored wall (behind its face cells) for two reasons: the pose is a
+little off (a heading a few degrees off, which a tag read close up can give, makes the
+wall faced seem askew, and the returns on one side end inside it; the fleet then
+proposed freeing that wall), or what stood in front of the wall is gone (furniture
+taken from against a wall: the returns now end at the wall behind it). A heading error
+moves a return by its range times the error, so how deep is told apart by range
+(``wall_tolerance``: 5 cm plus 9 cm per metre, a heading 5 degrees off):
+
+- within the tolerance, the return is the wall seen from a pose a little off: it counts
+  for the scan's trust, and its beam crosses no stored wall cell within the tolerance
+  of the wall's face (only deeper ones, which no such pose error reaches);
+- deeper, the stored wall in front of it is gone, or the pose is far off: it counts
+  against the scan's trust (a scan with many is not used), and its beam crosses as any
+  other.
+
+A beam whose return ends outside the stored grid is held like one within the tolerance.
+Before the tolerance, every return inside a wall was taken for a pose error and its
+beam crossed nothing: furniture moved away from a wall was never freed, and
+``bench mapping`` recall fell from 0.95 to 0.65 (seed 0) and 0.94 to 0.49 (seed 1).
 
 Each return is moved ``surface_depth`` (half a cell) further along its beam before its
 cell is taken: a surface on a cell border, seen with centimetres of range noise and pose
