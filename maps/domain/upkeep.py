@@ -182,7 +182,7 @@ class Evidence:
         depth = self.wall_depth[hit_cells[inside, 0], hit_cells[inside, 1]]
         in_wall[inside] = depth > 0
         deep[inside] = depth > wall_tolerance(ranges[inside], p)
-        near = self.near_wall[hit_cells[inside, 0], hit_cells[inside, 1]] & ~deep[inside]
+        near = self.near_wall[hit_cells[inside, 0], hit_cells[inside, 1]] & ~in_wall[inside]
         if not len(near) or near.mean() < p.trust:
             self.untrusted += 1
             return False
