@@ -33,12 +33,16 @@ taken from against a wall: the returns now end at the wall behind it). A heading
 moves a return by its range times the error, so how deep is told apart by range
 (``wall_tolerance``: 5 cm plus 9 cm per metre, a heading 5 degrees off):
 
-- within the tolerance, the return is the wall seen from a pose a little off: it counts
-  for the scan's trust, and its beam crosses no stored wall cell within the tolerance
-  of the wall's face (only deeper ones, which no such pose error reaches);
-- deeper, the stored wall in front of it is gone, or the pose is far off: it counts
-  against the scan's trust (a scan with many is not used), and its beam crosses as any
-  other.
+- within the tolerance, the return is the wall seen from a pose a little off: its beam
+  crosses no stored wall cell within the tolerance of the wall's face (only deeper
+  ones, which no such pose error reaches);
+- deeper, the stored wall in front of it is gone, or the pose is far off: its beam
+  crosses as any other.
+
+Either way a return inside a wall counts against the scan's trust (a scan with many is
+not used). Counting the ones within the tolerance for it instead let scans from poses
+a little off in: on the unchanged demo building the fleet then proposed 53 false cells
+in 4 simulated minutes, 48 of them in Corridor A's west wall.
 
 A beam whose return ends outside the stored grid is held like one within the tolerance.
 Before the tolerance, every return inside a wall was taken for a pose error and its
