@@ -25,11 +25,29 @@ Each proposed cell carries the passes and the robots (distinct) that saw it so.
 
 The stretch of a beam just before its return (``surface_margin``) is not counted as
 crossed, so a surface seen from a slightly wrong pose does not erase itself. A return
-that ends *inside* a stored wall (behind its face cells) is a pose error, not a
-change (a wall that vanished lets beams through to what lies behind it): it counts
-against the scan's trust, and its beam crosses nothing. A heading a few degrees off (a
-tag read close up can give one) made the returns on one side of the wall faced end
-inside it, and the fleet proposed freeing that wall.
+may end *inside* a stored wall (behind its face cells) for two reasons: the pose is a
+little off (a heading a few degrees off, which a tag read close up can give, makes the
+wall faced seem askew, and the returns on one side end inside it; the fleet then
+proposed freeing that wall), or what stood in front of the wall is gone (furniture
+taken from against a wall: the returns now end at the wall behind it). A heading error
+moves a return by its range times the error, so how deep is told apart by range
+(``wall_tolerance``: 5 cm plus 9 cm per metre, a heading 5 degrees off):
+
+- within the tolerance, the return is the wall seen from a pose a little off: its beam
+  crosses no stored wall cell within the tolerance of the wall's face (only deeper
+  ones, which no such pose error reaches);
+- deeper, the stored wall in front of it is gone, or the pose is far off: its beam
+  crosses as any other.
+
+Either way a return inside a wall counts against the scan's trust (a scan with many is
+not used). Counting the ones within the tolerance for it instead let scans from poses
+a little off in: on the unchanged demo building the fleet then proposed 53 false cells
+in 4 simulated minutes, 48 of them in Corridor A's west wall.
+
+A beam whose return ends outside the stored grid is held like one within the tolerance.
+Before the tolerance, every return inside a wall was taken for a pose error and its
+beam crossed nothing: furniture moved away from a wall was never freed, and
+``bench mapping`` recall fell from 0.95 to 0.65 (seed 0) and 0.94 to 0.49 (seed 1).
 
 Each return is moved ``surface_depth`` (half a cell) further along its beam before its
 cell is taken: a surface on a cell border, seen with centimetres of range noise and pose
@@ -47,7 +65,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
-from scipy.ndimage import binary_dilation
+from scipy.ndimage import binary_dilation, distance_transform_edt
 
 from maps.domain.slam import Scan
 from maps.domain.versions import cell_classes
@@ -67,6 +85,8 @@ class UpkeepParams:
     surface_margin: float = 0.075  # metres before a return not counted as crossed
     surface_depth: float = 0.025  # metres each return is moved along its beam
     max_range: float = 6.0  # metres: farther returns are not used
+    wall_tolerance: float = 0.05  # metres a return may end inside a stored wall at 0 m
+    wall_tolerance_per_m: float = 0.09  # ...and per metre of range (about 5 degrees)
     beams: int = 180  # beams used per scan at most (evenly taken)
 
 
@@ -133,7 +153,7 @@ class Evidence:
         self.origin = (float(origin[0]), float(origin[1]))
         self.resolution = resolution
         self.near_wall = binary_dilation(self.stored == 1, iterations=1)
-        self.in_wall = _in_walls(self.stored)
+        self.wall_depth = _wall_depths(self.stored, resolution)
         self.protected = tag_walls(tags, grid.shape, self.origin, resolution)
         shape = grid.shape
         self.occupied_passes: Counts = np.zeros(shape, np.uint16)
@@ -161,14 +181,17 @@ class Evidence:
         )
         hit_cells = self._cells(ends)
         inside = hit_cells[:, 0] >= 0
-        deep = np.zeros(len(ranges), bool)
-        deep[inside] = self.in_wall[hit_cells[inside, 0], hit_cells[inside, 1]]
-        near = self.near_wall[hit_cells[inside, 0], hit_cells[inside, 1]] & ~deep[inside]
+        in_wall = np.zeros(len(ranges), bool)  # ends behind the face of a stored wall
+        deep = np.zeros(len(ranges), bool)  # ...deeper than a pose error could put it
+        depth = self.wall_depth[hit_cells[inside, 0], hit_cells[inside, 1]]
+        in_wall[inside] = depth > 0
+        deep[inside] = depth > wall_tolerance(ranges[inside], p)
+        near = self.near_wall[hit_cells[inside, 0], hit_cells[inside, 1]] & ~in_wall[inside]
         if not len(near) or near.mean() < p.trust:
             self.untrusted += 1
             return False
         self.scans += 1
-        crossed = self._crossed(pose, ranges[~deep], angles[~deep])
+        crossed = self._crossed(pose, ranges, angles, (in_wall & ~deep) | ~inside)
         counts = self._pass_of(robot)
         for cells, counted in ((hit_cells[inside], counts.hits), (crossed, counts.misses)):
             flat = np.unique(cells[:, 0] * self.stored.shape[1] + cells[:, 1])
@@ -186,8 +209,16 @@ class Evidence:
         return found
 
     def _crossed(
-        self, pose: Pose, ranges: npt.NDArray[np.float64], angles: npt.NDArray[np.float64]
+        self,
+        pose: Pose,
+        ranges: npt.NDArray[np.float64],
+        angles: npt.NDArray[np.float64],
+        in_wall: npt.NDArray[np.bool_] | None = None,
     ) -> Cells:
+        """Cells the beams crossed, up to ``surface_margin`` before each return. A beam
+        whose return ended inside a stored wall (``in_wall``) crosses no stored wall cell
+        within ``wall_tolerance`` of that wall's face: a pose error at its range could put
+        it there (a wall seen askew); deeper, only a wall gone lets a beam through."""
         p = self.params
         reach = np.clip(ranges - p.surface_margin, 0.0, None)
         samples = math.ceil(float(reach.max(initial=0.0)) / (self.resolution / 2)) + 1
@@ -195,7 +226,14 @@ class Evidence:
         x = pose[0] + (reach * np.cos(angles))[:, None] * t
         y = pose[1] + (reach * np.sin(angles))[:, None] * t
         cells = self._cells(np.column_stack((x.ravel(), y.ravel())))
-        return cells[cells[:, 0] >= 0]
+        kept = cells[:, 0] >= 0
+        if in_wall is not None and in_wall.any():
+            allowed = np.repeat(wall_tolerance(ranges, p), samples)
+            asked = np.repeat(in_wall, samples) & kept
+            depth = self.wall_depth[cells[asked, 0], cells[asked, 1]]
+            wall = self.stored[cells[asked, 0], cells[asked, 1]] == 1
+            kept[asked] = ~wall | (depth > allowed[asked])
+        return cells[kept]
 
     def _cells(self, points: npt.NDArray[np.float64]) -> Cells:
         """(row, col) of each point; (-1, -1) outside the grid."""
@@ -262,14 +300,23 @@ class Evidence:
         )
 
 
-def _in_walls(stored: npt.NDArray[np.int8]) -> npt.NDArray[np.bool_]:
-    """Stored wall cells behind the faces of their wall (a face: a wall cell beside one
-    that is not wall), where no return of a true pose ends: returns are counted half a
-    cell deep, so they end in the face cell."""
-    wall: npt.NDArray[np.bool_] = stored == 1
-    faces: npt.NDArray[np.bool_] = binary_dilation(~wall, iterations=1)
-    inside: npt.NDArray[np.bool_] = wall & ~faces
-    return inside
+def _wall_depths(stored: npt.NDArray[np.int8], resolution: float) -> npt.NDArray[np.float64]:
+    """Metres each stored wall cell lies behind the face of its wall (0 for a face cell and
+    for every cell that is not wall)."""
+    wall = stored == 1
+    if not wall.any():
+        return np.zeros(stored.shape)
+    cells: npt.NDArray[np.float64] = distance_transform_edt(wall)
+    return np.clip(cells - 1.0, 0.0, None) * resolution
+
+
+def wall_tolerance(
+    ranges: npt.NDArray[np.float64], params: UpkeepParams
+) -> npt.NDArray[np.float64]:
+    """Metres a return at each range may end inside a stored wall and still be the wall
+    seen from a true pose: a beam's end moves with the pose's heading error times its
+    range (plus the position and range error), so a far return is allowed deeper."""
+    return params.wall_tolerance + params.wall_tolerance_per_m * ranges
 
 
 def _robots_per_cell(
