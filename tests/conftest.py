@@ -159,6 +159,14 @@ def token(building: Building) -> str:
 
 
 @pytest.fixture
+def second_operator(building: Building) -> User:
+    """``operator2``, a second operator of ``building``."""
+    user = make_user("operator2", "operator")
+    building.members.add(user)
+    return user
+
+
+@pytest.fixture
 async def cloud(demo_token: str) -> AsyncIterator[httpx.AsyncClient]:
     """HTTP to the real application, in-process, with the demo robot's token
     (``demo_token``, in ``tests.fixtures_live``)."""

@@ -207,6 +207,16 @@ async def rosbridge() -> AsyncIterator[Connect]:
         await client.close()
 
 
+async def robot_listening(rosbridge: Connect, token: str, *topics: str) -> RosClient:
+    """A robot connected with ``token`` and subscribed to its own ``topics`` (``cmd_vel``
+    unless given), every subscription in place when this returns."""
+    robot = await rosbridge(token=token)
+    for topic in topics or ("cmd_vel",):
+        await robot.send(op="subscribe", topic=topic)
+    await robot.sync()
+    return robot
+
+
 # ---------------------------------------------------------------- live servers
 #
 # ``daphne_servers`` starts real daphne processes on free loopback ports; ``daphne_server``

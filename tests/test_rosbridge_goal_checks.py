@@ -12,6 +12,7 @@ from django.contrib.auth.models import User
 from django.core.management import call_command
 
 from tests.conftest import make_user
+from tests.fixtures_live import robot_listening
 
 pytestmark = pytest.mark.django_db(transaction=True)
 
@@ -43,17 +44,9 @@ def initial_pose(map_id: str, x: float, y: float) -> dict:
     }
 
 
-async def robot_listening(rosbridge, token):
-    robot = await rosbridge(token=token)
-    for topic in ("goal", "initialpose"):
-        await robot.send(op="subscribe", topic=topic)
-    await robot.sync()
-    return robot
-
-
 async def test_a_goal_on_a_pillar_never_reaches_the_robot(rosbridge, demo):
     operator, token = demo
-    robot = await robot_listening(rosbridge, token)
+    robot = await robot_listening(rosbridge, token, "goal", "initialpose")
     page = await rosbridge(user=operator)
     await page.send(op="set_level", level="error")
     await page.send(op="publish", topic="/robot_0/goal", msg=goal("boccioni_1/Atrium1", *PILLAR))
@@ -85,7 +78,7 @@ async def test_the_page_is_told_why_before_it_sends(rosbridge, demo):
 )
 async def test_an_initial_pose_inside_a_wall_or_outside_is_refused(rosbridge, demo, point, why):
     operator, token = demo
-    robot = await robot_listening(rosbridge, token)
+    robot = await robot_listening(rosbridge, token, "goal", "initialpose")
     page = await rosbridge(user=operator)
     await page.send(op="set_level", level="error")
     pose = initial_pose("boccioni_1/CorridorA", *point)
@@ -97,7 +90,7 @@ async def test_an_initial_pose_inside_a_wall_or_outside_is_refused(rosbridge, de
 
 async def test_a_goal_naming_no_sub_map_is_refused(rosbridge, demo):
     operator, token = demo
-    robot = await robot_listening(rosbridge, token)
+    robot = await robot_listening(rosbridge, token, "goal", "initialpose")
     page = await rosbridge(user=operator)
     await page.send(op="set_level", level="error")
     await page.send(op="publish", topic="/robot_0/goal", msg=goal("boccioni_1/Nowhere", 1, 1))

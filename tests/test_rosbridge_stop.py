@@ -13,7 +13,7 @@ from channels.db import database_sync_to_async
 from robots import missions
 from robots.models import Mission, Robot
 from telemetry.models import Event
-from tests.conftest import make_building, make_robot, make_submap, make_user
+from tests.conftest import make_building, make_submap, make_user
 
 pytestmark = pytest.mark.django_db(transaction=True)
 
@@ -27,16 +27,10 @@ GOAL = {
 
 
 @pytest.fixture
-def robot_token(building):
+def robot_token(building, token):
+    """Robot ``r1``'s token, with its building's CorridorA to check goals against."""
     make_submap(building, code="CorridorA")
-    return make_robot(name="r1", buildings=[building])[1]
-
-
-@pytest.fixture
-def second_operator(building):
-    user = make_user("operator2", "operator")
-    building.members.add(user)
-    return user
+    return token
 
 
 async def robot_serving_cancel(rosbridge, token):

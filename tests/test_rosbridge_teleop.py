@@ -6,7 +6,8 @@ import time
 
 import pytest
 
-from tests.conftest import make_building, make_robot, make_user
+from tests.conftest import make_building, make_user
+from tests.fixtures_live import robot_listening
 
 pytestmark = pytest.mark.django_db(transaction=True)
 
@@ -14,48 +15,29 @@ GO = {"linear": {"x": 0.3, "y": 0.0, "z": 0.0}, "angular": {"x": 0.0, "y": 0.0, 
 ZERO = {"linear": {"x": 0.0, "y": 0.0, "z": 0.0}, "angular": {"x": 0.0, "y": 0.0, "z": 0.0}}
 
 
-@pytest.fixture
-def robot_token(building):
-    return make_robot(name="r1", buildings=[building])[1]
-
-
-@pytest.fixture
-def second_operator(building):
-    user = make_user("operator2", "operator")
-    building.members.add(user)
-    return user
-
-
-async def robot_listening(rosbridge, token):
-    robot = await rosbridge(token=token)
-    await robot.send(op="subscribe", topic="cmd_vel")
-    await robot.sync()
-    return robot
-
-
 async def acquire(client, action="acquire"):
     response = await client.call("/cloudnav/teleop_lock", {"robot": "r1", "action": action})
     return response["values"]
 
 
-async def test_cmd_vel_without_the_lock_is_dropped(rosbridge, robot_token, operator):
-    robot = await robot_listening(rosbridge, robot_token)
+async def test_cmd_vel_without_the_lock_is_dropped(rosbridge, token, operator):
+    robot = await robot_listening(rosbridge, token)
     driver = await rosbridge(user=operator)
     await driver.send(op="publish", topic="/r1/cmd_vel", msg=GO)
     await driver.sync()
     assert await robot.quiet()
 
 
-async def test_the_lock_holder_drives(rosbridge, robot_token, operator):
-    robot = await robot_listening(rosbridge, robot_token)
+async def test_the_lock_holder_drives(rosbridge, token, operator):
+    robot = await robot_listening(rosbridge, token)
     driver = await rosbridge(user=operator)
     assert (await acquire(driver))["success"] is True
     await driver.send(op="publish", topic="/r1/cmd_vel", msg=GO)
     assert (await robot.receive())["msg"] == GO
 
 
-async def test_one_holder_at_a_time(rosbridge, robot_token, operator, second_operator):
-    robot = await robot_listening(rosbridge, robot_token)
+async def test_one_holder_at_a_time(rosbridge, token, operator, second_operator):
+    robot = await robot_listening(rosbridge, token)
     first, second = await rosbridge(user=operator), await rosbridge(user=second_operator)
     assert (await acquire(first))["success"] is True
     refused = await acquire(second)
@@ -67,9 +49,9 @@ async def test_one_holder_at_a_time(rosbridge, robot_token, operator, second_ope
 
 
 async def test_releasing_stops_the_robot_and_frees_the_lock(
-    rosbridge, robot_token, operator, second_operator
+    rosbridge, token, operator, second_operator
 ):
-    robot = await robot_listening(rosbridge, robot_token)
+    robot = await robot_listening(rosbridge, token)
     first, second = await rosbridge(user=operator), await rosbridge(user=second_operator)
     await acquire(first)
     assert (await acquire(first, "release"))["success"] is True
@@ -77,8 +59,8 @@ async def test_releasing_stops_the_robot_and_frees_the_lock(
     assert (await acquire(second))["success"] is True
 
 
-async def test_silence_stops_the_robot_after_half_a_second(rosbridge, robot_token, operator):
-    robot = await robot_listening(rosbridge, robot_token)
+async def test_silence_stops_the_robot_after_half_a_second(rosbridge, token, operator):
+    robot = await robot_listening(rosbridge, token)
     driver = await rosbridge(user=operator)
     await acquire(driver)
     await driver.send(op="publish", topic="/r1/cmd_vel", msg=GO)
@@ -88,8 +70,8 @@ async def test_silence_stops_the_robot_after_half_a_second(rosbridge, robot_toke
     assert 0.4 <= time.monotonic() - started < 3.0  # generous: a busy CI box stalls loops
 
 
-async def test_commands_keep_the_robot_going(rosbridge, robot_token, operator):
-    robot = await robot_listening(rosbridge, robot_token)
+async def test_commands_keep_the_robot_going(rosbridge, token, operator):
+    robot = await robot_listening(rosbridge, token)
     driver = await rosbridge(user=operator)
     await acquire(driver)
     deadline = time.monotonic() + 1.0
@@ -99,9 +81,9 @@ async def test_commands_keep_the_robot_going(rosbridge, robot_token, operator):
 
 
 async def test_disconnecting_stops_the_robot_and_frees_the_lock(
-    rosbridge, robot_token, operator, second_operator
+    rosbridge, token, operator, second_operator
 ):
-    robot = await robot_listening(rosbridge, robot_token)
+    robot = await robot_listening(rosbridge, token)
     first = await rosbridge(user=operator)
     await acquire(first)
     await first.close()
@@ -110,7 +92,7 @@ async def test_disconnecting_stops_the_robot_and_frees_the_lock(
     assert (await acquire(second))["success"] is True
 
 
-async def test_an_idle_lock_lapses(rosbridge, robot_token, operator, second_operator, settings):
+async def test_an_idle_lock_lapses(rosbridge, token, operator, second_operator, settings):
     settings.CLOUDNAV_TELEOP_LOCK_TTL = 0.2
     first, second = await rosbridge(user=operator), await rosbridge(user=second_operator)
     await acquire(first)
@@ -119,14 +101,14 @@ async def test_an_idle_lock_lapses(rosbridge, robot_token, operator, second_oper
         assert time.monotonic() < deadline, "the lock never lapsed"
 
 
-async def test_a_robot_drives_itself_without_a_lock(rosbridge, robot_token):
-    robot = await robot_listening(rosbridge, robot_token)
+async def test_a_robot_drives_itself_without_a_lock(rosbridge, token):
+    robot = await robot_listening(rosbridge, token)
     await robot.send(op="publish", topic="cmd_vel", msg=GO)
     assert (await robot.receive())["msg"] == GO
 
 
 async def test_anyone_who_sees_the_robot_is_told_who_holds_the_lock(
-    rosbridge, robot_token, operator, viewer
+    rosbridge, token, operator, viewer
 ):
     driver, watcher = await rosbridge(user=operator), await rosbridge(user=viewer)
     assert (await acquire(watcher, "status"))["holder"] == ""
@@ -147,7 +129,7 @@ def stranger(db):
 
 
 async def test_a_viewer_of_another_building_is_not_told_who_holds_the_lock(
-    rosbridge, robot_token, stranger
+    rosbridge, token, stranger
 ):
     response = await (await rosbridge(user=stranger)).call(
         "/cloudnav/teleop_lock", {"robot": "r1", "action": "status"}
@@ -156,21 +138,21 @@ async def test_a_viewer_of_another_building_is_not_told_who_holds_the_lock(
 
 
 async def test_the_robots_own_token_cannot_drive_around_an_operators_lock(
-    rosbridge, robot_token, operator
+    rosbridge, token, operator
 ):
-    robot = await robot_listening(rosbridge, robot_token)
+    robot = await robot_listening(rosbridge, token)
     driver = await rosbridge(user=operator)
     assert (await acquire(driver))["success"] is True
-    second_robot_connection = await rosbridge(token=robot_token)
+    second_robot_connection = await rosbridge(token=token)
     await second_robot_connection.send(op="publish", topic="cmd_vel", msg=GO)
     await second_robot_connection.send(op="publish", topic="/r1/cmd_vel", msg=GO)
     await second_robot_connection.sync()
     assert await robot.quiet()
 
 
-async def test_the_robots_own_token_drives_it_while_nobody_holds_the_lock(rosbridge, robot_token):
-    robot = await robot_listening(rosbridge, robot_token)
-    second_robot_connection = await rosbridge(token=robot_token)
+async def test_the_robots_own_token_drives_it_while_nobody_holds_the_lock(rosbridge, token):
+    robot = await robot_listening(rosbridge, token)
+    second_robot_connection = await rosbridge(token=token)
     await second_robot_connection.send(op="publish", topic="cmd_vel", msg=GO)
     assert (await robot.receive())["msg"] == GO
 
@@ -178,7 +160,7 @@ async def test_the_robots_own_token_drives_it_while_nobody_holds_the_lock(rosbri
 @pytest.mark.parametrize(
     "name", ["r1/cmd_vel", "/r1", "r1/../r2", "", " r1", 42, None, ["r1"], "r" * 65, "1r"]
 )
-async def test_the_lock_refuses_what_is_not_a_robots_name(rosbridge, robot_token, operator, name):
+async def test_the_lock_refuses_what_is_not_a_robots_name(rosbridge, token, operator, name):
     driver = await rosbridge(user=operator)
     response = await driver.call("/cloudnav/teleop_lock", {"robot": name, "action": "acquire"})
     assert response["result"] is False

@@ -9,24 +9,12 @@ import time
 
 import pytest
 
-from tests.conftest import make_robot, make_user
+from tests.fixtures_live import robot_listening
 
 pytestmark = pytest.mark.django_db(transaction=True)
 
 GO = {"linear": {"x": 0.3, "y": 0.0, "z": 0.0}, "angular": {"x": 0.0, "y": 0.0, "z": 0.0}}
 MARGIN = 0.5  # seconds either side of the TTL: a loaded machine answers late, never early
-
-
-@pytest.fixture
-def robot_token(building):
-    return make_robot(name="r1", buildings=[building])[1]
-
-
-@pytest.fixture
-def second_operator(building):
-    user = make_user("operator2", "operator")
-    building.members.add(user)
-    return user
 
 
 async def acquire(client, action="acquire", id="lock"):
@@ -35,7 +23,7 @@ async def acquire(client, action="acquire", id="lock"):
 
 
 async def test_an_idle_page_asking_again_does_not_keep_the_lock(
-    rosbridge, robot_token, operator, second_operator, settings
+    rosbridge, token, operator, second_operator, settings
 ):
     settings.CLOUDNAV_TELEOP_LOCK_TTL = ttl = 1.0
     idle, other = await rosbridge(user=operator), await rosbridge(user=second_operator)
@@ -50,7 +38,7 @@ async def test_an_idle_page_asking_again_does_not_keep_the_lock(
 
 
 async def test_the_lock_lapses_at_the_ttl_after_the_last_command(
-    rosbridge, robot_token, operator, second_operator, settings
+    rosbridge, token, operator, second_operator, settings
 ):
     settings.CLOUDNAV_TELEOP_LOCK_TTL = ttl = 3.0
     driver, other = await rosbridge(user=operator), await rosbridge(user=second_operator)
@@ -78,17 +66,8 @@ async def test_the_lock_lapses_at_the_ttl_after_the_last_command(
     assert refused_near_the_bound
 
 
-async def robot_listening(rosbridge, token):
-    robot = await rosbridge(token=token)
-    await robot.send(op="subscribe", topic="cmd_vel")
-    await robot.sync()
-    return robot
-
-
-async def test_a_building_admin_takes_the_lock_from_its_holder(
-    rosbridge, robot_token, operator, admin
-):
-    robot = await robot_listening(rosbridge, robot_token)
+async def test_a_building_admin_takes_the_lock_from_its_holder(rosbridge, token, operator, admin):
+    robot = await robot_listening(rosbridge, token)
     holder, boss = await rosbridge(user=operator), await rosbridge(user=admin)
     assert (await acquire(holder))["success"] is True
     taken = await acquire(boss, "take")
@@ -101,7 +80,7 @@ async def test_a_building_admin_takes_the_lock_from_its_holder(
     assert status["holder"] == "user:admin"
 
 
-async def test_an_operator_cannot_take_the_lock(rosbridge, robot_token, operator, second_operator):
+async def test_an_operator_cannot_take_the_lock(rosbridge, token, operator, second_operator):
     holder, other = await rosbridge(user=operator), await rosbridge(user=second_operator)
     await acquire(holder)
     response = await other.call("/cloudnav/teleop_lock", {"robot": "r1", "action": "take"})
@@ -114,7 +93,7 @@ async def ask(client, id="ask"):
 
 
 async def test_asking_for_a_held_lock_tells_the_holder_and_passes_it_unless_refused(
-    rosbridge, robot_token, operator, second_operator, settings
+    rosbridge, token, operator, second_operator, settings
 ):
     settings.CLOUDNAV_TELEOP_HANDOVER = 1.0
     holder, asker = await rosbridge(user=operator), await rosbridge(user=second_operator)
@@ -134,7 +113,7 @@ async def test_asking_for_a_held_lock_tells_the_holder_and_passes_it_unless_refu
 
 
 async def test_the_holder_refuses_and_keeps_the_lock(
-    rosbridge, robot_token, operator, second_operator, settings
+    rosbridge, token, operator, second_operator, settings
 ):
     settings.CLOUDNAV_TELEOP_HANDOVER = 1.0
     holder, asker = await rosbridge(user=operator), await rosbridge(user=second_operator)

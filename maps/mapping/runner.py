@@ -40,6 +40,7 @@ import logging
 import math
 import threading
 import time
+from abc import ABC, abstractmethod
 from collections import deque
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
@@ -88,7 +89,7 @@ class TopicTaps(Protocol):
     def tap(self, topic: str, on_message: OnMessage) -> Tap: ...
 
 
-class SessionWorker:
+class SessionWorker(ABC):
     """The mapping of one session, fed by taps on its robot's topics: the taps queue what
     they get (bounded: the oldest is dropped, and counted, when mapping falls behind), a
     worker thread maps the queue, and the map so far is written every ``SAVE_EVERY``
@@ -116,9 +117,10 @@ class SessionWorker:
 
     # --- the taps: on the hot path, O(1) ----------------------------------------------
 
+    @abstractmethod
     def taps(self) -> list[tuple[str, Callable[[dict[str, Any]], None]]]:
         """``(topic suffix, callback)`` of each topic of the robot the worker is fed by."""
-        raise NotImplementedError
+        ...
 
     def on_odom(self, msg: dict[str, Any]) -> None:
         self._odom = msg
@@ -189,10 +191,11 @@ class SessionWorker:
                 self.refusal = str(error)
         self.cpu += time.thread_time() - started
 
+    @abstractmethod
     def _add(self, item: Any) -> None:
         """Map one queued item. Raises ValueError or KeyframeError for bad input,
         OutsideExtent for a pose beyond the session's extent."""
-        raise NotImplementedError
+        ...
 
     async def _save(self) -> None:
         self._saved_at = time.monotonic()
@@ -218,20 +221,20 @@ class SessionWorker:
         self.cpu += time.thread_time() - started
         return grid, origin, self._resolution(), self._path(), self._figures(), state
 
-    def _grid(self) -> tuple[Any, tuple[float, float]]:
-        raise NotImplementedError
+    @abstractmethod
+    def _grid(self) -> tuple[Any, tuple[float, float]]: ...
 
-    def _state(self) -> bytes:
-        raise NotImplementedError
+    @abstractmethod
+    def _state(self) -> bytes: ...
 
-    def _resolution(self) -> float:
-        raise NotImplementedError
+    @abstractmethod
+    def _resolution(self) -> float: ...
 
-    def _path(self) -> list[tuple[float, float, float]]:
-        raise NotImplementedError
+    @abstractmethod
+    def _path(self) -> list[tuple[float, float, float]]: ...
 
-    def _stats(self) -> dict[str, Any]:
-        raise NotImplementedError
+    @abstractmethod
+    def _stats(self) -> dict[str, Any]: ...
 
     def _figures(self) -> dict[str, Any]:
         elapsed = max(1e-6, time.monotonic() - self._started)

@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import threading
 import time
+from abc import ABC, abstractmethod
 from collections.abc import Sequence
 from typing import Any
 
@@ -61,7 +62,7 @@ def jpeg_fields(hardware: SimHardware) -> dict[str, Any]:
     return {"format": "jpeg", "data": encode_jpeg(hardware.image(), JPEG_QUALITY)}
 
 
-class SimDrivers:
+class SimDrivers(ABC):
     """The body stepped by its drivers: ``cmd_vel`` commands (``command``, from any
     thread) are obeyed at the next ``step``, which then publishes odometry and the scan,
     and the camera's frame every ``CAMERA_EVERY`` steps, through ``publish``."""
@@ -84,9 +85,10 @@ class SimDrivers:
         self.hardware.advance(seconds)
         self.publish(ticks % CAMERA_EVERY == 0)
 
+    @abstractmethod
     def publish(self, camera: bool) -> None:
         """Publish odometry (and tf), the scan and, with ``camera``, the frame."""
-        raise NotImplementedError
+        ...
 
 
 class Pacer:
