@@ -29,10 +29,12 @@ from pathlib import Path
 from typing import Any
 
 from benchmarks.rosbridge import free_port, wait_for_http
+from cloudnav_core.params import RobotConfig
 from robots.agent.fleet import FleetOptions, FleetRobot, add_robot_arguments, build_fleet, run_fleet
-from robots.domain.params import RobotConfig
 
 ROOT = Path(__file__).resolve().parent.parent
+START_S = 120.0
+"""Seconds a scratch server may take to answer (a loaded machine starts it slowly)."""
 OFFICE_7 = {
     "header": {"frame_id": "boccioni_1/Office7"},
     "pose": {"position": {"x": 47.7, "y": 27.5, "z": 0.0}, "orientation": {"w": 1.0}},
@@ -139,7 +141,7 @@ def demo_server(options: dict[str, Any]) -> Iterator[tuple[str, dict[str, str]]]
         port = free_port()
         server = _daphne(env, port)
         try:
-            wait_for_http(f"http://127.0.0.1:{port}/", server)
+            wait_for_http(f"http://127.0.0.1:{port}/", server, deadline=START_S)
             print(f"server pid {server.pid} on port {port}", file=sys.stderr)
             yield f"http://127.0.0.1:{port}", tokens
         finally:

@@ -9,7 +9,7 @@ and the robots' noise.
   building is driven by a scripted operator (commands from what it sees, the way a
   person drives with a joystick) from the corridor through the new room's door, around
   the room and back out, at 10 scans/s; its ``odom`` and ``scan`` messages, as the
-  robot publishes them, go to the server's mapper (``maps/domain/slam.py``). The map is
+  robot publishes them, go to the server's mapper (``maps/domain/slam/mapper.py``). The map is
   compared with the truth over the room and its walls: the share of cells both call
   known on which they agree, and the RMS distance in cells from each occupied cell of
   the map to the nearest wall of the truth. The mapper starts from the pose the robot
@@ -63,12 +63,16 @@ import httpx
 import numpy as np
 from scipy.ndimage import distance_transform_edt
 
+from cloudnav_core.grid import OCCUPIED_AT
+from cloudnav_core.params import RobotConfig
+from cloudnav_core.se2 import Pose, wrap
 from maps.domain.demo_building import demo_building, space_interiors
-from maps.domain.slam import Mapper, Scan, SlamParams
+from maps.domain.slam.mapper import Mapper
+from maps.domain.slam.params import SlamParams
+from maps.domain.slam.scans import Scan
 from maps.domain.upkeep import Evidence
 from maps.domain.versions import cell_classes
-from robots.agent.fleet import FleetOptions, build_fleet, run_fleet
-from robots.agent.relocalise import PoseEstimate
+from robots.agent.fleet import FleetOptions, build_fleet, place_at_truth, run_fleet
 from robots.agent.sim.body import DiffDriveBody
 from robots.agent.sim.changes import (
     ChangeConfig,
@@ -79,8 +83,6 @@ from robots.agent.sim.changes import (
     plan_changes,
 )
 from robots.agent.sim.laser import Laser, LaserSpec
-from robots.domain.params import RobotConfig
-from robots.domain.se2 import Pose, wrap
 
 SCAN_RATE = 10.0
 HTTP_TIMEOUT = 60.0  # seconds: the bench's server answers slowly on a loaded machine
@@ -202,7 +204,7 @@ def measure_mapping(seed: int) -> dict[str, Any]:
     cpu = time.thread_time() - started
     building = demo_building()
     truth = changed_grid(changes, building)
-    agreement, rms = compare_with_truth(grid, origin, truth, building.world_origin, room)
+    agreement, rms = compare_with_truth(grid, origin, truth, building.world_origin, room.interior)
     simulated = len(scans) / SCAN_RATE
     return {
         "seed": seed,
@@ -222,12 +224,13 @@ def compare_with_truth(
     origin: tuple[float, float],
     truth: np.ndarray,
     truth_origin: tuple[float, float],
-    room: Room,
+    area: tuple[float, float, float, float],
     resolution: float = 0.05,
 ) -> tuple[float, float]:
-    """Agreement over the room and its walls on cells both call known, and the RMS
-    distance (cells) from the map's occupied cells there to the truth's nearest wall."""
-    x0, y0, x1, y1 = room.interior
+    """Agreement over ``area`` (a room's interior, x0, y0, x1, y1) and its walls on cells
+    both call known, and the RMS distance (cells) from the map's occupied cells there to
+    the truth's nearest wall."""
+    x0, y0, x1, y1 = area
     margin = 0.3
     cols = np.arange(
         round((x0 - margin - truth_origin[0]) / resolution),
@@ -249,10 +252,10 @@ def compare_with_truth(
     built = np.full(expected.shape, -1, np.int8)
     built[inside] = grid[mr[inside], mc[inside]]
     known = (built >= 0) & (expected >= 0)
-    agree = (built >= 50) == (expected >= 50)
+    agree = (built >= OCCUPIED_AT) == (expected >= OCCUPIED_AT)
     agreement = np.count_nonzero(agree & known) / max(1, int(np.count_nonzero(known)))
-    walls = distance_transform_edt(expected < 50)
-    occupied = built >= 50
+    walls = distance_transform_edt(expected < OCCUPIED_AT)
+    occupied = built >= OCCUPIED_AT
     rms = float(np.sqrt(np.mean(walls[occupied] ** 2))) if occupied.any() else math.inf
     return float(agreement), rms
 
@@ -301,6 +304,8 @@ def measure_change_detection(seed: int) -> dict[str, Any]:
             int(np.count_nonzero(false)) / max(1, int(detected.sum())), 4
         ),
         "untrusted_scans": evidence.untrusted,
+        "misaligned_scans": evidence.misaligned,
+        "false_added": int(np.count_nonzero(false & (stored != 1))),
     }
 
 
@@ -351,7 +356,7 @@ def _mark(
     cells = evidence._cells(ends)
     cells = cells[cells[:, 0] >= 0]
     hit[cells[:, 0], cells[:, 1]] = 1
-    through = evidence._crossed(pose, distance[good], angles[good])
+    through, _frees = evidence._crossed(pose, distance[good], angles[good])
     crossed[through[:, 0], through[:, 1]] = 1
 
 
@@ -412,15 +417,10 @@ async def measure_accept_to_robot(options: dict[str, Any]) -> float:
         )
         running = asyncio.create_task(run_fleet(fleet, 1.0))
         try:
-            for member in fleet:
-                pose = member.robot.hardware.true_pose
-                estimate = PoseEstimate(*pose, np.diag([1e-4, 1e-4, 1e-4]))
-                await member.robot.supervisor.relocate(
-                    estimate, "boccioni_1/CorridorA", member.robot.tracker.odom
-                )
+            await place_at_truth(fleet, "boccioni_1/CorridorA")
             await _until(lambda: all(_holds(m, 1) for m in fleet), 60)
             async with httpx.AsyncClient(
-                base_url=url, auth=("admin", _admin_password()), timeout=HTTP_TIMEOUT
+                base_url=url, auth=("admin", admin_password()), timeout=HTTP_TIMEOUT
             ) as http:
                 accepted = time.monotonic()
                 answer = await http.post(
@@ -453,8 +453,11 @@ async def measure_no_change(options: dict[str, Any]) -> dict[str, Any]:
             fleet = build_fleet(list(tokens.items())[:3], FleetOptions(url, seed=options["seed"]))
             started = time.monotonic()
             running = asyncio.create_task(run_fleet(fleet, options["no_change_time_scale"]))
+            tracks: list[tuple[str, float, Any, Any]] = []
+            watching = asyncio.create_task(_watch(fleet, tracks))
             try:
                 await _tour_until(fleet, minutes * 60, options["seed"])
+                watching.cancel()
                 simulated = min(m.robot.seconds for m in fleet)
                 await asyncio.sleep(2 * 5.0 + 2.0)  # the upkeep's last batch and save
             finally:
@@ -462,6 +465,7 @@ async def measure_no_change(options: dict[str, Any]) -> dict[str, Any]:
                 with contextlib.suppress(asyncio.CancelledError):
                     await running
             proposed = await _open_proposals(url)
+            details = await _false_cells(url, tracks)
     finally:
         if load is not None:
             load.kill()
@@ -472,6 +476,77 @@ async def measure_no_change(options: dict[str, Any]) -> dict[str, Any]:
         "no_change_simulated_min": round(simulated / 60, 2),
         "no_change_wall_min": round((time.monotonic() - started) / 60, 2),
         "no_change_loaded": load is not None,
+        "no_change_cells": details,
+    }
+
+
+async def _watch(fleet: list[Any], tracks: list[tuple[str, float, Any, Any]]) -> None:
+    """Every robot's true pose and its estimate (sub-map, pose), five times a wall second."""
+    while True:
+        for member in fleet:
+            robot = member.robot
+            current = robot.supervisor.current
+            code = current.code if current is not None else ""
+            tracks.append(
+                (member.name, robot.seconds, robot.hardware.true_pose, (code, robot.tracker.pose()))
+            )
+        await asyncio.sleep(0.2)
+
+
+async def _false_cells(url: str, tracks: list[tuple[str, float, Any, Any]]) -> list[dict[str, Any]]:
+    """Each proposed cell of the no-change run: where it is, and what stood on it or near
+    it (a robot's body, by the truth) and how far off the robots' estimates were then."""
+    async with httpx.AsyncClient(
+        base_url=url, auth=("admin", admin_password()), timeout=HTTP_TIMEOUT
+    ) as http:
+        maps = {m["code"]: m for m in (await http.get("/api/buildings/boccioni_1/maps/")).json()}
+        found = []
+        for code, entry in maps.items():
+            answer = await http.get(f"/api/buildings/boccioni_1/maps/{code}/changes/?state=open")
+            for proposal in answer.json():
+                for kind in ("added", "removed"):
+                    for index, (row, col) in enumerate(proposal[kind]):
+                        found.append(
+                            _cell_story(code, entry, kind, row, col, proposal, index, tracks)
+                        )
+        return found
+
+
+def _cell_story(
+    code: str,
+    entry: dict[str, Any],
+    kind: str,
+    row: int,
+    col: int,
+    proposal: dict[str, Any],
+    index: int,
+    tracks: list[tuple[str, float, Any, Any]],
+) -> dict[str, Any]:
+    res = entry["resolution"]
+    ox, oy = entry["origin"][:2]
+    x, y = ox + (col + 0.5) * res, oy + (row + 0.5) * res
+    near = [
+        (name, round(t, 1), round(math.hypot(p[0] - x, p[1] - y), 2))
+        for name, t, p, _ in tracks
+        if math.hypot(p[0] - x, p[1] - y) < 0.45
+    ]
+    errors = [
+        math.hypot(p[0] - e[1][0], p[1] - e[1][1])
+        for _, _, p, e in tracks
+        if e[0] == code and math.hypot(p[0] - x, p[1] - y) < 6.0
+    ]
+    big = sorted(errors)[-5:]
+    return {
+        "map": code,
+        "kind": kind,
+        "cell": [row, col],
+        "xy": [round(x, 3), round(y, 3)],
+        "passes": proposal[f"{kind}_passes"][index],
+        "robots": proposal[f"{kind}_robots"][index],
+        "robot_bodies_within_045m": len(near),
+        "first_near": near[:3],
+        "last_near": near[-3:],
+        "est_error_max_within_6m": [round(v, 3) for v in big],
     }
 
 
@@ -514,7 +589,7 @@ async def _tour_until(fleet: list[Any], seconds: float, seed: int) -> None:
 async def _open_proposals(url: str) -> dict[str, int]:
     """Cells of each sub-map's open proposal (by code; sub-maps with none left out)."""
     async with httpx.AsyncClient(
-        base_url=url, auth=("admin", _admin_password()), timeout=HTTP_TIMEOUT
+        base_url=url, auth=("admin", admin_password()), timeout=HTTP_TIMEOUT
     ) as http:
         maps = (await http.get("/api/buildings/boccioni_1/maps/")).json()
         found: dict[str, int] = {}
@@ -532,7 +607,7 @@ def _holds(member: Any, revision: int) -> bool:
     return current is not None and current.code == "CorridorA" and current.revision == revision
 
 
-def _admin_password() -> str:
+def admin_password() -> str:
     import os
 
     return os.environ.get("CLOUDNAV_DEMO_PASSWORD", "admin-demo")

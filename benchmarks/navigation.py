@@ -38,16 +38,19 @@ from typing import Any
 
 import numpy as np
 
+from cloudnav_core.params import RobotConfig
+from cloudnav_core.se2 import Pose
 from maps.domain.demo_building import demo_building
 from maps.domain.planning import warm_up
 from robots.agent.depth_scan import ObstacleMemory, seen_obstacles
-from robots.agent.navigation import STOP, Driver, DriveState, LocalObstacles
-from robots.agent.sim.crowd import Crowd, Person, seeded_people
+from robots.agent.navigation.clearance import LocalObstacles
+from robots.agent.navigation.commands import STOP
+from robots.agent.navigation.driver import Driver
+from robots.agent.navigation.legs import DriveState
+from robots.agent.sim.crowd import Body, Crowd, Person, seeded_people
 from robots.agent.sim.hardware import SimHardware
 from robots.agent.sim.world import World, demo_world
-from robots.agent.supervisor import SubMap
-from robots.domain.params import RobotConfig
-from robots.domain.se2 import Pose
+from robots.agent.supervisor.submaps import SubMap
 
 TIME_LIMIT = 90.0
 """Simulated seconds a trial may take."""
@@ -230,7 +233,7 @@ def _step(run: RobotRun, submap: SubMap, seconds: float, crowd: Crowd) -> None:
         hardware.command(0.0, 0.0)
         return
     points = run.seen.update(hardware.scan(), hardware.scan_angles, hardware.odom_pose, seconds)
-    obstacles = LocalObstacles(points)
+    obstacles = LocalObstacles(points, may_enter=run.seen.entry_check(hardware.odom_pose))
     started = time.process_time()
     drive = run.driver.drive(
         run.goal, submap, after, hardware.reported_velocity, obstacles, seconds, hardware.odom_pose
@@ -245,20 +248,22 @@ def _step(run: RobotRun, submap: SubMap, seconds: float, crowd: Crowd) -> None:
 
 def _measure_contact(run: RobotRun, crowd: Crowd) -> None:
     body = run.hardware.body
-    others = crowd.others(body)
-    gap = math.inf
-    if others.count:
-        gap = (
-            float(
-                (np.hypot(others.x - body.pose[0], others.y - body.pose[1]) - others.radius).min()
-            )
-            - body.radius
-        )
+    gap = gap_to_others(body, crowd)
     run.min_clearance = min(run.min_clearance, gap)
     touching = gap < CONTACT or body.bumped
     if touching and not run.touching:
         run.contacts += 1
     run.touching = touching
+
+
+def gap_to_others(body: Body, crowd: Crowd) -> float:
+    """Metres between ``body``'s footprint and the nearest person or other robot of
+    ``crowd`` (ground truth; infinite when it is alone)."""
+    others = crowd.others(body)
+    if not others.count:
+        return math.inf
+    centres = np.hypot(others.x - body.pose[0], others.y - body.pose[1])
+    return float((centres - others.radius).min()) - body.radius
 
 
 def _result(scenario: str, runs: list[RobotRun]) -> TrialResult:

@@ -27,12 +27,12 @@ import numpy as np
 import numpy.typing as npt
 from skimage.graph import route_through_array
 
+from cloudnav_core.grid import centre_of
+from cloudnav_core.se2 import Point
 from maps.domain import planning
 from maps.domain.demo_building import DemoBuilding, DemoTag, demo_building, submap_grid
-from maps.domain.grid import centre_of
 from maps.domain.obstacle_course import obstacle_course
 from maps.domain.topology import Edge, RouteStep, TagLink, route_between
-from robots.domain.se2 import Point
 
 Grid = npt.NDArray[np.int8]
 Cells = list[tuple[int, int]]

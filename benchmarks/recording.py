@@ -201,7 +201,7 @@ def _feed(recorder: Recorder | None, robots: int, seconds: float, rng: random.Ra
 def _live(root: Path, robots: int, seconds: float, rng: random.Random) -> dict[str, Any]:
     baseline = _feed(None, robots, seconds, rng)
     config = RecorderConfig(root=root, file_seconds=3600)
-    recorder = Recorder(config, lambda _robot: DEFAULT, lambda: [])
+    recorder = Recorder(config, lambda robots: dict.fromkeys(robots, DEFAULT), lambda: [])
     recorder.start()
     recording = _feed(recorder, robots, seconds, rng)
     written = sum(e.written for e in recorder.robots.values())

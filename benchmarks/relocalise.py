@@ -45,18 +45,18 @@ from typing import Any
 import cv2
 import numpy as np
 
+from cloudnav_core.camera import CameraModel, Intrinsics, Mount
+from cloudnav_core.messages import depth_image
 from maps.domain.demo_building import DemoBuilding, DemoSubMap, demo_building
-from maps.domain.keyframes import Depth, FeatureExtractor, Image, Intrinsics, Mount
+from maps.domain.keyframes import Depth, FeatureExtractor, Image
 from maps.domain.relocalisation import Answer, KeyframeIndex, Params, QueryFrame, relocalise
 from maps.domain.visual_input import depth_image as depth_of_image
 from maps.domain.visual_input import grey_image
 from maps.domain.vocabulary import default_vocabulary
 from maps.exceptions import KeyframeError
-from robots.agent.perception import CameraModel
 from robots.agent.sim.camera import Camera
 from robots.agent.sim.world import World, demo_world
 from robots.agent.visual import keyframe_document
-from telemetry.domain.messages import depth_image
 
 CLEARANCE = 0.3
 KEYFRAME_POSE_ERROR = (0.02, math.radians(0.5))
@@ -291,10 +291,13 @@ def _query(
 
 
 def _free_poses(
-    world: World, rng: np.random.Generator, count: int
+    world: World,
+    rng: np.random.Generator,
+    count: int,
+    within: tuple[float, float, float, float] | None = None,
 ) -> Iterator[tuple[float, float, float]]:
-    """Seeded poses inside the building (on a free cell of some sub-map) at least
-    ``CLEARANCE`` from anything solid."""
+    """Seeded poses inside the building (on a free cell of some sub-map; inside
+    ``within``, x0, y0, x1, y1, when given) at least ``CLEARANCE`` from anything solid."""
     building = demo_building()
     made = 0
     height, width = world.cells.shape
@@ -303,6 +306,8 @@ def _free_poses(
         y = world.origin[1] + rng.uniform(0, height * world.resolution)
         yaw = float(rng.uniform(-math.pi, math.pi))
         if not _submap_of(building, (x, y)) or not world.disc_is_free(x, y, CLEARANCE):
+            continue
+        if within is not None and not (within[0] <= x <= within[2] and within[1] <= y <= within[3]):
             continue
         made += 1
         yield (float(x), float(y), yaw)

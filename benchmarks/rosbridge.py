@@ -173,6 +173,7 @@ def start_server(
         "CLOUDNAV_DEMO": "1",  # a scratch server of the demo building
         "DATABASE_URL": f"sqlite:///{scratch.name}/bench.sqlite3",
         "REDIS_URL": "",
+        "CLOUDNAV_RECORDING_DIR": f"{scratch.name}/recordings",  # recorded, then thrown away
         "LOG_LEVEL": "WARNING",
         **dict(item.split("=", 1) for item in extra_env),
     }

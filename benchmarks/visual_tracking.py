@@ -29,12 +29,13 @@ from typing import Any
 import cv2
 import numpy as np
 
-from maps.domain.keyframes import DEPTH_RANGE, Depth, Image, Intrinsics, Mount
+from cloudnav_core.camera import Intrinsics, Mount
+from cloudnav_core.se2 import Pose, compose, inverse, relative
+from maps.domain.keyframes import DEPTH_RANGE, Depth, Image
 from maps.domain.visual_slam import State, VisualSlam, VisualSlamParams
 from maps.domain.vocabulary import default_vocabulary
 from robots.agent.sim.camera import Camera
 from robots.agent.sim.world import demo_world
-from robots.domain.se2 import Pose, compose, inverse, relative
 
 NAME = "visual-tracking"
 START: Pose = (5.0, 23.0, 0.0)

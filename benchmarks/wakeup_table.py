@@ -33,8 +33,10 @@ from typing import Any
 import numpy as np
 
 from benchmarks.relocalise import SUCCESS, Result, _free_poses, _query, _submap_of, survey
+from cloudnav_core.camera import Intrinsics, Mount
+from cloudnav_core.se2 import Pose
 from maps.domain.demo_building import DemoBuilding, demo_building
-from maps.domain.keyframes import FeatureExtractor, Intrinsics, Mount
+from maps.domain.keyframes import FeatureExtractor
 from maps.domain.relocalisation import KeyframeIndex, relocalise
 from maps.domain.vocabulary import default_vocabulary
 from robots.agent.experiments.localisation import SENSORS, random_guess, submap_grid
@@ -45,7 +47,6 @@ from robots.agent.sim.body import DiffDriveBody
 from robots.agent.sim.camera import Camera
 from robots.agent.sim.laser import Laser
 from robots.agent.sim.world import World, demo_world
-from robots.domain.se2 import Pose
 
 STARTS = ("tag", "visual", "random", "global")
 CHECKPOINTS = (30.0, 60.0)

@@ -2,7 +2,7 @@
 
 A scratch server is started (seeded with robot ``b0``); the robot publishes 640x480 JPEG
 frames at 30 Hz (quality 80), each stamped with the wall-clock time code of
-``telemetry.domain.timecode`` just before it is encoded. For each stream type in turn
+``cloudnav_core.timecode`` just before it is encoded. For each stream type in turn
 (``--types``), Chromium (Debian's, through Playwright) opens ``/stream_viewer`` of that
 type and ``static/js/timecode.js`` reads the code from every picture the page shows (the
 ``<video>`` at each frame's expected display time, the MJPEG ``<img>`` once per animation
@@ -33,7 +33,7 @@ from playwright.async_api import Page, async_playwright
 
 from benchmarks.rosbridge import Server, start_server
 from benchmarks.video import ROBOT, TOPIC
-from telemetry.domain import timecode
+from cloudnav_core import timecode
 from telemetry.domain.camera_feed import Camera, camera_frames
 from telemetry.domain.http_stream import open_stream
 from telemetry.domain.jpeg import decode

@@ -2,7 +2,7 @@
 says so once per ``REPORT_EVERY`` seconds, not once per request or per loop turn (a fleet
 polling every couple of seconds, and the background writers ticking every second, would
 write thousands of tracebacks a minute). Everything that meets the outage reports to
-``REPORT``."""
+``REPORT``; the relay's loops that meet Redis's absence report to ``REDIS_REPORT``."""
 
 from __future__ import annotations
 
@@ -27,7 +27,13 @@ class OutageReport:
     """Logs the first thing an outage cost, then at most one line per ``every`` seconds
     naming what it cost since the last line (requests refused, batches held back, ...)."""
 
-    def __init__(self, every: float = REPORT_EVERY, clock: Callable[[], float] = time.monotonic):
+    def __init__(
+        self,
+        subject: str = "the database",
+        every: float = REPORT_EVERY,
+        clock: Callable[[], float] = time.monotonic,
+    ) -> None:
+        self.subject = subject
         self.every = every
         self.clock = clock
         self.since: Counter[str] = Counter()
@@ -35,7 +41,7 @@ class OutageReport:
         self._lock = threading.Lock()  # views run on worker threads, loops on the event loop
 
     def failed(self, what: str, error: BaseException) -> None:
-        """Count one ``what`` (``"requests refused"``) that the database's absence cost."""
+        """Count one ``what`` (``"requests refused"``) that the subject's absence cost."""
         with self._lock:
             self.since[what] += 1
             now = self.clock()
@@ -45,11 +51,12 @@ class OutageReport:
             self.since, self.reported_at = Counter(), now
         reason = (str(error).splitlines() or [type(error).__name__])[0]
         logger.warning(
-            "the database cannot be reached (%s); since the last report: %s", reason, costs
+            "%s cannot be reached (%s); since the last report: %s", self.subject, reason, costs
         )
 
 
 REPORT = OutageReport()
+REDIS_REPORT = OutageReport("Redis")
 
 
 def unavailable() -> JsonResponse:

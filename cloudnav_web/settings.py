@@ -51,6 +51,8 @@ CLOUDNAV_PUBLIC_URL = os.environ.get("CLOUDNAV_PUBLIC_URL", "http://127.0.0.1:80
 CLOUDNAV_KEYFRAME_DIR = Path(
     os.environ.get("CLOUDNAV_KEYFRAME_DIR", str(BASE_DIR / "var" / "keyframes"))
 )
+# The 3D maps (PLY cloud, OctoMap) published with visual sessions' sub-map versions.
+CLOUDNAV_MAP3D_DIR = Path(os.environ.get("CLOUDNAV_MAP3D_DIR", str(BASE_DIR / "var" / "maps3d")))
 CLOUDNAV_KEYFRAME_QUEUE = int(os.environ.get("CLOUDNAV_KEYFRAME_QUEUE", "32"))
 CLOUDNAV_MAX_IMAGE_PIXELS = int(os.environ.get("CLOUDNAV_MAX_IMAGE_PIXELS", str(1280 * 960)))
 CLOUDNAV_RELOCALISE_WORKERS = int(os.environ.get("CLOUDNAV_RELOCALISE_WORKERS", "2"))

@@ -38,5 +38,7 @@ _KEYFRAMES = f"test-keyframes-{os.environ.get('PYTEST_XDIST_WORKER', 'gw0')}"
 CLOUDNAV_KEYFRAME_DIR = Path(
     os.environ.get("CLOUDNAV_KEYFRAME_DIR", str(BASE_DIR / "var" / _KEYFRAMES))
 )
+_MAPS3D = f"test-maps3d-{os.environ.get('PYTEST_XDIST_WORKER', 'gw0')}"
+CLOUDNAV_MAP3D_DIR = Path(os.environ.get("CLOUDNAV_MAP3D_DIR", str(BASE_DIR / "var" / _MAPS3D)))
 # Servers under test record only when a test gives them a directory of its own.
 CLOUDNAV_RECORDING = bool(os.environ.get("CLOUDNAV_RECORDING_DIR"))

@@ -8,7 +8,9 @@ collection of suspended coroutines ended the process with a segmentation fault.
 
 ``install`` adds a step to the reactor's shutdown, beside daphne's own: cancel
 every remaining task and wait for them (so streams leave their pipelines and encoders
-close), then join the worker threads, before the reactor stops and the interpreter exits.
+close), then stop and join every registered worker (``cloudnav_core.workers.REGISTRY``:
+recorder, encoders, mapping, upkeep, keyframes, relocalisation), before the reactor stops
+and the interpreter exits.
 """
 
 from __future__ import annotations
@@ -16,19 +18,13 @@ from __future__ import annotations
 import asyncio
 import logging
 import sys
-from collections.abc import Callable
+
+from cloudnav_core.workers import REGISTRY
 
 logger = logging.getLogger(__name__)
 
 # Tasks that ignore cancellation for longer than this are left behind, logged.
 GRACE = 5.0
-
-_executors: list[Callable[[], None]] = []
-
-
-def on_shutdown(stop: Callable[[], None]) -> None:
-    """Have ``stop`` (e.g. a thread pool's ``shutdown``) called at the end, in a thread."""
-    _executors.append(stop)
 
 
 def install() -> None:
@@ -50,7 +46,8 @@ def install() -> None:
 
 async def finish_tasks(grace: float = GRACE) -> None:
     """Cancel every task of the running loop but this one and wait for them (and for those
-    they start while they end), at most ``grace`` seconds; then join the worker threads."""
+    they start while they end), at most ``grace`` seconds; then stop and join the registered
+    workers, at most ``grace`` seconds more."""
     loop = asyncio.get_running_loop()
     deadline = loop.time() + grace
     while (tasks := _others()) and loop.time() < deadline:
@@ -59,8 +56,7 @@ async def finish_tasks(grace: float = GRACE) -> None:
         await asyncio.wait(tasks, timeout=deadline - loop.time())
     if tasks:
         logger.warning("shutdown: %d tasks did not finish: %r", len(tasks), tasks)
-    for stop in _executors:
-        await asyncio.to_thread(stop)
+    await REGISTRY.finish(grace)
     await loop.shutdown_default_executor()
 
 

@@ -6,6 +6,8 @@ from django.conf import settings
 from django.core.validators import MinValueValidator, RegexValidator
 from django.db import models
 
+from cloudnav_core.grid import FREE_THRESH, OCCUPIED_THRESH
+
 from .domain.reservations import FleetRule
 from .domain.versions import Reason, map_ref
 
@@ -75,8 +77,8 @@ class MapFile(models.Model):
     origin_x = models.FloatField(default=0.0)
     origin_y = models.FloatField(default=0.0)
     origin_yaw = models.FloatField(default=0.0)
-    occupied_thresh = models.FloatField(default=0.65)
-    free_thresh = models.FloatField(default=0.196)
+    occupied_thresh = models.FloatField(default=OCCUPIED_THRESH)
+    free_thresh = models.FloatField(default=FREE_THRESH)
     negate = models.BooleanField(default=False)
     mode = models.CharField(max_length=10, choices=MODES, default="trinary")
     version = models.CharField(max_length=64, editable=False)
@@ -180,6 +182,28 @@ class EnvironmentalTag(models.Model):
 
     def __str__(self) -> str:
         return f"tag {self.marker_id} in {self.submap}"
+
+
+class ParkingSpot(models.Model):
+    """A named place in a sub-map where a robot waits out of the others' way: a robot
+    that finished its goal on a spot others need is sent to the nearest free one
+    (``maps.domain.reservations.Reservations.parking_for``)."""
+
+    building = models.ForeignKey(Building, models.CASCADE, related_name="parking_spots")
+    submap = models.ForeignKey(SubMap, models.CASCADE, related_name="parking_spots")
+    name = models.CharField(max_length=60)
+    x = models.FloatField()
+    y = models.FloatField()
+    yaw = models.FloatField(default=0.0)
+
+    class Meta:
+        ordering = ["building", "name"]
+        constraints = [
+            models.UniqueConstraint(fields=["building", "name"], name="parking_unique_name")
+        ]
+
+    def __str__(self) -> str:
+        return f"parking {self.name} in {self.submap}"
 
 
 class MappingSession(models.Model):

@@ -14,10 +14,11 @@ from . import services
 from .access import ROLE_NAMES, buildings_for, global_role, role_named
 from .domain import tagart
 from .domain.mapfile import LoadedMap, load_map_archive, load_map_upload
+from .domain.planning import PoseRefused
 from .domain.tagart import marker_id_limit
 from .domain.versions import map_ref
 from .exceptions import TagPayloadError
-from .models import Building, EnvironmentalTag, Membership, SubMap, SubMapVersion
+from .models import Building, EnvironmentalTag, Membership, ParkingSpot, SubMap, SubMapVersion
 
 
 def _requester(field: serializers.Field[Any, Any, Any, Any]) -> Any:
@@ -284,6 +285,58 @@ class TagSerializer(serializers.ModelSerializer[EnvironmentalTag]):
             services.check_tag_payload(building, links_to)
         except TagPayloadError as exc:
             raise serializers.ValidationError({"links_to": [str(exc)]}) from None
+
+
+class ParkingSpotSerializer(serializers.ModelSerializer[ParkingSpot]):
+    """A parking spot of the building in the URL (``context["building"]``): its sub-map by
+    code, and a pose a robot could stand at there (``maps.domain.planning.GoalCheck``)."""
+
+    map = serializers.CharField(source="submap.code")
+    map_id = serializers.CharField(source="submap.map_id", read_only=True)
+    x = serializers.FloatField(min_value=-1e6, max_value=1e6)
+    y = serializers.FloatField(min_value=-1e6, max_value=1e6)
+    yaw = serializers.FloatField(min_value=-1e6, max_value=1e6, default=0.0)
+
+    class Meta:
+        model = ParkingSpot
+        fields = ["id", "name", "map", "map_id", "x", "y", "yaw"]
+        validators: list[Any] = []  # the name's uniqueness: validate(), naming the field
+
+    def validate(self, attrs: dict[str, Any]) -> dict[str, Any]:
+        building: Building = self.context["building"]
+        spot = self.instance
+        if "submap" in attrs:
+            attrs["submap"] = self._submap_in(building, attrs["submap"]["code"])
+        submap = attrs.get("submap") or (spot.submap if spot is not None else None)
+        x, y = attrs.get("x", getattr(spot, "x", None)), attrs.get("y", getattr(spot, "y", None))
+        if submap is not None and x is not None and y is not None:
+            self._check_standable(submap, x, y)
+        if "name" in attrs:
+            self._check_name(building, attrs["name"])
+        return attrs
+
+    @staticmethod
+    def _submap_in(building: Building, code: str) -> SubMap:
+        submap = building.submaps.defer("image").filter(code=code).first()
+        if submap is None:
+            raise serializers.ValidationError(
+                {"map": [f"'{code}' is not a sub-map of {building}."]}
+            )
+        return submap
+
+    @staticmethod
+    def _check_standable(submap: SubMap, x: float, y: float) -> None:
+        try:
+            services.goal_check_of(submap).check((x, y), "parking spot", tolerance=0.0)
+        except PoseRefused as refused:
+            raise serializers.ValidationError({"x": [str(refused)], "y": [str(refused)]}) from None
+
+    def _check_name(self, building: Building, name: str) -> None:
+        clash = building.parking_spots.filter(name=name)
+        if self.instance is not None:
+            clash = clash.exclude(pk=self.instance.pk)
+        if clash.exists():
+            raise serializers.ValidationError({"name": [f"{building} has a spot named {name!r}."]})
 
 
 class VersionSerializer(serializers.ModelSerializer[SubMapVersion]):

@@ -15,7 +15,7 @@ import numpy as np
 from django.conf import settings
 from django.db import transaction
 
-from robots.domain.params import RobotConfig
+from cloudnav_core.params import RobotConfig
 
 from .domain.mapfile import (
     LoadedMap,
@@ -28,13 +28,23 @@ from .domain.mapfile import (
 )
 from .domain.planning import Costmap, GoalCheck, goal_check, inflate
 from .domain.preview import upload_preview
+from .domain.reservations import ParkingPlace
 from .domain.tagart import TagArt
 from .domain.tagpayload import TagPayload, encode_payload
 from .domain.topology import Coverage, Edge, RouteStep, TagLink, route_between, tag_coverage
 from .domain.topology import validate_graph as validate_topology
 from .domain.versions import Reason, map_ref
+from .domain.widths import Widths
 from .exceptions import SubMapExistsError, TopologyError
-from .models import Building, EnvironmentalTag, MapFile, SubMap, SubMapVersion, TopologyEdge
+from .models import (
+    Building,
+    EnvironmentalTag,
+    MapFile,
+    ParkingSpot,
+    SubMap,
+    SubMapVersion,
+    TopologyEdge,
+)
 
 IMAGE_CONTENT_TYPES = {
     "pgm": "image/x-portable-graymap",
@@ -344,6 +354,28 @@ def _cached_costmap(pk: int, version: str, radius: float) -> Costmap:  # noqa: A
 
 # Poses sent to robots are checked for a robot of the default build (body and margin).
 GOAL_CHECK_RADIUS = RobotConfig().planning_radius
+
+
+def widths_of(map_id: str) -> Widths | None:
+    """The clearance of sub-map ``map_id`` (``building/code``, a version ignored), to find
+    the narrow parts of robots' routes in it, made once per version; None if no such
+    sub-map is."""
+    building, _, code = map_id.split("@", 1)[0].partition("/")
+    found = SubMap.objects.filter(building__code=building, code=code).first()
+    return None if found is None else submap_widths(found)
+
+
+def submap_widths(submap: SubMap) -> Widths:
+    """``submap``'s clearance, to measure how wide its free space is, cached per version."""
+    return _cached_widths(submap.pk, submap.version)
+
+
+@lru_cache(maxsize=16)
+def _cached_widths(pk: int, version: str) -> Widths:  # noqa: ARG001 (the cache key)
+    submap = SubMap.objects.get(pk=pk)
+    return Widths.of_grid(grid_of(submap), (submap.origin_x, submap.origin_y), submap.resolution)
+
+
 # Metres in front of a tag's plate where the robot reading it stands: it enters there.
 ENTRY_DISTANCE = 0.6
 
@@ -466,3 +498,9 @@ def check_tag_payload(building: Building, links_to: SubMap) -> None:
     encode_payload(
         TagPayload(settings.CLOUDNAV_PUBLIC_URL, building.zip_code, building.code, links_to.code)
     )
+
+
+def parking_places(building: str) -> list[ParkingPlace]:
+    """The parking spots of building ``building`` (its code), as the fleet rules use them."""
+    spots = ParkingSpot.objects.filter(building__code=building).select_related("submap__building")
+    return [ParkingPlace(s.name, s.submap.map_id, s.x, s.y, s.yaw) for s in spots]

@@ -21,10 +21,10 @@ from functools import partial
 
 from channels.db import database_sync_to_async
 
+from cloudnav_core.messages import Pose2D
 from cloudnav_web.batches import UNREACHABLE, BatchInterrupted, write_batch
 from cloudnav_web.outage import REPORT
 from maps.domain.versions import split_map_ref
-from telemetry.domain.messages import Pose2D
 
 from .models import RobotState
 

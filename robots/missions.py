@@ -232,6 +232,11 @@ def _refusal(mission: Mission, point: Mapping[str, Any]) -> str:
     return ""
 
 
+def on_a_mission(robot: str) -> bool:
+    """Whether ``robot`` runs a mission (its next waypoint moves it on)."""
+    return Mission.objects.filter(robot__name=robot, state=Mission.State.RUNNING).exists()
+
+
 def goals_due(robots: Iterable[str]) -> list[Goal]:
     """The goals to send now to ``robots``: each running mission's current waypoint not yet
     sent; marked sent."""

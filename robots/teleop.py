@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import asyncio
 import json
+import logging
 import time
 import uuid
 from collections.abc import Callable
@@ -26,6 +27,8 @@ from typing import Any, Protocol
 from telemetry.domain.events import Kind
 from telemetry.domain.names import redis_key
 
+logger = logging.getLogger(__name__)
+
 
 class LockStore(Protocol):
     async def acquire(self, robot: str, holder: str, ttl: float) -> str:
@@ -33,7 +36,9 @@ class LockStore(Protocol):
         whoever holds it afterwards."""
 
     async def refresh(self, robot: str, holder: str, ttl: float) -> bool:
-        """Make ``holder``'s lock lapse ``ttl`` from now; False if it no longer holds it."""
+        """Make ``holder``'s lock lapse ``ttl`` from now; False if it no longer holds it
+        (a store that lost every lock, as a restarted Redis, holds it for ``holder`` again
+        unless another took it meanwhile)."""
 
     async def release(self, robot: str, holder: str) -> bool:
         """Free ``holder``'s lock; False if it did not hold it."""
@@ -41,8 +46,9 @@ class LockStore(Protocol):
     async def holder(self, robot: str) -> str:
         """Return who holds ``robot``'s lock now, or "" when nobody does."""
 
-    async def withdraw(self, robot: str) -> str:
-        """Free ``robot``'s lock whoever holds it; return who held it ("" for nobody)."""
+    async def withdraw(self, robot: str, ttl: float) -> str:
+        """Free ``robot``'s lock whoever holds it; return who held it ("" for nobody). For
+        ``ttl`` seconds no renewal of the old holder's brings it back."""
 
     async def ask(self, robot: str, asker: str, deadline: float, ttl: float) -> Request:
         """Record ``asker``'s request for ``robot``'s lock (due at ``deadline``, Unix time;
@@ -102,7 +108,7 @@ class MemoryLockStore:
     async def holder(self, robot: str) -> str:
         return self._current(robot) or ""
 
-    async def withdraw(self, robot: str) -> str:
+    async def withdraw(self, robot: str, ttl: float) -> str:  # noqa: ARG002 (one process: no renewal follows)
         current = self._current(robot) or ""
         self._locks.pop(robot, None)
         return current
@@ -131,10 +137,11 @@ class MemoryLockStore:
             del self._requests[robot]
 
 
-# Compare-and-set scripts: only the holder may extend or delete its lock.
+# Compare-and-set scripts: only the holder may extend or delete its lock. A withdrawn lock
+# is an empty value for a TTL (free to acquire, never renewed by its old holder).
 _ACQUIRE = """
 local current = redis.call('GET', KEYS[1])
-if not current then
+if not current or current == '' then
   redis.call('SET', KEYS[1], ARGV[1], 'PX', ARGV[2])
   return ARGV[1]
 end
@@ -152,39 +159,61 @@ return 0
 """
 _WITHDRAW = """
 local current = redis.call('GET', KEYS[1])
-redis.call('DEL', KEYS[1])
+redis.call('SET', KEYS[1], '', 'PX', ARGV[1])
 return current or ''
 """
 
 
 class RedisLockStore:
-    """Locks shared by every server process (scaled mode)."""
+    """Locks shared by every server process (scaled mode). A Redis that restarts empty
+    loses them: each holder's process holds its lock again at its next renewal (the
+    Redis server's ``run_id`` tells a restart from a lock withdrawn, released or taken)."""
 
     def __init__(self, redis: Any) -> None:
         self.redis = redis
+        # (robot, holder) -> run_id of the Redis server that last confirmed that lock
+        self._confirmed: dict[tuple[str, str], str] = {}
+
+    async def _server(self) -> str:
+        return str((await self.redis.info("server"))["run_id"])
 
     async def acquire(self, robot: str, holder: str, ttl: float) -> str:
         result = await self.redis.eval(
             _ACQUIRE, 1, redis_key("teleop", robot), holder, int(ttl * 1000)
         )
-        return result.decode() if isinstance(result, bytes) else str(result)
+        current = result.decode() if isinstance(result, bytes) else str(result)
+        if current == holder:
+            self._confirmed[robot, holder] = await self._server()
+        return current
 
     async def refresh(self, robot: str, holder: str, ttl: float) -> bool:
-        milliseconds = max(1, round(ttl * 1000))
-        return bool(
-            await self.redis.eval(_REFRESH, 1, redis_key("teleop", robot), holder, milliseconds)
-        )
+        key, milliseconds = redis_key("teleop", robot), max(1, round(ttl * 1000))
+        if await self.redis.eval(_REFRESH, 1, key, holder, milliseconds):
+            return True
+        confirmed_by = self._confirmed.pop((robot, holder), None)
+        server = await self._server()
+        if confirmed_by in (None, server):
+            return False  # lapsed, released, withdrawn or taken on this same Redis
+        if not await self.redis.set(key, holder, nx=True, px=milliseconds):
+            return False  # another took it after the restart
+        self._confirmed[robot, holder] = server
+        logger.info("teleop lock of %s held again after Redis restarted", robot)
+        return True
 
     async def release(self, robot: str, holder: str) -> bool:
+        self._confirmed.pop((robot, holder), None)
         return bool(await self.redis.eval(_RELEASE, 1, redis_key("teleop", robot), holder))
 
     async def holder(self, robot: str) -> str:
         current = await self.redis.get(redis_key("teleop", robot))
         return current.decode() if isinstance(current, bytes) else (current or "")
 
-    async def withdraw(self, robot: str) -> str:
-        current = await self.redis.eval(_WITHDRAW, 1, redis_key("teleop", robot))
-        return current.decode() if isinstance(current, bytes) else str(current or "")
+    async def withdraw(self, robot: str, ttl: float) -> str:
+        milliseconds = max(1, round(ttl * 1000))
+        current = await self.redis.eval(_WITHDRAW, 1, redis_key("teleop", robot), milliseconds)
+        held = current.decode() if isinstance(current, bytes) else str(current or "")
+        self._confirmed.pop((robot, held), None)
+        return held
 
     async def ask(self, robot: str, asker: str, deadline: float, ttl: float) -> Request:
         value = json.dumps({"asker": asker, "deadline": deadline, "refused": False})
@@ -305,7 +334,7 @@ class TeleopLocks:
         if hold is not None and hold.connection == keep:
             return ""
         self._forget(robot)
-        held = await self.store.withdraw(robot)
+        held = await self.store.withdraw(robot, self.ttl)
         return self.label_of(held) if held else ""
 
     async def ask(
@@ -458,7 +487,15 @@ class TeleopLocks:
     def _spawn(self, coro: Any) -> None:
         task = asyncio.get_running_loop().create_task(coro)
         self._tasks.add(task)
-        task.add_done_callback(self._tasks.discard)
+        task.add_done_callback(self._finished)
+
+    def _finished(self, task: asyncio.Task[Any]) -> None:
+        """Forget a finished store call; one that failed (the store out of reach: the
+        lock was let go here already, and the store's copy lapses by its TTL) is said in
+        one line, not left to asyncio's "exception was never retrieved"."""
+        self._tasks.discard(task)
+        if not task.cancelled() and (error := task.exception()) is not None:
+            logger.warning("teleop: the lock store did not answer (%s)", error)
 
     @staticmethod
     def _now() -> float:

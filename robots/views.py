@@ -93,7 +93,7 @@ class RobotDetail(generics.RetrieveUpdateDestroyAPIView[Robot]):
 
     def perform_destroy(self, instance: Robot) -> None:
         require_whole_robot(self.request.user, instance, "delete")
-        instance.delete()
+        services.delete_robot(instance)
 
 
 class RotateToken(APIView):

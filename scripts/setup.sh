@@ -34,6 +34,8 @@ apt_packages() {
   # The ROS 2 robot side's interface packages (scripts/ros2_env.sh) build with these.
   command -v cmake >/dev/null || missing+=(cmake)
   dpkg -s build-essential >/dev/null 2>&1 || missing+=(build-essential)
+  # Open3D (bench visual-slam's peer) loads libusb at import
+  dpkg -s libusb-1.0-0 >/dev/null 2>&1 || missing+=(libusb-1.0-0)
   "$PYTHON" -c 'import os, sysconfig; assert os.path.exists(sysconfig.get_paths()["include"] + "/Python.h")' \
     2>/dev/null || missing+=(python3-dev)
   if [ ${#missing[@]} -gt 0 ]; then

@@ -10,6 +10,9 @@ from typing import TYPE_CHECKING, Any
 from channels.db import database_sync_to_async
 from django.contrib.auth import get_user_model
 
+from cloudnav_core import topics
+from cloudnav_core.messages import Path, path_of
+from cloudnav_core.times import now_stamp
 from maps import services as map_services
 from maps.access import Role, role_in
 from maps.domain.planning import DEFAULT_ROBOT_RADIUS, PlanningError, path_length, plan_on
@@ -19,9 +22,7 @@ from maps.models import Building
 from maps.visual.lanes import Caller, RelocalisationBusy
 from maps.visual.service import buildings_to_search, relocalise_queued
 from telemetry.domain import names
-from telemetry.domain.messages import Path, path_of
 from telemetry.domain.protocol import Json
-from telemetry.domain.times import now_stamp
 from telemetry.exceptions import NotAllowed, PoseRefused, ServiceFailed
 from telemetry.server_services import ServerService, ServiceCall
 
@@ -64,9 +65,9 @@ async def teleop_lock(call: ServiceCall) -> Json:
         raise ServiceFailed("'robot' must be a robot's name (a letter, then letters, digits or _)")
     locks, conn = call.server.teleop, call.conn
     if action == "status":
-        await call.access.require("see", names.robot_topic(robot, names.CMD_VEL))
+        await call.access.require("see", names.robot_topic(robot, topics.CMD_VEL))
         return await _status(locks, robot)
-    await call.access.require("drive", names.robot_topic(robot, names.CMD_VEL))
+    await call.access.require("drive", names.robot_topic(robot, topics.CMD_VEL))
     if action == "acquire":
         granted, holder = await locks.acquire(robot, conn.key, conn.principal.label)
         message = "" if granted else f"{robot} is driven by {holder}"
@@ -129,7 +130,7 @@ async def stop(call: ServiceCall) -> Json:
     robot = call.arg("robot")
     if not names.is_robot_name(robot):
         raise ServiceFailed("'robot' must be a robot's name (a letter, then letters, digits or _)")
-    await call.access.require("drive", names.robot_topic(robot, names.CMD_VEL))
+    await call.access.require("drive", names.robot_topic(robot, topics.CMD_VEL))
     stopped = await call.server.stop.stop(robot, call.conn)
     return stopped.as_values()
 
@@ -160,7 +161,7 @@ async def check_pose(call: ServiceCall) -> Json:
         if not robot or what != "goal":
             await call.server.poses.check_point(map_id, point, str(what))
             return {"success": True, "message": ""}
-        await call.access.require("see", names.robot_topic(robot, names.GOAL))
+        await call.access.require("see", names.robot_topic(robot, topics.GOAL))
         placed = await call.server.poses.place(map_id, point, robot)
     except PoseRefused as refused:
         return {"success": False, "message": refused.message}

@@ -32,6 +32,11 @@ def setting(name: str, default: T, cast: Callable[[str], T]) -> T:
 MIB = 2**20
 
 
+def _flag(raw: str) -> bool:
+    """An on/off setting from the environment: 0, false, off and no are off."""
+    return raw.strip().lower() not in {"0", "false", "off", "no"}
+
+
 @dataclass(frozen=True)
 class RosbridgeConfig:
     max_frame_bytes: int
@@ -50,6 +55,8 @@ class RosbridgeConfig:
     teleop_handover: float
     fleet_flush_interval: float
     stuck_after: float
+    right_of_way: bool
+    stuck_give_up_after: float
     redis_url: str
 
     @classmethod
@@ -86,5 +93,7 @@ class RosbridgeConfig:
             teleop_handover=setting("CLOUDNAV_TELEOP_HANDOVER", 5.0, float),
             fleet_flush_interval=setting("CLOUDNAV_FLEET_FLUSH_INTERVAL", 1.0, float),
             stuck_after=setting("CLOUDNAV_STUCK_AFTER", STUCK_AFTER_S, float),
+            right_of_way=setting("CLOUDNAV_RIGHT_OF_WAY", True, _flag),
+            stuck_give_up_after=setting("CLOUDNAV_STUCK_GIVE_UP_AFTER", 60.0, float),
             redis_url=getattr(settings, "REDIS_URL", "") or "",
         )

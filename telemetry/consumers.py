@@ -16,11 +16,12 @@ from channels.exceptions import StopConsumer
 from channels.generic.websocket import AsyncWebsocketConsumer
 from typing_extensions import override
 
+from cloudnav_core import topics
 from cloudnav_web.batches import UNREACHABLE
 from cloudnav_web.outage import REPORT
 from telemetry import replies
 from telemetry.connection import Connection
-from telemetry.domain import names, protocol
+from telemetry.domain import protocol
 from telemetry.domain.bus import SubscribeParams
 from telemetry.domain.decoding import decode_frame
 from telemetry.domain.fragments import Reassembler
@@ -259,7 +260,7 @@ class RosbridgeConsumer(AsyncWebsocketConsumer):  # type: ignore[misc]  # Channe
         return self.conn
 
 
-_CMD_VEL_SUFFIX = "/" + names.CMD_VEL
+_CMD_VEL_SUFFIX = "/" + topics.CMD_VEL
 # WebSocket close code of a connection whose credentials were revoked (daphne allows 1000
 # and 3000-4999 only; 4403 reads as HTTP 403)
 REVOKED = 4403

@@ -23,13 +23,13 @@ from channels.db import database_sync_to_async
 from django.db import transaction
 from django.db.models import Max
 
+from cloudnav_core import topics
+from cloudnav_core.messages import WaitOrder, published_pose_of
 from cloudnav_web.batches import UNREACHABLE, BatchInterrupted, write_batch
 from cloudnav_web.outage import REPORT
 from maps.models import Building
 from robots.models import Robot
-from telemetry.domain import names
 from telemetry.domain.events import EventDeriver, EventDraft, Kind, Severity
-from telemetry.domain.messages import published_pose_of
 from telemetry.domain.storable import storable, storable_text
 
 from .models import Event
@@ -44,7 +44,7 @@ MESSAGE_MAX = Event._meta.get_field("message").max_length or 500
 FOREIGN_BATCH = 1000
 
 # Topic kinds (relative to a robot's namespace) whose messages events are derived from.
-OBSERVED = (names.POSE, names.NAV_STATUS, names.LOCALISATION, names.BATTERY)
+OBSERVED = (topics.POSE, topics.NAV_STATUS, topics.LOCALISATION, topics.BATTERY)
 
 
 class EventLog:
@@ -64,6 +64,8 @@ class EventLog:
         # Called on the loop with each event as it is derived (the recorder's queue); it
         # must return at once and never raise.
         self.on_event: Callable[[EventDraft], None] | None = None
+        # Called on the loop with each stuck alert raised here (the fleet's stuck rule).
+        self.on_stuck: Callable[[EventDraft], None] | None = None
 
     def connected(self, robot: str) -> None:
         self._add(self.deriver.connected(robot, self.clock()))
@@ -77,15 +79,15 @@ class EventLog:
     def observe(self, robot: str, kind: str, msg: Mapping[str, Any]) -> None:
         """A message on one of ``robot``'s OBSERVED topics."""
         now = self.clock()
-        if kind == names.POSE:
+        if kind == topics.POSE:
             pose = published_pose_of(msg)
             if pose is not None:
                 self.deriver.pose(robot, pose.map_id, pose.x, pose.y, now)
-        elif kind == names.NAV_STATUS:
+        elif kind == topics.NAV_STATUS:
             self._add(self.deriver.nav_status(robot, msg, now))
-        elif kind == names.LOCALISATION:
+        elif kind == topics.LOCALISATION:
             self._add(self.deriver.localisation(robot, msg, now))
-        elif kind == names.BATTERY:
+        elif kind == topics.BATTERY:
             self._add(self.deriver.battery(robot, msg, now))
 
     def goal_sent(self, robot: str, actor: str, msg: Mapping[str, Any], note: str = "") -> None:
@@ -97,6 +99,27 @@ class EventLog:
         """``robot`` did not reach its mission's ``waypoint`` in time; ``then`` says what
         followed (``EventDeriver.waypoint_timed_out``)."""
         self._add(self.deriver.waypoint_timed_out(robot, waypoint, then, self.clock()))
+
+    def right_of_way(self, robot: str, text: str, order: WaitOrder | None) -> None:
+        """The arbiter told ``robot`` to wait (``order``) or to go on; ``text`` says so."""
+        data: dict[str, Any] = {"state": "go"}
+        if order is not None:
+            data = {
+                "state": "wait",
+                "map_id": order.map_id,
+                "x": order.spot[0],
+                "y": order.spot[1],
+                "place": list(order.place),
+                "waiting_for": order.waiting_for,
+            }
+        self._add(self.deriver.server_said(robot, Kind.RIGHT_OF_WAY, text, self.clock(), **data))
+
+    def fleet_rule(self, robot: str, text: str, action: str, severity: Severity) -> None:
+        """What the fleet rule did with a stuck robot (``action``: wait, replan, abort)."""
+        drafts = self.deriver.server_said(
+            robot, Kind.FLEET_RULE, text, self.clock(), severity, action=action
+        )
+        self._add(drafts)
 
     def stopped(self, robot: str, actor: str, done: Mapping[str, Any]) -> None:
         """``actor`` (a label) stopped ``robot``; ``done`` says how."""
@@ -122,6 +145,10 @@ class EventLog:
     def _derived(self, drafts: list[EventDraft]) -> None:
         drafts = [storable_draft(d) for d in drafts]
         self._pending.extend(drafts)
+        if self.on_stuck is not None:
+            for draft in drafts:
+                if draft.kind is Kind.STUCK:
+                    self.on_stuck(draft)
         if self.on_event is not None:
             for draft in drafts:
                 if draft.kind is not Kind.ALERT_CLEARED:

@@ -38,7 +38,11 @@ import weakref
 from collections.abc import Awaitable, Callable
 from dataclasses import dataclass, replace
 
-from maps.domain.reservations import Reservations
+from cloudnav_core import topics
+from cloudnav_core.messages import goal_of, pose_stamped
+from cloudnav_core.se2 import Pose
+from cloudnav_core.times import complete_header_stamp
+from maps.domain.reservations import ParkingPlace, Reservations
 from maps.services import GOAL_CHECK_RADIUS
 from robots.fleet import FleetTracker
 from robots.missions import Goal
@@ -53,22 +57,23 @@ from telemetry.domain.bus import EVERY_TOPIC, OnMessage, SubscribeParams, TopicB
 from telemetry.domain.encoding import Outgoing
 from telemetry.domain.events import EventDeriver
 from telemetry.domain.limits import ByteBudget, Holdings
-from telemetry.domain.messages import pose_stamped
 from telemetry.domain.protocol import Json
-from telemetry.domain.times import complete_header_stamp
 from telemetry.events import EventLog
 from telemetry.exceptions import PoseRefused
 from telemetry.fleet_feed import FleetFeed, fleet_latched, fleet_type
 from telemetry.missions import MissionRunner
 from telemetry.params import Parameters, RedisParams
+from telemetry.parking import Parking
 from telemetry.pose_checks import PoseChecks
 from telemetry.recording.recorder import Recorder
 from telemetry.relay import Relay, shared_redis
+from telemetry.right_of_way import RightOfWay
 from telemetry.server_services import ServerParts, ServerService
 from telemetry.service_calls import ServiceCalls
 from telemetry.service_registry import server_services
 from telemetry.services import Access, Registry
 from telemetry.stop import RobotStop
+from telemetry.stuck_rule import StuckRule
 from telemetry.teleop_gate import TeleopGate
 
 
@@ -105,19 +110,35 @@ class Hub:
         self._fragment_shares: dict[str, ByteBudget] = {}
         self.clients: dict[str, Client] = {}
         spots = Reservations(GOAL_CHECK_RADIUS)
-        self.events = EventLog(deriver=EventDeriver(config.stuck_after, spots.blocking))
+        self.events = EventLog(deriver=EventDeriver(config.stuck_after, self._blocking))
+        self.right_of_way = RightOfWay(
+            GOAL_CHECK_RADIUS, self.events, self.tell, enabled=config.right_of_way
+        )
         self.missions = MissionRunner(
             self._send_goal, self.robots, self._place_goal, self._waypoint_late
         )
         self.teleop = TeleopGate(config, self.bus, self.events)
         self.poses = PoseChecks(spots)
+        self.parking = Parking(self.poses, self._send_to_parking)
+        self.poses.wanted = self.parking.wanted
         self.stop = RobotStop(self.calls, self.teleop, self.events, lambda: self.relay)
+        self._goals: dict[str, dict[str, Json]] = {}  # robot -> the last goal sent it here
+        self.stuck_rule = StuckRule(
+            self.events,
+            self.right_of_way,
+            config.stuck_give_up_after,
+            self._resend_goal,
+            self.stop.halt_here,
+        )
+        self.events.on_stuck = self.stuck_rule.stuck
         self.fleet = FleetFeed(
             FleetTracker(interval=config.fleet_flush_interval),
             self.events,
             self.missions,
             self.poses.reservations,
+            self.parking,
             lambda: self.relay,
+            self.right_of_way,
         )
         self.registry = Registry()
         self.review = AccessReview(
@@ -143,6 +164,11 @@ class Hub:
             share = ByteBudget(self.config.fragments_per_client_bytes)
             self._fragment_shares[label] = share
         return share
+
+    def _blocking(self, robot: str) -> tuple[str, str] | None:
+        """What a stuck robot waits for or is blocked by: the robot it gives way to in a
+        narrow place, else the robot standing in its way (``Reservations.blocking``)."""
+        return self.right_of_way.blocking(robot) or self.poses.reservations.blocking(robot)
 
     def tap(self, topic: str | None, on_message: OnMessage) -> TopicTap:
         """Call ``on_message(topic, msg)`` with every message of ``topic`` (an absolute
@@ -214,6 +240,17 @@ class Hub:
 
     # ------------------------------------------------------------ topics
 
+    def received_from_elsewhere(
+        self, name: str, type_name: str | None, msg: dict[str, Json], latched: bool
+    ) -> None:
+        """A message published on another process: fanned out to the subscribers here; a
+        ``cmd_vel`` to a robot connected here is watched in case its sender's process dies
+        (``TeleopGate.commanded_elsewhere``)."""
+        self.bus.receive_remote(name, type_name, msg, latched)
+        robot, _, suffix = name[1:].partition("/")
+        if suffix == topics.CMD_VEL and robot in self.robots():
+            self.teleop.commanded_elsewhere(robot, msg)
+
     def advertise(
         self, conn: Connection, name: str, type_name: str, latch: bool, aid: Json
     ) -> None:
@@ -245,7 +282,8 @@ class Hub:
         """A person's message to a robot: a goal is an event (on this process, which may
         not be the robot's; the robot's recorder reads it from the event log)."""
         robot, _, suffix = name[1:].partition("/")
-        if suffix == names.GOAL:
+        if suffix == topics.GOAL:
+            self._goals[robot] = msg
             self.events.goal_sent(robot, conn.principal.label, msg, note)
 
     async def subscribe(
@@ -293,10 +331,32 @@ class Hub:
 
     def _send_goal(self, goal: Goal) -> None:
         """Send a mission's goal to its robot from the server itself; it holds its spot."""
-        msg = dict(pose_stamped(goal.map_id, (goal.x, goal.y, goal.yaw), time.time()))
-        self.poses.reservations.aim(goal.robot, goal.map_id, (goal.x, goal.y))
-        self.bus.publish(None, names.robot_topic(goal.robot, names.GOAL), msg)
-        self.events.goal_sent(goal.robot, "server", msg, goal.note)
+        self._server_goal(goal.robot, goal.map_id, (goal.x, goal.y, goal.yaw), goal.note)
+
+    def _send_to_parking(self, robot: str, place: ParkingPlace, why: str) -> None:
+        """Send ``robot`` to parking spot ``place`` (``telemetry.parking``), saying why."""
+        note = f"sent to parking spot {place.name}: {why}"
+        self._server_goal(robot, place.map_id, (place.x, place.y, place.yaw), note)
+
+    def _server_goal(self, robot: str, map_id: str, pose: Pose, note: str) -> None:
+        msg = dict(pose_stamped(map_id, pose, time.time()))
+        self.poses.reservations.aim(robot, map_id, pose[:2])
+        self.bus.publish(None, names.robot_topic(robot, topics.GOAL), msg)
+        self._goals[robot] = msg
+        self.events.goal_sent(robot, "server", msg, note)
+
+    def _resend_goal(self, robot: str, why: str) -> bool:
+        """Send ``robot`` the last goal sent it on this process again, freshly stamped, so
+        that it plans afresh from where it stands (the stuck rule's replan); False if no
+        goal was sent it here or it is no longer connected here."""
+        sent = self._goals.get(robot)
+        found = goal_of(sent) if sent is not None else None
+        if sent is None or found is None or robot not in self.robots():
+            return False
+        msg = dict(pose_stamped(found.map_id, (found.x, found.y, found.yaw), time.time()))
+        self.bus.publish(None, names.robot_topic(robot, topics.GOAL), msg)
+        self.events.goal_sent(robot, "server", msg, f"sent again: {why}")
+        return True
 
     async def flush_recording(self, robots: list[str]) -> None:
         """Write out what this process's recorder holds of ``robots`` (an export on another
@@ -336,12 +396,22 @@ async def get_hub() -> Hub:
     return await asyncio.shield(task)
 
 
-async def _new_hub() -> Hub:
-    from maps.mapping.runner import MappingRunner
-    from maps.mapping.upkeep import UpkeepRunner
+HubStart = Callable[[Hub], None]
+"""Starts workers that tap a hub's topics, given the hub once it has started."""
 
+_hub_starts: list[HubStart] = []
+
+
+def on_hub_start(start: HubStart) -> None:
+    """Have ``start(hub)`` called with each hub of this process once it has started (the
+    server's one place that starts workers: ``cloudnav_web.background``)."""
+    if start not in _hub_starts:
+        _hub_starts.append(start)
+
+
+async def _new_hub() -> Hub:
     hub = Hub(RosbridgeConfig.load(), server_services())
     await hub.start()
-    MappingRunner(hub, tell=hub.tell).start()  # mapping sessions of the robots connected here
-    UpkeepRunner(hub).start()  # laser evidence about the stored maps, from the same robots
+    for start in _hub_starts:
+        start(hub)
     return hub

@@ -22,18 +22,20 @@ from typing import Any
 
 from channels.db import database_sync_to_async
 
+from cloudnav_core import topics
+from cloudnav_core.messages import Pose2D, goal_of, initial_pose_of, pose_2d
+from cloudnav_core.se2 import Point
 from maps import services as map_services
 from maps.domain.planning import GoalCheck
 from maps.domain.planning import PoseRefused as Unreachable
 from maps.domain.reservations import FleetRule, Placement, Reservations
+from maps.domain.widths import Widths
 from maps.models import SubMap
-from robots.domain.se2 import Point
 from telemetry.domain import names
-from telemetry.domain.messages import Pose2D, goal_of, initial_pose_of, pose_2d
 from telemetry.exceptions import PoseRefused
 
 # The command topics whose poses are checked, and what the refusal calls them.
-CHECKED = {names.GOAL: "goal", "initialpose": "initial pose"}
+CHECKED = {topics.GOAL: "goal", "initialpose": "initial pose"}
 FRESH_S = 2.0
 MAX_SUBMAPS = 256
 
@@ -46,6 +48,8 @@ class PoseChecks:
     ) -> None:
         self.reservations = reservations
         self._clock = clock
+        # Told (robot, by whom) when a goal was moved or refused off where a robot stands.
+        self.wanted: Callable[[str, str], None] = lambda _robot, _by: None
         self._checks: OrderedDict[str, tuple[float, SubMapChecks | None]] = OrderedDict()
 
     async def check_point(self, map_id: str, point: Point, what: str) -> None:
@@ -58,7 +62,10 @@ class PoseChecks:
         gives it among the spots other robots hold (its ``refusal`` says why it goes
         nowhere, ``moved_from`` that it was moved)."""
         checks = await self._checked(map_id, point, "goal")
-        return self.reservations.place(map_id, point, robot, checks.rule, checks.standable)
+        placed = self.reservations.place(map_id, point, robot, checks.rule, checks.standable)
+        if placed.held_by is not None and placed.held_by.why == "standing":
+            self.wanted(placed.held_by.robot, robot)
+        return placed
 
     async def check(self, name: str, msg: Mapping[str, Any]) -> tuple[Mapping[str, Any], str]:
         """The goal or initial pose ``msg`` published on ``name`` (a robot's topic) as it
@@ -86,6 +93,10 @@ class PoseChecks:
         moved = {**msg, "pose": pose_2d(placed.point[0], placed.point[1], found.yaw)}
         return moved, f"{placed.message} ({map_id})"
 
+    async def checks(self, map_id: str) -> SubMapChecks | None:
+        """The checks of sub-map ``map_id`` (``building/code``), None if it names none."""
+        return await self._checks_of(map_id)
+
     async def _checked(self, map_id: str, point: Point, what: str) -> SubMapChecks:
         checks = await self._checks_of(map_id)
         if checks is None:
@@ -111,10 +122,12 @@ class PoseChecks:
 
 @dataclass(frozen=True)
 class SubMapChecks:
-    """What a goal in one sub-map is checked against: its walls and its building's rule."""
+    """What a goal in one sub-map is checked against: its walls and its building's rule;
+    and how wide its free space is (``widths``: where a robot stands in the way)."""
 
     walls: GoalCheck
     rule: FleetRule
+    widths: Widths
 
     def standable(self, point: Point) -> bool:
         """True if a robot's centre fits at ``point`` itself (a goal moved there)."""
@@ -132,7 +145,8 @@ def checks_for(map_id: str) -> SubMapChecks | None:
     found = submap.first()
     if found is None:
         return None
-    return SubMapChecks(map_services.goal_check_of(found), FleetRule(found.building.fleet_rule))
+    rule = FleetRule(found.building.fleet_rule)
+    return SubMapChecks(map_services.goal_check_of(found), rule, map_services.submap_widths(found))
 
 
 def _initial_pose(msg: Mapping[str, Any]) -> Pose2D | None:

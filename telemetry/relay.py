@@ -10,8 +10,11 @@ to a service or action advertised on another process go to that process's channe
 answers come back as ready frames for one connection (``rb.deliver``).
 
 Every loop (receiving, sending, heartbeat, access changes) is supervised: a loop that
-fails is logged and restarted, never left dead; after Redis comes back empty (restarted),
-the heartbeat writes this process's part of the shared directory again from what it holds.
+fails is restarted, never left dead. A failure because Redis cannot be reached is told to
+``REDIS_REPORT`` (``cloudnav_web.outage``: the first, then one line per 10 s naming what
+the outage cost), not a traceback per loop per attempt; any other failure is logged with
+its traceback. After Redis comes back empty (restarted), the heartbeat writes this
+process's part of the shared directory again from what it holds.
 
 What every process must see lives in Redis under ``names.redis_key``: which process
 advertises which topic, service and action, which robots it serves, latched messages and
@@ -32,6 +35,10 @@ from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
+from redis.exceptions import ConnectionError as RedisDown
+from redis.exceptions import TimeoutError as RedisTimeout
+
+from cloudnav_web.outage import REDIS_REPORT
 from telemetry.domain import names
 from telemetry.domain.bus import Topic
 from telemetry.domain.encoding import Wire
@@ -50,6 +57,7 @@ ALIVE_FOR = 15
 MAX_PENDING = 10_000
 RESTART_AFTER = 0.5  # a failed loop waits this long before it runs again (Redis may be down)
 SETTLE_WITHIN = 2.0  # a subscription waits at most this long for Redis to confirm it
+UNREACHABLE = (RedisDown, RedisTimeout, OSError)  # Redis down, restarting or out of reach
 
 
 @dataclass(frozen=True)
@@ -86,7 +94,7 @@ class Relay:
         self.redis = redis
         self.channel = ""
         self.process = uuid.uuid4().hex[:12]
-        self.topics = TopicChannels(redis, hub.bus.receive_remote)
+        self.topics = TopicChannels(redis, hub.received_from_elsewhere)
         self._outbox: asyncio.Queue[_Call] = asyncio.Queue()
         self._tasks: list[asyncio.Task[None]] = []
         # this process's part of the shared directory, to write again after Redis restarts
@@ -96,7 +104,7 @@ class Relay:
 
     async def start(self) -> None:
         self.channel = await self.layer.new_channel(names.PROCESS_CHANNEL_PREFIX)
-        self.topics.origin = self.channel
+        self.topics.set_origin(self.channel)
         await self.redis.sadd(names.redis_key("processes"), self.channel)
         await self._beat()
         loops = {
@@ -130,6 +138,8 @@ class Relay:
             queued = await self._outbox.get()
             try:
                 await queued.call(*queued.args)
+            except UNREACHABLE as error:
+                REDIS_REPORT.failed("relay messages or directory writes lost", error)
             except Exception:
                 logger.exception("relay: a channel-layer or Redis call failed")
             finally:
@@ -314,6 +324,7 @@ class TopicChannels:
         self.redis = redis
         self.deliver = deliver
         self.origin = ""
+        self._echo = b""  # how this process's own payloads begin (set_origin)
         self.database = int(redis.connection_pool.connection_kwargs.get("db", 0))
         self._wanted: set[str] = set()  # topic names
         self._pending: list[tuple[str, str]] = []  # (Redis channel, payload)
@@ -323,7 +334,14 @@ class TopicChannels:
         self._commanding = asyncio.Lock()
         self.sent_batches = 0
 
+    def set_origin(self, origin: str) -> None:
+        """Name this process in what it publishes, so that it can tell its own messages,
+        which Redis sends back when it has subscribers of the topic too, before parsing."""
+        self.origin = origin
+        self._echo = json.dumps({"origin": origin})[:-1].encode()
+
     def publish(self, topic: Topic, msg: dict[str, Json]) -> None:
+        # "origin" first: ``_received`` recognises this process's own by their beginning
         payload = {"origin": self.origin, "type": topic.type, "msg": msg, "latched": topic.latched}
         self._pending.append((names.topic_channel(topic.name, self.database), json.dumps(payload)))
         self._ready.set()
@@ -348,9 +366,9 @@ class TopicChannels:
         async with self._commanding:  # a fair lock: (un)subscriptions reach Redis in order
             try:
                 await command(pubsub)
-            except Exception:
+            except UNREACHABLE as error:
                 # the receive loop fails too, and subscribes to every wanted topic again
-                logger.warning("relay: a topic subscription change failed", exc_info=True)
+                REDIS_REPORT.failed("topic subscription changes made again", error)
 
     async def settled(self) -> None:
         waiting = [f for f in self._confirmed.values() if not f.done()]
@@ -397,21 +415,27 @@ class TopicChannels:
             if confirmed is not None and not confirmed.done():
                 confirmed.set_result(None)
         elif message["type"] == "message":
-            payload = json.loads(message["data"])
+            data = message["data"]
+            if self._echo and _bytes(data).startswith(self._echo):
+                return  # its own, back from Redis: a parse per message saved
+            payload = json.loads(data)
             if payload["origin"] != self.origin:
                 topic = names.topic_of_channel(channel)
                 self.deliver(topic, payload["type"], payload["msg"], payload["latched"])
 
 
 async def keep_running(name: str, work: Callable[[], Awaitable[None]]) -> None:
-    """Run ``work`` for ever: when it fails (Redis timed out, restarted, unreachable), log
-    why and start it again after ``RESTART_AFTER`` seconds."""
+    """Run ``work`` for ever: when it fails, start it again after ``RESTART_AFTER``
+    seconds. Redis out of reach (timed out, restarted, down) is counted by
+    ``REDIS_REPORT``, which logs once per outage interval; anything else is logged here."""
     while True:
         try:
             await work()
             logger.error("relay: the %s loop ended; starting it again", name)
         except asyncio.CancelledError:
             raise
+        except UNREACHABLE as error:
+            REDIS_REPORT.failed(f"{name} loop restarts", error)
         except Exception:
             logger.exception("relay: the %s loop failed; starting it again", name)
         await asyncio.sleep(RESTART_AFTER)
@@ -430,6 +454,10 @@ def shared_redis(url: str) -> Any:
 
     retry = Retry(ExponentialBackoff(cap=0.5, base=0.05), 3)
     return from_url(url, retry=retry, retry_on_error=[DroppedConnection])
+
+
+def _bytes(value: Any) -> bytes:
+    return value if isinstance(value, bytes) else str(value).encode()
 
 
 def _text(value: Any) -> str:

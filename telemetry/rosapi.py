@@ -9,10 +9,10 @@ from __future__ import annotations
 import json
 from collections.abc import Iterable
 
+from cloudnav_core.times import now_stamp
 from telemetry.domain import names
 from telemetry.domain.names import canonical_type
 from telemetry.domain.protocol import Json
-from telemetry.domain.times import now_stamp
 from telemetry.exceptions import NotAllowed, ServiceFailed
 from telemetry.server_services import ServerService, ServiceCall
 from telemetry.services import Access

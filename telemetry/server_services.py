@@ -9,8 +9,8 @@ state it may use (``ServerParts``), never the hub.
 from __future__ import annotations
 
 from collections.abc import Awaitable, Callable
-from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Protocol
 
 from telemetry.domain.protocol import Json
 
@@ -21,7 +21,41 @@ if TYPE_CHECKING:
     from telemetry.params import Parameters
     from telemetry.pose_checks import PoseChecks
     from telemetry.services import Access
-    from telemetry.stop import RobotStop
+
+
+@dataclass(frozen=True)
+class Stopped:
+    """What one STOP did: the robot's answer about its goal, the missions it paused, and
+    whose teleop lock it withdrew ("" for nobody)."""
+
+    goal: str
+    missions: list[str] = field(default_factory=list)
+    teleop: str = ""
+
+    def summary(self) -> str:
+        parts = ["zero velocity sent", f"goal: {self.goal}"]
+        if self.missions:
+            parts.append(f"mission paused: {', '.join(self.missions)}")
+        if self.teleop:
+            parts.append(f"teleop lock of {self.teleop} withdrawn")
+        return "; ".join(parts)
+
+    def as_values(self) -> dict[str, Json]:
+        return {
+            "success": True,
+            "message": self.summary(),
+            "goal": self.goal,
+            "missions": list(self.missions),
+            "teleop": self.teleop,
+        }
+
+
+class Halting(Protocol):
+    """STOP as a service sees it (``telemetry.stop.RobotStop``)."""
+
+    async def stop(self, robot: str, conn: Connection) -> Stopped:
+        """Halt ``robot`` for the person on ``conn`` and say what was done."""
+        ...
 
 
 @dataclass(frozen=True)
@@ -33,7 +67,7 @@ class ServerParts:
     teleop: TeleopLocks
     params: Parameters
     directory: Directory
-    stop: RobotStop
+    stop: Halting
     poses: PoseChecks
 
 

@@ -16,18 +16,18 @@ from __future__ import annotations
 import asyncio
 import json
 from collections.abc import Callable
-from dataclasses import dataclass, field
 from typing import Any
 
 from channels.db import database_sync_to_async
 
+from cloudnav_core import topics
 from robots import missions
 from telemetry.connection import Connection
 from telemetry.cross_process import CrossProcess
 from telemetry.domain import names
 from telemetry.domain.encoding import Wire
-from telemetry.domain.protocol import Json
 from telemetry.events import EventLog
+from telemetry.server_services import Stopped
 from telemetry.service_calls import ServiceCalls
 from telemetry.teleop_gate import TeleopGate
 
@@ -35,33 +35,6 @@ from telemetry.teleop_gate import TeleopGate
 STOP_REQUEST = "rb.stop"
 # How long STOP waits for the robot to answer its ``cancel_goal``.
 CANCEL_WAIT_S = 3.0
-
-
-@dataclass(frozen=True)
-class Stopped:
-    """What one STOP did: the robot's answer about its goal, the missions it paused, and
-    whose teleop lock it withdrew ("" for nobody)."""
-
-    goal: str
-    missions: list[str] = field(default_factory=list)
-    teleop: str = ""
-
-    def summary(self) -> str:
-        parts = ["zero velocity sent", f"goal: {self.goal}"]
-        if self.missions:
-            parts.append(f"mission paused: {', '.join(self.missions)}")
-        if self.teleop:
-            parts.append(f"teleop lock of {self.teleop} withdrawn")
-        return "; ".join(parts)
-
-    def as_values(self) -> dict[str, Json]:
-        return {
-            "success": True,
-            "message": self.summary(),
-            "goal": self.goal,
-            "missions": list(self.missions),
-            "teleop": self.teleop,
-        }
 
 
 class RobotStop:
@@ -95,7 +68,7 @@ class RobotStop:
     async def _halt(self, robot: str) -> str:
         """Zero velocity and the goal cancelled where the robot is connected; return what
         is known of the goal."""
-        service = names.robot_topic(robot, names.CANCEL_GOAL)
+        service = names.robot_topic(robot, topics.CANCEL_GOAL)
         if self._calls.services.provider(service) is None:
             found = await self._relay().find("services", service)
             self._teleop.stop_robot(robot)  # reaches the robot on any process
@@ -109,7 +82,7 @@ class RobotStop:
         """Zero velocity, and cancel the goal of ``robot``, connected to this process;
         return what the robot answered."""
         self._teleop.stop_robot(robot)
-        service = names.robot_topic(robot, names.CANCEL_GOAL)
+        service = names.robot_topic(robot, topics.CANCEL_GOAL)
         caller = ServerCaller()
         if not self._calls.call_as_server(service, {}, caller):
             return "the robot serves no cancel_goal"

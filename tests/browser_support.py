@@ -45,6 +45,9 @@ CHROMIUM_ARGS = [
     "--headless",
     "--no-sandbox",
     "--disable-gpu",
+    # WebGL (the mapping card's 3D view) in software, SwiftShader: Chromium 156 falls back
+    # to it with --disable-gpu alone, but that fallback is deprecated, so it is asked by name.
+    "--enable-unsafe-swiftshader",
     "--disable-background-networking",
     "--disable-component-update",
     "--disable-sync",
@@ -104,7 +107,45 @@ def context(browser: Browser) -> Iterator[BrowserContext]:
 
 
 # The two sizes every page is tested at: a desktop and a phone.
-SIZES = [{"width": 1440, "height": 900}, {"width": 390, "height": 844}]
+PHONE = {"width": 390, "height": 844}
+SIZES = [{"width": 1440, "height": 900}, PHONE]
+
+
+@pytest.fixture
+def phone(browser: Browser) -> Iterator[BrowserContext]:
+    """A browser context at a phone's size (390x844), with a touch screen."""
+    opened = browser.new_context(viewport=PHONE, has_touch=True)  # type: ignore[arg-type]
+    opened.set_default_timeout(ACTION_TIMEOUT_MS)
+    yield opened
+    opened.close()
+
+
+def touch_gesture(page: Page, selector: str, fingers: list[list[tuple[float, float]]]) -> None:
+    """Fingers on ``selector`` as a touch screen reports them: ``fingers[i]`` is finger
+    i's path, in pixels from the element's centre, one point per step."""
+    box = page.locator(selector).bounding_box()
+    assert box is not None
+    cx, cy = box["x"] + box["width"] / 2, box["y"] + box["height"] / 2
+    cdp = page.context.new_cdp_session(page)
+    for step in range(len(fingers[0])):
+        points = [
+            {"x": cx + path[step][0], "y": cy + path[step][1], "id": finger + 1}
+            for finger, path in enumerate(fingers)
+        ]
+        kind = "touchStart" if step == 0 else "touchMove"
+        cdp.send("Input.dispatchTouchEvent", {"type": kind, "touchPoints": points})
+    cdp.send("Input.dispatchTouchEvent", {"type": "touchEnd", "touchPoints": []})
+
+
+def pinch(page: Page, selector: str) -> None:
+    """Two fingers spreading apart on ``selector``."""
+    spreads = [20 + 10 * step for step in range(8)]
+    touch_gesture(page, selector, [[(-s, 0) for s in spreads], [(s, 0) for s in spreads]])
+
+
+def swipe(page: Page, selector: str, dx: float) -> None:
+    """One finger dragged ``dx`` pixels across ``selector``."""
+    touch_gesture(page, selector, [[(dx * step / 8, 0.0) for step in range(9)]])
 
 
 @pytest.fixture(params=SIZES, ids=["desktop", "phone"])

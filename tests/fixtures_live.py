@@ -254,6 +254,15 @@ class LiveServer:
     def log(self) -> str:
         return self.log_path.read_text(errors="replace")
 
+    def log_lines(self) -> int:
+        return len(self.log().splitlines())
+
+    def told_since(self, since: int) -> list[str]:
+        """The log's lines after the first ``since`` (see ``log_lines``), but the access
+        log's: what the server said of itself."""
+        lines = self.log().splitlines()[since:]
+        return [line for line in lines if "cloudnav_web.access" not in line]
+
     def stop(self) -> None:
         if self.process.poll() is None:
             self.process.terminate()

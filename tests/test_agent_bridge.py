@@ -3,6 +3,7 @@ conversions, the drivers' readings behind the hardware seam, the stack's book.""
 
 from __future__ import annotations
 
+import threading
 import time
 from types import SimpleNamespace
 from typing import Any
@@ -10,6 +11,7 @@ from typing import Any
 import numpy as np
 import pytest
 
+from cloudnav_core.camera import CameraModel
 from robots.agent.bridge import (
     DriverReadings,
     StackReadings,
@@ -18,7 +20,6 @@ from robots.agent.bridge import (
     image_of_raw,
     planar_covariance,
 )
-from robots.agent.perception import CameraModel
 
 
 class Clock:
@@ -108,3 +109,22 @@ def test_driver_readings_give_odometry_and_scans_as_the_seam_wants() -> None:
     assert readings.reported_velocity == (0.2, 0.1)
     assert readings.scan_angles == pytest.approx([-1.0, -0.5, 0.0, 0.5, 1.0])
     assert readings.odometry_message(3.0)["child_frame_id"] == "base_link"
+
+
+def test_driver_readings_wait_for_the_first_odometry_and_scan_from_their_callbacks() -> None:
+    # The ROS 2 drivers take the first readings from the subscriptions they keep, not from
+    # short-lived ones destroyed while another thread spins the node.
+    orientation = SimpleNamespace(x=0.0, y=0.0, z=0.0, w=1.0)
+    pose = SimpleNamespace(position=SimpleNamespace(x=3.0, y=0.0), orientation=orientation)
+    odom = SimpleNamespace(pose=SimpleNamespace(pose=pose))
+    scan = SimpleNamespace(angle_min=-1.0, angle_increment=1.0, ranges=[1.0, 2.0, 3.0])
+    readings = DriverReadings(CameraModel())
+    assert not readings.wait_ready(0.01)  # nothing came
+    readings.on_odom(odom)
+    assert not readings.wait_ready(0.01)  # odometry alone is not enough
+    callbacks = threading.Timer(0.05, readings.on_scan, args=(scan,))
+    callbacks.start()
+    assert readings.wait_ready(10.0)
+    callbacks.join()
+    assert readings.odom_pose == (3.0, 0.0, 0.0)
+    assert readings.scan_angles == pytest.approx([-1.0, 0.0, 1.0])

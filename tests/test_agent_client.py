@@ -11,8 +11,8 @@ from collections.abc import AsyncIterator, Callable
 import pytest
 import websockets
 
+from cloudnav_core.messages import pose_stamped, string_message
 from robots.agent.client import Backoff, NotConnected, RosbridgeClient, ServiceError
-from telemetry.domain.messages import pose_stamped, string_message
 from tests import fixtures_live
 from tests.conftest import make_robot
 from tests.fixtures_live import LiveServer, LiveServers, until

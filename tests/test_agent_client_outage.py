@@ -24,18 +24,18 @@ import numpy as np
 import pytest
 import websockets
 
-from robots.agent.client import Backoff, RosbridgeClient
-from robots.agent.hardware import compressed_image_message
-from robots.agent.whereabouts import Localisation, Whereabouts
-from telemetry.cloud import TELEOP_LOCK
-from telemetry.domain.messages import (
+from cloudnav_core.messages import (
     laser_scan,
     odometry,
     pose_stamped,
     string_message,
     twist_2d,
 )
-from telemetry.domain.names import CANCEL_GOAL, ROBOT_SERVICE_TYPES, ROBOT_TOPIC_TYPES
+from cloudnav_core.topics import CANCEL_GOAL, ROBOT_SERVICE_TYPES, ROBOT_TOPIC_TYPES
+from robots.agent.client import Backoff, RosbridgeClient
+from robots.agent.hardware import compressed_image_message
+from robots.agent.whereabouts import Localisation, Whereabouts
+from telemetry.cloud import TELEOP_LOCK
 from tests.conftest import make_robot
 from tests.fixtures_live import LiveServer, operator_handshake, until
 

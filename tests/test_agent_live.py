@@ -14,9 +14,9 @@ from typing import Any
 import pytest
 import websockets
 
+from cloudnav_core.params import RobotConfig
 from robots.agent.fleet import FleetOptions, FleetRobot, build_robot, run_fleet
 from robots.agent.sim.world import demo_world
-from robots.domain.params import RobotConfig
 from tests.fixtures_live import LiveServer
 
 pytestmark = pytest.mark.django_db(transaction=True)

@@ -9,14 +9,15 @@ from typing import Any
 import pytest
 from asgiref.sync import sync_to_async
 
+from cloudnav_core.params import RobotConfig
 from maps import versions
 from maps.domain.demo_building import demo_building
 from maps.models import SubMap
 from robots.agent.robot import PoseTracker, Robot
 from robots.agent.sim.hardware import SimHardware
 from robots.agent.sim.world import demo_world
-from robots.agent.supervisor import BundleCache, MapsSupervisor
-from robots.domain.params import RobotConfig
+from robots.agent.supervisor.bundle_cache import BundleCache
+from robots.agent.supervisor.maps_supervisor import MapsSupervisor
 
 pytestmark = pytest.mark.django_db(transaction=True)
 

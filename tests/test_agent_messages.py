@@ -10,10 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from robots.agent.__main__ import arguments, tokens_of
-from robots.agent.client import endpoints
-from robots.agent.fleet import parse_pose
-from telemetry.domain.messages import (
+from cloudnav_core.messages import (
     GoalStatus,
     StatusEntry,
     goal_of,
@@ -25,6 +22,9 @@ from telemetry.domain.messages import (
     twist_of,
     yaw_of,
 )
+from robots.agent.__main__ import arguments, tokens_of
+from robots.agent.client import endpoints
+from robots.agent.fleet import parse_pose
 
 
 def test_a_path_faces_along_its_segments():

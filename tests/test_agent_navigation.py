@@ -15,12 +15,13 @@ import httpx
 import numpy as np
 import pytest
 
+from cloudnav_core.messages import GoalStatus
+from cloudnav_core.params import RobotConfig
 from robots.agent.robot import PoseTracker, Robot, particle_filter
 from robots.agent.sim.hardware import SimHardware
 from robots.agent.sim.world import Box, Cylinder, World, demo_world
-from robots.agent.supervisor import BundleCache, MapsSupervisor
-from robots.domain.params import RobotConfig
-from telemetry.domain.messages import GoalStatus
+from robots.agent.supervisor.bundle_cache import BundleCache
+from robots.agent.supervisor.maps_supervisor import MapsSupervisor
 
 pytestmark = pytest.mark.django_db(transaction=True)
 

@@ -258,7 +258,8 @@ def test_the_tag_detector_uses_the_robots_camera_info(node: None) -> None:
         LaserScan,
     )
 
-    from robots.agent.perception import CameraModel, TagDetector
+    from cloudnav_core.camera import CameraModel
+    from robots.agent.perception import TagDetector
     from robots.agent.ros.hardware import RosHardware
 
     scan = LaserScan()
@@ -387,10 +388,11 @@ TURNING = 0.4  # rad/s, the operator's teleop
 
 
 def log_tails(directory: Path) -> str:
-    """The end of each ``*.log`` in ``directory``, for a failure's message."""
-    return "\n".join(
-        f"--- {p.name}\n{p.read_text(errors='replace')[-3000:]}" for p in directory.glob("*.log")
-    )
+    """The end of each ``*.log`` (and of each node's ``*.jsonl`` events) in ``directory``,
+    for a failure's message."""
+    tails = [(p, 3000) for p in sorted(directory.glob("*.log"))]
+    tails += [(p, 600) for p in sorted(directory.glob("*.jsonl"))]
+    return "\n".join(f"--- {p.name}\n{p.read_text(errors='replace')[-size:]}" for p, size in tails)
 
 
 class RosSide:
@@ -470,7 +472,7 @@ async def cloud_grid(server: Any, token: str, map_id: str) -> Any:
     """The grid of ``map_id`` as the cloud serves it to the robot."""
     import httpx
 
-    from robots.agent.supervisor import submap_from_bundle
+    from robots.agent.supervisor.submaps import submap_from_bundle
 
     building, _, code = map_id.partition("/")
     async with httpx.AsyncClient(

@@ -12,20 +12,16 @@ import httpx
 import numpy as np
 import pytest
 
+from cloudnav_core.params import RobotConfig
 from maps.domain.demo_building import PAPER_ROUTE, demo_building
 from maps.models import EnvironmentalTag
 from robots.agent.robot import PoseTracker, Robot
 from robots.agent.sim.hardware import SimHardware
 from robots.agent.sim.world import demo_world
-from robots.agent.supervisor import (
-    BundleCache,
-    BundleError,
-    Destination,
-    MapsSupervisor,
-    approach_pose,
-    submap_from_bundle,
-)
-from robots.domain.params import RobotConfig
+from robots.agent.supervisor.bundle_cache import BundleCache
+from robots.agent.supervisor.legs import Destination
+from robots.agent.supervisor.maps_supervisor import MapsSupervisor, approach_pose
+from robots.agent.supervisor.submaps import BundleError, submap_from_bundle
 from tests.conftest import make_robot
 from tests.fixtures_live import ACCESS_LOG_ALL, LiveServer, LiveServers
 

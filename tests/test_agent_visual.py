@@ -11,15 +11,17 @@ import httpx
 import numpy as np
 from numpy.typing import NDArray
 
-from robots.agent.perception import CameraModel
+from cloudnav_core.camera import CameraModel
+from cloudnav_core.messages import depth_of
+from cloudnav_core.params import RobotConfig
+from cloudnav_core.se2 import Pose
 from robots.agent.robot import PoseTracker, Robot
 from robots.agent.sim.hardware import SimHardware
 from robots.agent.sim.world import demo_world
-from robots.agent.supervisor import BundleCache, MapsSupervisor, SubMap
+from robots.agent.supervisor.bundle_cache import BundleCache
+from robots.agent.supervisor.maps_supervisor import MapsSupervisor
+from robots.agent.supervisor.submaps import SubMap
 from robots.agent.visual import LOST_SPREAD, VisualMap
-from robots.domain.params import RobotConfig
-from robots.domain.se2 import Pose
-from telemetry.domain.messages import depth_of
 
 IMAGE = np.zeros((480, 640), np.uint8)
 DEPTH = np.full((480, 640), 2.0, np.float32)

@@ -6,8 +6,8 @@ from __future__ import annotations
 import pytest
 
 from telemetry.models import DEFAULT_RECORDED, RecordingSettings
-from telemetry.recording.plans import plan_for, retentions
-from tests.conftest import client_for, make_robot, make_user
+from telemetry.recording.plans import DEFAULT, NOTHING, Plan, plan_for, plans_for, retentions
+from tests.conftest import client_for, make_building, make_robot, make_user
 
 pytestmark = pytest.mark.django_db
 
@@ -87,3 +87,25 @@ def test_it_rejects_robots(building, token):
 
 def test_it_rejects_anonymous(building):
     assert client_for(None).get(URL).status_code in (401, 403)
+
+
+def test_the_recorder_reads_every_robots_plan_in_two_queries(
+    admin, building, django_assert_num_queries
+):
+    client_for(admin).put(URL, CHOICE, format="json")
+    other = make_building(code="other_1")
+    RecordingSettings.objects.create(building=other, topics=["odom"], camera_rate=5.0)
+    make_robot(name="r1", buildings=[building])
+    make_robot(name="both", buildings=[building, other])
+    make_robot(name="nowhere", buildings=[])
+    many = [f"r{i}" for i in range(2, 40)]
+    for name in many:
+        make_robot(name=name, buildings=[other])
+    with django_assert_num_queries(2):
+        plans = plans_for(["r1", "both", "nowhere", "unknown", *many])
+    assert plans["r1"] == Plan(frozenset({"pose", "scan", "camera/image/compressed"}), 0.5)
+    assert plans["both"].topics == {"pose", "scan", "odom", "camera/image/compressed"}
+    assert plans["both"].camera_interval == pytest.approx(0.2)  # the fastest camera wins
+    assert (plans["nowhere"], plans["unknown"]) == (DEFAULT, NOTHING)
+    assert all(plans[name] == plans["r2"] for name in many)
+    assert plans == {name: plan_for(name) for name in plans}

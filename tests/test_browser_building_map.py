@@ -20,9 +20,9 @@ import pytest
 from django.core.management import call_command
 from playwright.sync_api import Browser, BrowserContext, Page, expect
 
+from cloudnav_core.messages import path_message, pose_stamped
 from maps.domain.demo_building import demo_building
 from robots.agent.client import RosbridgeClient
-from telemetry.domain.messages import path_message, pose_stamped
 from tests.browser_support import ACTION_TIMEOUT_MS, BUILDING, ROBOT, Demo, open_as, screenshot
 
 pytest_plugins = ["tests.browser_support"]

@@ -5,6 +5,8 @@ accepting it, the published version holding the cells painted."""
 
 from __future__ import annotations
 
+import base64
+import io
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -12,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from PIL import Image as PILImage
 from playwright.sync_api import Browser, BrowserContext, Page, Request, expect
 
 from maps import services
@@ -20,10 +23,13 @@ from maps.models import ChangeProposal, SubMap
 from tests.browser_support import (
     ACTION_TIMEOUT_MS,
     BUILDING,
+    PHONE,
     ROBOT,
     Demo,
     open_as,
+    pinch,
     screenshot,
+    swipe,
     world_to_page,
 )
 from tests.fixtures_live import agent_process
@@ -91,8 +97,8 @@ def camera_only_robot(demo: Demo, tmp_path: Path):
         yield log
 
 
-def test_an_admin_starts_a_visual_session_and_sees_its_figures(
-    camera_only_robot: Path, context: BrowserContext, demo: Demo
+def test_an_admin_starts_a_visual_session_and_sees_its_figures_and_its_3d_map(
+    camera_only_robot: Path, context: BrowserContext, phone: BrowserContext, demo: Demo
 ) -> None:
     page = open_as(context, demo, "admin", f"/robots/{ROBOT}/")
     give_up = time.monotonic() + 60
@@ -108,6 +114,67 @@ def test_an_admin_starts_a_visual_session_and_sees_its_figures(
     expect(figures).to_contain_text("1 keyframes")
     sessions = page.request.get(demo.url(f"/api/mapping/sessions/?robot={ROBOT}"))
     assert sessions.json()[0]["kind"] == "visual"
+
+    # The 3D view beside the grid draws the keyframe's points (WebGL: SwiftShader).
+    expect(page.locator("#mapping-3d-wrap")).to_be_visible()
+    page.wait_for_function(
+        "() => Number(document.getElementById('mapping-3d').dataset.points) > 500",
+        timeout=60_000,
+    )
+    before = canvas_pixels(page, "#mapping-3d")
+    assert grey_pixels(before) > 200  # the camera's grey walls as points, not a blank view
+    page.locator("#mapping-3d").scroll_into_view_if_needed()
+    box = page.locator("#mapping-3d").bounding_box()
+    assert box is not None
+    turned = view_of(page)[0]
+    page.mouse.move(box["x"] + box["width"] / 2, box["y"] + box["height"] / 2)
+    page.mouse.down()
+    page.mouse.move(box["x"] + box["width"] / 2 + 120, box["y"] + box["height"] / 2, steps=8)
+    page.mouse.up()  # OrbitControls turn the view
+    assert abs(view_of(page)[0] - turned) > 0.1  # radians
+    after = canvas_pixels(page, "#mapping-3d")
+    assert (after != before).any(axis=2).mean() > 0.01
+    screenshot(page, "robot-mapping-visual-3d")
+
+    # On a phone: the view fits the screen, one finger turns it and two zoom it.
+    small = open_as(phone, demo, "admin", f"/robots/{ROBOT}/")
+    small.wait_for_function(
+        "() => Number(document.getElementById('mapping-3d').dataset.points) > 500",
+        timeout=60_000,
+    )
+    small.locator("#mapping-3d").scroll_into_view_if_needed()
+    box = small.locator("#mapping-3d").bounding_box()
+    assert box is not None
+    assert 0 <= box["x"] <= box["x"] + box["width"] <= PHONE["width"]
+    assert small.evaluate("document.documentElement.scrollWidth") <= PHONE["width"]
+    turned, away = view_of(small)
+    swipe(small, "#mapping-3d", 120)
+    assert abs(view_of(small)[0] - turned) > 0.1  # radians
+    pinch(small, "#mapping-3d")
+    assert view_of(small)[1] < 0.9 * away  # fingers apart: closer
+    screenshot(small, "robot-mapping-visual-3d-phone")
+
+
+def view_of(page: Page) -> tuple[float, float]:
+    """Where the 3D view looks from: turned (radians about the map's z) and how far."""
+    view = page.locator("#mapping-3d")
+    return float(view.get_attribute("data-azimuth") or "nan"), float(
+        view.get_attribute("data-distance") or "nan"
+    )
+
+
+def canvas_pixels(page: Page, selector: str) -> np.ndarray:
+    """The RGB pixels a canvas shows (its PNG, as the page reads it)."""
+    url = page.eval_on_selector(selector, "(canvas) => canvas.toDataURL('image/png')")
+    png = base64.b64decode(url.split(",", 1)[1])
+    return np.asarray(PILImage.open(io.BytesIO(png)).convert("RGB"))
+
+
+def grey_pixels(pixels: np.ndarray) -> int:
+    """Pixels of a grey (r = g = b) not near black: the simulated camera's colours, which
+    neither the view's background nor its floor grid has."""
+    r, g, b = (pixels[..., channel].astype(int) for channel in range(3))
+    return int(((r == g) & (g == b) & (r > 40)).sum())
 
 
 def robot_online(page: Page, demo: Demo) -> bool:

@@ -6,17 +6,16 @@ from __future__ import annotations
 import json
 import re
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 
 import pytest
-from playwright.sync_api import Browser, BrowserContext, Page, expect
+from playwright.sync_api import BrowserContext, Page, expect
 
-from tests.browser_support import ACTION_TIMEOUT_MS, BUILDING, ROBOT, Demo, screenshot
+from tests.browser_support import BUILDING, PHONE, ROBOT, Demo, pinch, screenshot
 
 pytest_plugins = ["tests.browser_support"]
 pytestmark = [pytest.mark.browser, pytest.mark.django_db(transaction=True)]
 
-PHONE = {"width": 390, "height": 844}
 PAGES = [
     ("operator", "/"),
     ("operator", "/buildings/"),
@@ -37,31 +36,6 @@ def open_as(context: BrowserContext, demo: Demo, username: str, path: str) -> Pa
     page = context.new_page()
     page.goto(demo.url(path), wait_until="domcontentloaded")
     return page
-
-
-def pinch(page: Page, selector: str) -> None:
-    """Two fingers spreading apart on ``selector``, as a touch screen reports them."""
-    box = page.locator(selector).bounding_box()
-    assert box is not None
-    cx, cy = box["x"] + box["width"] / 2, box["y"] + box["height"] / 2
-    cdp = page.context.new_cdp_session(page)
-
-    def touch(kind: str, spread: float) -> None:
-        points = [{"x": cx - spread, "y": cy, "id": 1}, {"x": cx + spread, "y": cy, "id": 2}]
-        cdp.send("Input.dispatchTouchEvent", {"type": kind, "touchPoints": points})
-
-    touch("touchStart", 20)
-    for step in range(1, 8):
-        touch("touchMove", 20 + 10 * step)
-    cdp.send("Input.dispatchTouchEvent", {"type": "touchEnd", "touchPoints": []})
-
-
-@pytest.fixture
-def phone(browser: Browser) -> Iterator[BrowserContext]:
-    opened = browser.new_context(viewport=PHONE, has_touch=True)  # type: ignore[arg-type]
-    opened.set_default_timeout(ACTION_TIMEOUT_MS)
-    yield opened
-    opened.close()
 
 
 def test_no_page_is_wider_than_a_phone(phone: BrowserContext, demo: Demo) -> None:

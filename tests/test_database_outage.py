@@ -54,11 +54,6 @@ def open_sockets(both: list[LiveServer], tokens: dict[str, str]) -> tuple[Any, A
     return robot, viewer
 
 
-def not_access_lines(server: LiveServer, since: int) -> list[str]:
-    lines = server.log().splitlines()[since:]
-    return [line for line in lines if "cloudnav_web.access" not in line]
-
-
 def test_postgresql_down_for_ten_seconds_answers_503_and_recovers(
     private_postgres, scaled_template, tmp_path
 ):
@@ -69,7 +64,7 @@ def test_postgresql_down_for_ten_seconds_answers_503_and_recovers(
         both = servers.start_many(2, env={"REDIS_URL": scaled_redis_url()})
         assert [fleet(server, token)[0] for server in both] == [200, 200]
         robot, viewer = open_sockets(both, scaled_template[1]["tokens"])
-        logged = [len(server.log().splitlines()) for server in both]
+        logged = [server.log_lines() for server in both]
 
         private_postgres.stop()
         down_at, answers, refused, poses = time.monotonic(), set(), [], 0
@@ -91,7 +86,7 @@ def test_postgresql_down_for_ten_seconds_answers_503_and_recovers(
                 time.sleep(0.2)
         assert not handshake_refused(both[1], token)
         for server, since in zip(both, logged, strict=True):
-            assert len(not_access_lines(server, since)) <= 10, server.log()
+            assert len(server.told_since(since)) <= 10, server.log()
         robot.close()
         viewer.close()
     finally:

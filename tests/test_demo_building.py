@@ -22,10 +22,14 @@ from maps.domain.demo_building import (
     DemoSubMap,
     DemoTag,
     demo_building,
+    doorway_openings,
+    space_interiors,
     world_to_cell,
 )
+from maps.domain.widths import Widths
 
 ROBOT_RADIUS = 0.2
+FLEET_BENCH_ROBOTS = 10  # ``bench fleet``'s default --robots, the issue's fleet
 STOP_DISTANCE = 0.4
 HALF_CELL = 0.025
 MAIN_ROUTE = list(PAPER_ROUTE)
@@ -237,7 +241,8 @@ def test_the_demo_robots_start_where_their_cameras_read_the_entrance_tag(
     building: DemoBuilding,
 ) -> None:
     # So `make demo`'s robots localise on their own instead of waiting, lost, for a goal.
-    from robots.agent.perception import CameraModel, TagDetector
+    from cloudnav_core.camera import CameraModel
+    from robots.agent.perception import TagDetector
     from robots.agent.sim.camera import Camera
     from robots.agent.sim.world import demo_world
 
@@ -260,11 +265,39 @@ def test_the_demo_robots_start_where_their_cameras_read_the_entrance_tag(
 
 def test_the_demo_robots_start_clear_of_one_another(building: DemoBuilding) -> None:
     # Robots see and bump into one another: none may start touching another.
-    from robots.domain.params import BodyLimits
+    from cloudnav_core.params import BodyLimits
 
     starts = building.robot_starts
     gaps = [math.dist(a[:2], b[:2]) for i, a in enumerate(starts) for b in starts[i + 1 :]]
     assert min(gaps) > 2 * BodyLimits().radius + 0.05
+
+
+def test_there_is_a_parking_spot_for_every_robot_of_the_fleet_bench(
+    building: DemoBuilding,
+) -> None:
+    names = [spot.name for spot in building.parking]
+    assert len(names) >= max(FLEET_BENCH_ROBOTS, len(building.robot_starts))
+    assert len(set(names)) == len(names)
+
+
+def test_parking_spots_are_out_of_the_way_clear_of_walls_doorways_tags_and_each_other(
+    building: DemoBuilding,
+) -> None:
+    widths = Widths.of_grid(building.world, building.world_origin, building.resolution)
+    doorways = [((x0 + x1) / 2, (y0 + y1) / 2) for x0, y0, x1, y1 in doorway_openings().values()]
+    interiors = space_interiors()
+    spots = building.parking
+    for spot in spots:
+        here = (spot.x, spot.y)
+        assert not spot.submap.startswith("Corridor"), spot
+        x0, y0, x1, y1 = interiors[spot.submap][0]
+        assert x0 < spot.x < x1, spot
+        assert y0 < spot.y < y1, spot
+        assert widths.clearance_at(here) >= 0.6, spot  # a robot and a margin, off furniture too
+        assert min(math.dist(here, door) for door in doorways) >= 2.0, spot
+        assert min(math.dist(here, (t.x, t.y)) for t in building.tags) >= 1.5, spot
+    gaps = [math.dist((a.x, a.y), (b.x, b.y)) for i, a in enumerate(spots) for b in spots[i + 1 :]]
+    assert min(gaps) >= 2.0
 
 
 def test_the_cheapest_route_is_the_main_corridor_route(building: DemoBuilding) -> None:

@@ -8,11 +8,11 @@ import math
 import numpy as np
 import pytest
 
+from cloudnav_core.camera import CameraModel
+from cloudnav_core.params import RobotConfig
 from robots.agent.depth_scan import DepthScanSpec, ObstacleMemory, depth_to_scan
-from robots.agent.perception import CameraModel
 from robots.agent.sim.hardware import SimHardware
 from robots.agent.sim.world import demo_world
-from robots.domain.params import RobotConfig
 
 MODEL = CameraModel()
 SPEC = DepthScanSpec()
@@ -143,3 +143,67 @@ def test_with_nothing_kept_the_view_is_the_latest_scan_from_the_sensors_mount() 
     memory.update(scan_with(5), ANGLES, (0.0, 0.0, 0.0), 0.0)
     points = memory.update(scan_with(0, 2.0), ANGLES, (0.0, 0.0, math.pi / 2), 0.1)
     assert points == pytest.approx(np.array([[0.05 + 2.0 * math.cos(-0.5), 2.0 * math.sin(-0.5)]]))
+
+
+# --- where a camera-only robot may move ------------------------------------------------
+
+WIDE = np.linspace(-0.5, 0.5, 101)  # the camera's field of view, about 57 degrees
+
+
+def scan_of_person(x: float, y: float, radius: float = 0.25) -> np.ndarray:
+    """Ranges along ``WIDE`` from the origin to a person (a disc) at ``(x, y)``."""
+    along = x * np.cos(WIDE) + y * np.sin(WIDE)
+    miss = (x * x + y * y) - along**2
+    inside = radius**2 - miss
+    return np.where((inside >= 0) & (along > 0), along - np.sqrt(np.clip(inside, 0, None)), np.inf)
+
+
+def person_walks_out_of_view(memory: ObstacleMemory) -> float:
+    """A person 1.6 m ahead walks at 0.86 m/s towards the robot's left side and leaves
+    the camera's view; returns the time of the last scan."""
+    seconds, x, y = 0.0, 1.6, -0.3
+    while y < 0.9:
+        memory.update(scan_of_person(x, y), WIDE, (0.0, 0.0, 0.0), seconds)
+        seconds, x, y = seconds + 0.1, x - 0.05, y + 0.07
+    return seconds - 0.1
+
+
+def test_floor_a_person_seen_walking_may_have_reached_is_off_limits_unless_seen_free() -> None:
+    memory = ObstacleMemory(keep=4.0, range_max=6.0, range_min=0.2)
+    now = person_walks_out_of_view(memory)
+    memory.update(scan_with_nothing(), WIDE, (0.0, 0.0, 0.0), now + 0.5)
+    may_enter = memory.may_enter(
+        np.array([[0.5, 0.6], [0.2, 0.9], [1.0, 0.0], [1.5, -1.0], [-3.0, -3.0]]),
+        (0.0, 0.0, 0.0),
+    )
+    # On the person's way out of view, beside the robot (never seen): off limits. Straight
+    # ahead (seen free just now), and off their way (out of view, but they walked the
+    # other way), allowed.
+    assert may_enter.tolist() == [False, False, True, True, True]
+
+
+def scan_with_nothing() -> np.ndarray:
+    return np.full(len(WIDE), np.inf)
+
+
+def test_with_nobody_seen_moving_a_camera_only_robot_may_move_anywhere() -> None:
+    memory = ObstacleMemory(keep=4.0, range_max=6.0, range_min=0.2)
+    for step in range(10):  # a pillar that stands
+        memory.update(scan_of_person(1.5, 0.0), WIDE, (0.0, 0.0, 0.0), step * 0.1)
+    beside = np.array([[0.0, 0.3], [0.0, -0.3], [-0.3, 0.0]])
+    assert memory.may_enter(beside, (0.0, 0.0, 0.0)).all()
+
+
+def test_a_person_seen_again_no_longer_holds_the_floor_they_left() -> None:
+    memory = ObstacleMemory(keep=4.0, range_max=6.0, range_min=0.2)
+    now = person_walks_out_of_view(memory)
+    for step in range(1, 4):  # back into view, walking the other way
+        memory.update(
+            scan_of_person(1.5, 0.7 - 0.08 * step), WIDE, (0.0, 0.0, 0.0), now + step / 10
+        )
+    assert memory.may_enter(np.array([[0.3, 0.5]]), (0.0, 0.0, 0.0)).all()
+
+
+def test_a_robot_that_sees_all_round_has_no_entry_check() -> None:
+    memory = ObstacleMemory(keep=0.0)
+    assert memory.entry_check((0.0, 0.0, 0.0)) is None

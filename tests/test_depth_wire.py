@@ -14,14 +14,14 @@ import cv2
 import numpy as np
 import pytest
 
-from robots.agent.sim.camera import Camera
-from robots.agent.sim.world import demo_world
-from telemetry.domain.messages import (
+from cloudnav_core.messages import (
     COMPRESSED_DEPTH_FORMAT,
     compressed_depth,
     depth_image,
     depth_of,
 )
+from robots.agent.sim.camera import Camera
+from robots.agent.sim.world import demo_world
 from telemetry.domain.video import content_type_of, is_camera
 
 CORRIDOR_A = (6.0, 23.2, 0.2)

@@ -7,7 +7,7 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-from telemetry.domain.names import ROBOT_TOPIC_TYPES
+from cloudnav_core.topics import ROBOT_TOPIC_TYPES
 
 ROOT = Path(__file__).resolve().parent.parent
 README = (ROOT / "README.md").read_text()

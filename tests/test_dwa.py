@@ -4,13 +4,17 @@ person cross in front of it rather than meet them where they will be."""
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
+from numpy.typing import NDArray
 
-from robots.agent.navigation import Driver, LocalObstacles
+from cloudnav_core.params import RobotConfig
+from cloudnav_core.se2 import Pose, wrap
+from robots.agent.navigation.clearance import LocalObstacles
+from robots.agent.navigation.commands import Command
+from robots.agent.navigation.driver import Driver
 from robots.agent.sim.crowd import PERSON_RADIUS, Discs, cast_discs
-from robots.domain.params import RobotConfig
-from robots.domain.se2 import Pose, wrap
 
 ANGLES = np.radians(np.arange(360.0))
 
@@ -75,3 +79,34 @@ def test_a_dwa_robot_backs_away_from_a_person_walking_into_it() -> None:
         assert drive.command is not None
         commands.append(drive.command)
     assert commands[-1][0] < 0
+
+
+# --- a robot that sees only ahead ------------------------------------------------------
+
+
+def first_command(may_enter: Callable[[NDArray[np.float64]], NDArray[np.bool_]]) -> Command:
+    """The command of a camera-only robot's first cycle toward a goal 3 m straight ahead,
+    on open floor, already driving at 0.4 m/s; ``may_enter`` as the depth memory gives it."""
+    config = RobotConfig(local_planner="dwa", sensors="rgbd")
+    driver = Driver(config)
+    obstacles = LocalObstacles(np.zeros((0, 2)), may_enter=may_enter)
+    pose: Pose = (0.0, 0.0, 0.0)
+    drive = driver.drive((3.0, 0.0, 0.0), None, pose, (0.4, 0.0), obstacles, 0.0, pose)
+    assert drive.command is not None
+    return drive.command
+
+
+def test_a_camera_only_robot_drives_on_onto_floor_it_may_enter() -> None:
+    linear, _ = first_command(lambda points: np.ones(len(points), bool))
+    assert linear > 0.2
+
+
+def test_a_camera_only_robot_kept_off_the_floor_on_its_left_stops_and_turns_to_look() -> None:
+    linear, angular = first_command(lambda points: points[:, 1] < 0.05)
+    assert linear == 0.0
+    assert angular > 0.3  # towards the floor it may not enter
+
+
+def test_floor_off_limits_far_to_one_side_does_not_hold_it_back() -> None:
+    linear, _ = first_command(lambda points: points[:, 1] > -1.0)
+    assert linear > 0.2

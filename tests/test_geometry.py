@@ -1,4 +1,4 @@
-"""The robot's planar geometry (``robots.domain.se2``): poses, frames and angles."""
+"""The robot's planar geometry (``cloudnav_core.se2``): poses, frames and angles."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from robots.domain.se2 import (
+from cloudnav_core.se2 import (
     ahead,
     angle_between,
     compose,

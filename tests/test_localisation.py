@@ -12,6 +12,8 @@ from typing import Any
 import numpy as np
 import pytest
 
+from cloudnav_core.params import BeamModel
+from cloudnav_core.se2 import Pose
 from maps.domain.demo_building import DemoTag, demo_building
 from robots.agent.experiments import localisation as experiment
 from robots.agent.experiments.localisation import Tick, simulate, submap_grid
@@ -20,8 +22,6 @@ from robots.agent.localisation import NotLocalisedError, ParticleFilter, kld_cou
 from robots.agent.relocalise import robot_pose_from_tag
 from robots.agent.sim.laser import Laser
 from robots.agent.sim.world import demo_world, world_from_grid
-from robots.domain.params import BeamModel
-from robots.domain.se2 import Pose
 
 RES = 0.05
 ROOM_ORIGIN = (-0.2, -0.2, 0.0)

@@ -14,13 +14,13 @@ import numpy as np
 import pytest
 from django.contrib.auth.models import User
 
+from cloudnav_core.messages import pose_stamped
 from maps import services, versions
 from maps.domain.mapfile import MapMetadata, export_map, load_map_upload, map_yaml_text
 from maps.mapping.upkeep import UpkeepRunner
 from maps.models import Building, ChangeProposal, SubMap
 from robots.agent.sim.laser import Laser, LaserSpec
 from robots.agent.sim.world import world_from_grid
-from telemetry.domain.messages import pose_stamped
 from tests.conftest import FakeHub, client_for
 from tests.test_upkeep import RES, STORED, TRUTH
 
@@ -45,12 +45,10 @@ def drive_through(runner: UpkeepRunner, hub: FakeHub, seed: int) -> None:
             pose = (ax + t * (bx - ax), ay + t * (by - ay), heading)
             hub.send("/r1/pose", dict(pose_stamped("boccioni_1/Lab", pose, 1.0)))
             hub.send("/r1/scan", laser.message(laser.scan(pose), 1.0))
-            runner.process(list(runner.queue))
-            runner.queue.clear()
+            runner.process(runner.queue.take_all())
     hub.send("/r1/pose", dict(pose_stamped("boccioni_1/CorridorA", (0.0, 0.0, 0.0), 1.0)))
     hub.send("/r1/scan", laser.message(laser.scan((1.0, 1.0, 0.0)), 1.0))
-    runner.process(list(runner.queue))
-    runner.queue.clear()
+    runner.process(runner.queue.take_all())
 
 
 @pytest.fixture
@@ -134,6 +132,7 @@ def drive_unchanged(
     start: float,
     pose_first: bool = True,
     through: Callable[[int, str], bool] | None = None,
+    truth: np.ndarray = STORED,
 ) -> float:
     """r1 drives a loop in the unchanged lab at 1 m/s scanning at 5 Hz (20 cm between
     scans), stamping each scan and the pose it gives for it alike, from ``start`` (its own
@@ -141,7 +140,7 @@ def drive_unchanged(
     robot's AMCL publishes the pose of a scan after it). ``through(i, topic)``: whether the
     i-th message on ``topic`` gets through (a congested robot drops telemetry). Returns
     the clock at the end."""
-    laser = Laser(world_from_grid(STORED, (0.0, 0.0), RES), LaserSpec(), seed=seed)
+    laser = Laser(world_from_grid(truth, (0.0, 0.0), RES), LaserSpec(), seed=seed)
     corners = [(1.2, 1.2), (4.8, 1.2), (4.8, 4.8), (1.2, 4.8), (1.2, 1.2)]
     stamp = start
     index = 0
@@ -158,8 +157,7 @@ def drive_unchanged(
             for topic, message in messages if pose_first else messages[::-1]:
                 if through is None or through(index, topic):
                     hub.send(topic, message)
-    runner.process(list(runner.queue))
-    runner.queue.clear()
+    runner.process(runner.queue.take_all())
     return stamp
 
 
@@ -216,8 +214,7 @@ def test_a_robots_pass_ends_when_it_leaves_and_after_a_minute_of_its_own_clock(
     elsewhere = dict(pose_stamped("boccioni_1/CorridorA", (0.0, 0.0, 0.0), clock + 0.1))
     hub.send("/r1/pose", elsewhere)
     hub.send("/r1/scan", runner_scan(clock + 0.1))
-    runner.process(list(runner.queue))
-    runner.queue.clear()
+    runner.process(runner.queue.take_all())
     assert held.evidence.passes == 1  # it left the lab
     clock = drive_unchanged(runner, hub, 2, clock + 100.0)  # back, much later
     assert held.evidence.passes == 1  # a new pass, not ended by the old one's start
@@ -229,3 +226,20 @@ def test_a_robots_pass_ends_when_it_leaves_and_after_a_minute_of_its_own_clock(
 def runner_scan(stamp: float) -> dict[str, Any]:
     laser = Laser(world_from_grid(STORED, (0.0, 0.0), RES), LaserSpec(), seed=0)
     return dict(laser.message(laser.scan((1.0, 1.0, 0.0)), stamp))
+
+
+def test_another_robot_waiting_in_the_sub_map_is_not_proposed(lab: SubMap) -> None:
+    """r2 stands at (2.5, 3) m in the lab (it said so); r1 sees its body on every pass."""
+    waiting = np.array(STORED, copy=True)
+    waiting[57:64, 47:54] = 100
+    hub = FakeHub("r1", "r2")
+    runner = UpkeepRunner(hub)
+    runner.sync_taps()
+    hub.send("/r2/pose", dict(pose_stamped("boccioni_1/Lab", (2.52, 2.97, 0.0), 1000.0)))
+    clock = 1000.0
+    for seed in (1, 2, 3):
+        clock = drive_unchanged(runner, hub, seed, clock, truth=waiting)
+        runner.maps["boccioni_1/Lab"].evidence.end_pass("r1")
+    runner.save()
+    assert runner.maps["boccioni_1/Lab"].evidence.scans >= 90
+    assert not ChangeProposal.objects.exists()

@@ -1,4 +1,4 @@
-"""ROS messages as the server and the robot both write them (``telemetry.domain.messages``)."""
+"""ROS messages as the server and the robot both write them (``cloudnav_core.messages``)."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from telemetry.domain.messages import (
+from cloudnav_core.messages import (
     covariance_6x6,
     odometry,
     path_of,
@@ -15,7 +15,7 @@ from telemetry.domain.messages import (
     twist_2d,
     yaw_of,
 )
-from telemetry.domain.times import now_stamp, stamp
+from cloudnav_core.times import now_stamp, stamp
 
 
 def test_a_wall_clock_stamp_keeps_its_nanoseconds():

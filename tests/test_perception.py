@@ -8,7 +8,8 @@ import cv2
 import numpy as np
 import pytest
 
-from robots.agent.perception import CameraModel, TagDetector
+from cloudnav_core.camera import CameraModel
+from robots.agent.perception import TagDetector
 from robots.agent.sim.camera import Camera
 from robots.agent.sim.world import SimTag, demo_world
 from tests.test_sim_camera import ENTRANCE, facing, tag_of

@@ -11,9 +11,10 @@ import pytest
 from skimage.graph import route_through_array
 
 from benchmarks.planner import run as run_benchmark
+from cloudnav_core.grid import cell_of, centre_of
+from cloudnav_core.se2 import Point
 from maps.domain import planning
 from maps.domain.demo_building import demo_building, submap_grid
-from maps.domain.grid import cell_of, centre_of
 from maps.domain.obstacle_course import obstacle_course
 from maps.domain.planning import (
     Costmap,
@@ -25,7 +26,6 @@ from maps.domain.planning import (
     plan_on,
     plan_path,
 )
-from robots.domain.se2 import Point
 
 Grid = npt.NDArray[np.int8]
 RES = 0.05

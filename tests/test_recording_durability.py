@@ -105,7 +105,9 @@ def test_retention_never_deletes_a_file_this_process_is_writing(tmp_path):
 
 
 def start_recorder(root: Path) -> Recorder:
-    recorder = Recorder(RecorderConfig(root=root), lambda _robot: DEFAULT, lambda: [])
+    recorder = Recorder(
+        RecorderConfig(root=root), lambda robots: dict.fromkeys(robots, DEFAULT), lambda: []
+    )
     recorder.start()
     return recorder
 

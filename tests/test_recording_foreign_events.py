@@ -34,7 +34,12 @@ def test_the_recorder_takes_the_events_others_wrote_for_its_robots_once(db, tmp_
     make_robot(name="r2", buildings=[building])
     write_events([goal_sent("r1", 1.0)], origin="before")  # older than the recorder: not its
     config = RecorderConfig(root=tmp_path, events_seconds=0.0)
-    recorder = Recorder(config, lambda _r: DEFAULT, lambda: [], foreign_events=foreign_events)
+    recorder = Recorder(
+        config,
+        lambda robots: dict.fromkeys(robots, DEFAULT),
+        lambda: [],
+        foreign_events=foreign_events,
+    )
     recorder.connected("r1")
     recorder.step()
     write_events([goal_sent("r1", 2.0)], origin="another-process")

@@ -21,7 +21,12 @@ POSE_TOPIC = Topic("/r1/pose", "geometry_msgs/PoseStamped")
 def make_recorder(root: Path, plan: Plan = DEFAULT, **kwargs) -> Recorder:
     kwargs.setdefault("queue_size", 100)
     clock = kwargs.pop("clock", time.time)
-    return Recorder(RecorderConfig(root=root, **kwargs), lambda _robot: plan, lambda: [], clock)
+    return Recorder(
+        RecorderConfig(root=root, **kwargs),
+        lambda robots: dict.fromkeys(robots, plan),
+        lambda: [],
+        clock,
+    )
 
 
 def recorded(root: Path, robot: str = "r1") -> list[files.Record]:
@@ -52,6 +57,21 @@ def test_it_counts_what_a_flood_makes_it_drop_and_never_holds_more_than_its_queu
     recorder.disconnected("r1")
     recorder.step()
     assert len(recorded(tmp_path)) == 50
+
+
+def test_robots_that_arrive_have_their_plans_read_and_the_others_wait_for_the_round(tmp_path):
+    asked: list[list[str]] = []
+
+    def plans(robots: list[str]) -> dict[str, Plan]:
+        asked.append(sorted(robots))
+        return dict.fromkeys(robots, DEFAULT)
+
+    recorder = Recorder(RecorderConfig(root=tmp_path), plans, lambda: [])
+    for robot in ("r1", "r2", "r3"):
+        recorder.connected(robot)
+        recorder.step()
+    recorder.step()  # all planned: nothing asked until the next round
+    assert asked == [["r1"], ["r2"], ["r3"]]  # not everyone again for each arrival
 
 
 def test_the_plan_chooses_the_topics_and_the_camera_rate(tmp_path):

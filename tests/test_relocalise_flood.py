@@ -27,11 +27,11 @@ import pytest
 import websockets
 from channels.db import database_sync_to_async
 
+from cloudnav_core.messages import CompressedImage, compressed_image
 from maps.models import Building
 from robots.agent.hardware import encode_jpeg
 from robots.agent.sim.camera import Camera
 from robots.agent.sim.world import demo_world
-from telemetry.domain.messages import CompressedImage, compressed_image
 from tests.conftest import make_user
 from tests.fixtures_live import LiveServer, LiveServers, session_cookie
 

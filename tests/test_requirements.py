@@ -1,7 +1,7 @@
 """Runtime requirements are runtime requirements: every distribution the server's own code
-imports (``maps``, ``robots``, ``telemetry``, ``cloudnav_web``, tests and benchmarks
-aside) is pinned in ``requirements.txt``'s runtime section, above ``# Tests, lint and
-benchmarks`` (issue 24 point 6)."""
+imports (``cloudnav_core``, ``maps``, ``robots``, ``telemetry``, ``cloudnav_web``, tests
+and benchmarks aside) is pinned in ``requirements.txt``'s runtime section, above ``# Tests,
+lint and benchmarks`` (issue 24 point 6)."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
-PRODUCT = ("maps", "robots", "telemetry", "cloudnav_web")
+PRODUCT = ("cloudnav_core", "maps", "robots", "telemetry", "cloudnav_web")
 TEST_SECTION = "# Tests, lint and benchmarks"
 
 

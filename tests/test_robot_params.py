@@ -1,4 +1,4 @@
-"""A robot's parameters (``robots.domain.params``): one object, its defaults documented
+"""A robot's parameters (``cloudnav_core.params``): one object, its defaults documented
 once in the README."""
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ import re
 from pathlib import Path
 from typing import Any
 
-from robots.domain.params import RobotConfig
+from cloudnav_core.params import RobotConfig
 
 README = Path(__file__).resolve().parent.parent / "README.md"
 ROW = re.compile(r"^\| `([a-z0-9_.]+)` \| (.+?) \| .+ \|$")

@@ -6,13 +6,14 @@ import json
 
 import pytest
 
+from cloudnav_core import topics
+from cloudnav_core.times import parse_stamp, stamp
 from telemetry.domain import names
 from telemetry.domain.bus import SubscribeParams, TopicBus
 from telemetry.domain.encoding import Outgoing, Wire, to_json, ws_frame
 from telemetry.domain.fragments import PIECE_OVERHEAD, Reassembler, split
 from telemetry.domain.limits import ByteBudget
 from telemetry.domain.outbox import Outbox
-from telemetry.domain.times import parse_stamp, stamp
 from telemetry.exceptions import InvalidName, LimitReached, TypeConflict
 from tests.timers import ManualTimers
 
@@ -145,7 +146,7 @@ class Timers:
 
 
 def test_fan_out_encodes_once_for_many_subscribers():
-    bus = TopicBus(scheduler=Timers(), type_hint=names.ROBOT_TOPIC_TYPES.get)
+    bus = TopicBus(scheduler=Timers(), type_hint=topics.ROBOT_TOPIC_TYPES.get)
     peers = [Peer(f"p{n}") for n in range(50)]
     for peer in peers:
         bus.subscribe(peer, "/r1/pose", "geometry_msgs/PoseStamped", SubscribeParams())

@@ -11,11 +11,13 @@ from django.contrib.auth import authenticate
 from django.contrib.auth.models import User
 from django.core.management import call_command
 
+from maps import services
 from maps.domain import demo_building
-from maps.models import Building, EnvironmentalTag, SubMap, TopologyEdge
+from maps.models import Building, EnvironmentalTag, ParkingSpot, SubMap, TopologyEdge
 from tests.conftest import client_for
 
 PAPER_ROUTE = list(demo_building.PAPER_ROUTE)
+SEEDED = (SubMap, EnvironmentalTag, TopologyEdge, ParkingSpot)
 
 
 @pytest.fixture
@@ -54,14 +56,10 @@ def test_there_is_an_entrance_tag_at_corridor_a(seeded: Path) -> None:
 
 
 def test_running_it_again_changes_nothing(seeded: Path) -> None:
-    before = [
-        list(m.objects.order_by("pk").values()) for m in (SubMap, EnvironmentalTag, TopologyEdge)
-    ]
+    before = [list(m.objects.order_by("pk").values()) for m in SEEDED]
     tokens = seeded.read_text()
     call_command("seed_demo", "--tokens-file", str(seeded), stdout=io.StringIO())
-    after = [
-        list(m.objects.order_by("pk").values()) for m in (SubMap, EnvironmentalTag, TopologyEdge)
-    ]
+    after = [list(m.objects.order_by("pk").values()) for m in SEEDED]
     assert before == after
     assert seeded.read_text() == tokens
 
@@ -102,15 +100,12 @@ def test_seeding_again_keeps_what_people_changed(seeded: Path) -> None:
     )
     TopologyEdge.objects.filter(pk=TopologyEdge.objects.order_by("pk")[0].pk).update(cost=42)
     SubMap.objects.filter(code="RoomA").update(node_x=-7.0, name="Room A, renamed")
-    before = [
-        list(m.objects.order_by("pk").values()) for m in (SubMap, EnvironmentalTag, TopologyEdge)
-    ]
+    ParkingSpot.objects.filter(name="P-Atrium1-SW").update(x=19.5, name="my own corner")
+    before = [list(m.objects.order_by("pk").values()) for m in SEEDED]
 
     call_command("seed_demo", "--tokens-file", str(seeded), stdout=io.StringIO())
 
-    after = [
-        list(m.objects.order_by("pk").values()) for m in (SubMap, EnvironmentalTag, TopologyEdge)
-    ]
+    after = [list(m.objects.order_by("pk").values()) for m in SEEDED]
     assert after == before
     assert EnvironmentalTag.objects.filter(pk=placed.pk).exists()
     assert authenticate(username="admin", password="a-secret-of-my-own") is not None
@@ -123,3 +118,29 @@ def test_seeding_again_creates_what_is_missing(seeded: Path) -> None:
     call_command("seed_demo", "--tokens-file", str(seeded), stdout=io.StringIO())
     assert EnvironmentalTag.objects.count() == len(demo_building.demo_building("x").tags)
     assert authenticate(username="viewer", password="viewer-demo") is not None
+
+
+def test_it_seeds_a_parking_spot_for_every_demo_robot_where_a_robot_can_stand(
+    seeded: Path,
+) -> None:
+    spots = list(ParkingSpot.objects.select_related("submap"))
+    assert len(spots) == len(demo_building.demo_building("x").parking)
+    assert len(spots) >= len(json.loads(seeded.read_text()))
+    for spot in spots:
+        services.goal_check_of(spot.submap).check((spot.x, spot.y), tolerance=0.0)
+
+
+def test_seeding_again_never_puts_a_demo_spot_over_one_people_made(seeded: Path) -> None:
+    demo = ParkingSpot.objects.get(name="P-Atrium3-SW")
+    mine = {"building": demo.building, "submap": demo.submap, "yaw": 0.0}
+    demo.delete()
+    ParkingSpot.objects.create(name="by the sofa", x=demo.x + 0.5, y=demo.y, **mine)
+    ParkingSpot.objects.get(name="P-RoomB-SW").delete()
+    ParkingSpot.objects.create(name="P-RoomB-SW", x=28.0, y=9.3, **mine)  # its name, in Atrium 3
+
+    call_command("seed_demo", "--tokens-file", str(seeded), stdout=io.StringIO())
+
+    assert not ParkingSpot.objects.filter(name="P-Atrium3-SW").exists()
+    assert ParkingSpot.objects.get(name="by the sofa").x == demo.x + 0.5
+    assert ParkingSpot.objects.get(name="P-RoomB-SW").submap == demo.submap
+    assert ParkingSpot.objects.count() == len(demo_building.demo_building("x").parking)

@@ -6,9 +6,9 @@ import math
 
 import pytest
 
+from cloudnav_core.params import BodyLimits
 from robots.agent.sim.body import EXACT_ODOMETRY, DiffDriveBody, OdometryNoise
 from robots.agent.sim.world import demo_world
-from robots.domain.params import BodyLimits
 
 # Corridor A runs east-west between walls at y = 22.0 and y = 24.4, from x = 3.8 to 17.8.
 CORRIDOR = (5.0, 23.2)

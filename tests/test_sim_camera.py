@@ -10,8 +10,9 @@ from dataclasses import replace
 import cv2
 import numpy as np
 
+from cloudnav_core.camera import CameraModel
 from robots.agent.hardware import compressed_image_message, encode_jpeg
-from robots.agent.perception import CameraModel, TagDetector
+from robots.agent.perception import TagDetector
 from robots.agent.sim.camera import Camera
 from robots.agent.sim.world import Box, SimTag, World, demo_world
 

@@ -7,8 +7,8 @@ import math
 
 import numpy as np
 
+from cloudnav_core.grid import cell_of
 from maps.domain.demo_building import demo_building
-from maps.domain.grid import cell_of
 from robots.agent.sim.changes import (
     ChangeConfig,
     changed_demo_world,

@@ -8,10 +8,11 @@ import math
 import cv2
 import numpy as np
 
-from robots.agent.perception import CameraModel, TagDetector, pinhole_calibration
+from cloudnav_core.camera import CameraModel
+from cloudnav_core.messages import camera_info, depth_image, depth_of
+from robots.agent.perception import TagDetector, pinhole_calibration
 from robots.agent.sim.camera import Camera
 from robots.agent.sim.world import demo_world
-from telemetry.domain.messages import camera_info, depth_image, depth_of
 
 CORRIDOR_A = (5.0, 23.2, 0.4)  # looking east along Corridor A, towards its north wall
 ATRIUM_1 = (20.0, 22.0, 2.0)

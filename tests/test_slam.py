@@ -11,7 +11,9 @@ import pytest
 
 from benchmarks.mapping import compare_with_truth, drive_tour
 from maps.domain.demo_building import demo_building
-from maps.domain.slam import Mapper, Scan, SlamParams
+from maps.domain.slam.mapper import Mapper
+from maps.domain.slam.params import SlamParams
+from maps.domain.slam.scans import Scan
 from maps.exceptions import OutsideExtent
 from robots.agent.sim.changes import ChangeConfig, changed_demo_world, changed_grid, plan_changes
 
@@ -35,7 +37,7 @@ def test_a_toured_room_is_mapped_as_the_truth_has_it(tour) -> None:
     grid, origin = mapper.grid()
     truth = changed_grid(changes, building)
     agreement, rms = compare_with_truth(
-        grid, origin, truth, building.world_origin, changes.rooms[0]
+        grid, origin, truth, building.world_origin, changes.rooms[0].interior
     )
     assert agreement >= 0.95
     assert rms <= 1.0

@@ -8,6 +8,8 @@ import math
 import numpy as np
 import pytest
 
+from cloudnav_core.params import RobotConfig
+from cloudnav_core.se2 import compose, inverse, transform
 from robots.agent.teb import (
     Band,
     TimedElasticBand,
@@ -16,8 +18,6 @@ from robots.agent.teb import (
     resized,
 )
 from robots.agent.tracking import ObstacleTracker, SeenObstacles
-from robots.domain.params import RobotConfig
-from robots.domain.se2 import compose, inverse, transform
 
 CONFIG = RobotConfig(local_planner="teb")
 BODY = CONFIG.body

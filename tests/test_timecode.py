@@ -10,7 +10,7 @@ import cv2
 import numpy as np
 import pytest
 
-from telemetry.domain import timecode
+from cloudnav_core import timecode
 from telemetry.domain.camera_feed import camera_frames
 from telemetry.domain.jpeg import decode as jpeg_decode
 from telemetry.domain.video import Frame

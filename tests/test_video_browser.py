@@ -16,9 +16,9 @@ from pathlib import Path
 import pytest
 from playwright.sync_api import BrowserContext, Page, expect
 
+from cloudnav_core.messages import compressed_image
 from robots.agent.client import RosbridgeClient
 from telemetry.domain.camera_feed import camera_frames
-from telemetry.domain.messages import compressed_image
 from tests.browser_support import ROBOT, Demo, open_as, screenshot
 from tests.fixtures_live import agent_process
 

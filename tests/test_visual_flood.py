@@ -24,11 +24,11 @@ import numpy as np
 import pytest
 import websockets
 
+from cloudnav_core.messages import compressed_depth, compressed_image
 from maps.models import Keyframe
 from robots.agent.hardware import encode_jpeg
 from robots.agent.sim.camera import Camera
 from robots.agent.sim.world import demo_world
-from telemetry.domain.messages import compressed_depth, compressed_image
 from tests.fixtures_live import LiveServer, LiveServers, operator_handshake
 
 QUEUE = 2

@@ -15,7 +15,9 @@ import numpy as np
 import pytest
 from PIL import Image as PILImage
 
-from maps.domain.keyframes import FeatureExtractor, Intrinsics, Keyframe, Mount
+from cloudnav_core.camera import Intrinsics, Mount
+from cloudnav_core.messages import depth_image as raw_depth_message
+from maps.domain.keyframes import FeatureExtractor, Keyframe
 from maps.domain.visual_input import (
     MAX_JPEG_SCANS,
     depth_image,
@@ -29,7 +31,6 @@ from maps.exceptions import KeyframeError
 from robots.agent.hardware import encode_jpeg
 from robots.agent.sim.camera import Camera
 from robots.agent.sim.world import demo_world
-from telemetry.domain.messages import depth_image as raw_depth_message
 
 PIXELS = 1280 * 960
 

@@ -15,21 +15,22 @@ from asgiref.sync import sync_to_async
 from django.contrib.auth.models import User
 
 from benchmarks.visual_tracking import START, corridor_tour, rendered
+from cloudnav_core import messages
+from cloudnav_core.camera import CameraModel, Intrinsics
+from cloudnav_core.se2 import Pose, compose
 from maps.domain.demo_building import demo_building
-from maps.domain.keyframes import Intrinsics
 from maps.domain.visual_grid import grid_of_views, obstacle_scan
-from maps.domain.visual_mapping import Frame, VisualMapper, frame_of
+from maps.domain.visual_mapping import GRID_TOLERANCE, Frame, VisualMapper, frame_of
+from maps.domain.visual_slam import _moved
 from maps.domain.vocabulary import default_vocabulary
 from maps.exceptions import KeyframeError
 from maps.mapping import runner as mapping_runner
 from maps.mapping.runner import MappingRunner
 from maps.models import Building, Keyframe, MappingSession, SubMap
-from robots.agent.perception import CameraModel, pinhole_calibration
+from robots.agent.perception import pinhole_calibration
 from robots.agent.sim.camera import Camera
 from robots.agent.sim.world import world_from_grid
-from robots.domain.se2 import Pose, compose
 from robots.models import Robot
-from telemetry.domain import messages
 from tests.conftest import FakeHub, client_for, make_robot
 from tests.test_mapping_sessions import _drained, _session, _until, online
 
@@ -197,6 +198,7 @@ async def test_a_visual_session_maps_from_camera_frames_and_publishes_its_keyfra
         "/r1/camera/depth/image/compressedDepth",
         "/r1/camera/camera_info",
         "/r1/odom",
+        "/r2/camera/depth/image/compressedDepth",  # r2 has no session: told if it streams
     }
     worker = runner.workers[session.pk]
     for index, (image, depth, info) in enumerate(sent):
@@ -291,3 +293,28 @@ def test_a_tour_out_and_back_closes_a_loop_and_its_grid_agrees_with_the_building
     agreement = (grid[rows, cols][both] == expected[both]).mean()
     assert both.sum() > 5000  # the corridor, metres of it
     assert agreement > 0.95  # the rest: walls found half a cell to one side
+
+
+def test_the_grid_is_made_again_only_when_keyframes_moved_past_the_tolerance() -> None:
+    poses = [compose(START, (0.1 * i, 0.0, 0.0)) for i in range(12)]
+    mapper = VisualMapper(default_vocabulary(), START)
+    for frame in frames(poses):
+        mapper.add(frame)
+    assert mapper.stats.keyframes >= 3
+    first, origin = mapper.grid()
+
+    def shift_keyframes(by: float) -> None:  # as a loop closure moves them
+        graph = mapper.slam._graph
+        graph.keyframes = [_moved(k, compose(k.pose, (by, 0.0, 0.0))) for k in graph.keyframes]
+
+    shift_keyframes(GRID_TOLERANCE[0] / 2)
+    kept, kept_origin = mapper.grid()
+    assert kept_origin == origin
+    assert np.array_equal(kept, first)  # within the tolerance: the grid as it was
+    shift_keyframes(0.1)
+    moved, moved_origin = mapper.grid()
+    views = list(zip(mapper.path, mapper.scans, strict=True))
+    fresh, fresh_origin = grid_of_views(views, mapper.resolution)
+    assert not np.array_equal(moved, first)
+    assert moved_origin == fresh_origin
+    assert np.array_equal(moved, fresh)  # past it: made again at the keyframes' poses

@@ -1,15 +1,21 @@
 """A visual mapping session end to end: a camera-only simulated robot (``--sensors
 rgbd``) in its own process sends its camera through a real server, the server's mapping
-runner tracks it, writes the grid from the keyframes' depth, and publishing makes a
-sub-map version whose relocalisation map is the session's keyframes."""
+runner tracks it, writes the grid from the keyframes' depth, serves its 3D maps so far,
+and publishing makes a sub-map version whose relocalisation map is the session's
+keyframes, with its PLY cloud and OctoMap beside it."""
 
 from __future__ import annotations
 
+import io
 import json
 import time
 from pathlib import Path
 from typing import Any
 
+import httpx
+import numpy as np
+import plyfile
+import pyoctomap
 import pytest
 import websockets
 from asgiref.sync import sync_to_async
@@ -102,7 +108,27 @@ async def test_a_camera_only_robot_maps_through_the_server_into_a_sub_map_versio
     assert (grid == 0).any()  # its floor
     assert live.stats["lost"] == 0
     assert live.stats["refused"] == 0
-    submap = await sync_to_async(_finish_and_publish)(session.pk)
+    async with httpx.AsyncClient(base_url=daphne_server.url, headers=handshake) as http:
+        so_far = await http.get(f"/api/mapping/sessions/{session.pk}/cloud.ply", timeout=60)
+        assert so_far.status_code == 200
+        cloud = plyfile.PlyData.read(io.BytesIO(so_far.content))["vertex"]
+        assert cloud.count > 1000
+        height = np.asarray(cloud["z"])
+        assert height.min() > -0.1  # nothing below the floor...
+        assert height.max() > 1.0  # ...and the corridor's walls standing up
+        submap = await sync_to_async(_finish_and_publish)(session.pk)
+        building = await sync_to_async(lambda: submap.building.code)()
+        version = f"/api/buildings/{building}/maps/VisualPorch/versions/1"
+        published = await http.get(f"{version}/cloud.ply")
+        assert plyfile.PlyData.read(io.BytesIO(published.content))["vertex"].count > 1000
+        octomap = await http.get(f"{version}/octomap.bt")
+        assert octomap.status_code == 200
+    path = camera_only_agent.parent / "map.bt"
+    path.write_bytes(octomap.content)
+    tree = pyoctomap.OcTree(0.1)
+    assert tree.readBinary(str(path))
+    occupied = sum(tree.isNodeOccupied(leaf.current_node) for leaf in tree.begin_leafs())
+    assert occupied > 100
     assert submap.code == "VisualPorch"
     assert submap.revision == 1
     assert await Keyframe.objects.filter(submap=submap, robot=ROBOT).acount() >= 4

@@ -9,7 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from maps.domain.keyframes import FeatureExtractor, Intrinsics, Keyframe, Mount
+from cloudnav_core.camera import Intrinsics, Mount
+from maps.domain.keyframes import FeatureExtractor, Keyframe
 from maps.domain.relocalisation import (
     KeyframeIndex,
     Params,

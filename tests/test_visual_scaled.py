@@ -18,11 +18,11 @@ import httpx
 import pytest
 import websockets
 
+from cloudnav_core.messages import compressed_image
 from robots.agent.hardware import encode_jpeg
 from robots.agent.sim.camera import Camera
 from robots.agent.sim.world import demo_world
 from robots.agent.visual import keyframe_document
-from telemetry.domain.messages import compressed_image
 from tests.fixtures_live import run_manage
 from tests.test_visual_server import SURVEY, WAKE_UP
 

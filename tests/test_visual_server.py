@@ -15,17 +15,17 @@ import pytest
 from channels.db import database_sync_to_async
 from django.core.management import call_command
 
-from maps.models import Building, Keyframe
-from maps.visual.worker import ingest_queue
-from robots.agent.hardware import encode_jpeg
-from robots.agent.sim.camera import Camera
-from robots.agent.sim.world import demo_world
-from telemetry.domain.messages import (
+from cloudnav_core.messages import (
     CompressedImage,
     compressed_depth,
     compressed_image,
     depth_image,
 )
+from maps.models import Building, Keyframe
+from maps.visual.worker import ingest_queue
+from robots.agent.hardware import encode_jpeg
+from robots.agent.sim.camera import Camera
+from robots.agent.sim.world import demo_world
 from tests.conftest import client_for, make_building, make_robot, make_user
 from tests.test_visual_input import progressive_jpeg
 

@@ -9,12 +9,12 @@ import numpy as np
 import pytest
 
 from benchmarks.visual_tracking import START, corridor_tour, rendered
+from cloudnav_core.se2 import Pose, angle_between, compose, relative
 from maps.domain.visual_slam import State, Tracked, VisualSlam
 from maps.domain.vocabulary import default_vocabulary
 from maps.exceptions import KeyframeError
 from robots.agent.sim.camera import Camera
 from robots.agent.sim.world import demo_world
-from robots.domain.se2 import Pose, angle_between, compose, relative
 
 
 def slam() -> VisualSlam:

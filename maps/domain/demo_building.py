@@ -35,8 +35,9 @@ from functools import lru_cache
 import numpy as np
 import numpy.typing as npt
 
+from cloudnav_core.grid import FREE_THRESH, OCCUPIED_THRESH, cell_of
+from cloudnav_core.se2 import ahead
 from maps.domain.mapfile import MapMetadata, occupancy_from_image, open_map_image
-from robots.domain.se2 import ahead
 
 BUILDING_CODE = "boccioni_1"
 BUILDING_NAME = "Boccioni building, floor 1"
@@ -72,13 +73,6 @@ OCCUPIED, FREE, UNKNOWN = 100, 0, -1
 """``nav_msgs/OccupancyGrid`` values of the world grid."""
 _GREY = {OCCUPIED: 0, FREE: 254, UNKNOWN: 205}
 """map_saver's grey levels: they load the same under every map_server threshold rule."""
-
-OCCUPIED_THRESH = 0.65
-FREE_THRESH = 0.196
-
-_BOUNDARY_NUDGE = 1e-6
-"""In cells: a point on a cell boundary belongs to the cell above or right of it, even
-when float division lands just short (16.2 / 0.05 is 323.99999999999994)."""
 
 Grid = npt.NDArray[np.int8]
 
@@ -130,6 +124,19 @@ class DemoEdge:
 
 
 @dataclass(frozen=True)
+class DemoParking:
+    """A parking spot: where a robot waits out of the others' way, in a corner of an
+    atrium or a room (``PARKING_INSET`` from its walls, away from doorways and tags),
+    facing the space's middle."""
+
+    name: str
+    submap: str
+    x: float
+    y: float
+    yaw: float
+
+
+@dataclass(frozen=True)
 class DemoBuilding:
     """The whole demo building.
 
@@ -154,6 +161,7 @@ class DemoBuilding:
     start_pose: tuple[float, float, float]
     cloud_location: str
     robot_starts: tuple[tuple[float, float, float], ...] = ()
+    parking: tuple[DemoParking, ...] = ()
 
 
 # ---------------------------------------------------------------------------------------
@@ -233,6 +241,18 @@ _DOORWAYS = (
     _Doorway("RoomB", "Atrium2", _Rect(36.8, 9.8, 37.0, 11.0), tag_at=9.2),
 )
 
+PARKING_INSET = 0.7
+"""Metres from a parking spot to the two walls of its corner."""
+_PARKING = (
+    ("Atrium1", ("SW", "SE", "NW", "NE")),
+    ("Atrium2", ("SE", "NE")),  # SW is a cabinet, NW the back door from Room B
+    ("Atrium3", ("SW", "SE", "NE")),  # NW is a sofa
+    ("RoomA", ("SE", "NE")),
+    ("RoomB", ("SW",)),
+)
+"""Where the parking spots are: corners (compass points) of spaces' main interiors. The
+corridors have none: a robot parked there would stand where the others pass."""
+
 _ENTRANCE_DOOR = _Rect(3.6, 23.2, 3.8, 24.4)
 _PORCH_FRONT = _Rect(1.6, 21.0, 1.8, 25.4)
 """The porch is open to the street on its west side; the street is outside the map."""
@@ -291,6 +311,7 @@ def demo_building(cloud_location: str = "http://127.0.0.1:8000") -> DemoBuilding
         world=world,
         start_pose=_start_pose(),
         robot_starts=tuple(_facing_the_entrance_tag(d, math.radians(a)) for d, a in ROBOT_STARTS),
+        parking=_parking(),
         cloud_location=cloud_location,
     )
 
@@ -323,9 +344,7 @@ def world_to_cell(
     origin; a yaw after x, y is ignored and must be 0); row 0 is the bottom row. The
     result may lie outside the grid: callers check the bounds.
     """
-    col = math.floor((x - origin[0]) / resolution + _BOUNDARY_NUDGE)
-    row = math.floor((y - origin[1]) / resolution + _BOUNDARY_NUDGE)
-    return row, col
+    return cell_of((x, y), origin, resolution)
 
 
 def occupancy_to_pgm(grid: Grid) -> bytes:
@@ -506,6 +525,22 @@ def _edge(doorway: _Doorway) -> DemoEdge:
     b = _space(doorway.b).interiors[0].centre
     cost = math.dist(a, door) + math.dist(door, b)
     return DemoEdge(doorway.a, doorway.b, round(cost, 2))
+
+
+def _parking() -> tuple[DemoParking, ...]:
+    """The parking spots of ``_PARKING``, named ``P-<sub-map>-<corner>``."""
+    return tuple(
+        _parking_in(_space(code), corner) for code, corners in _PARKING for corner in corners
+    )
+
+
+def _parking_in(space: _Space, corner: str) -> DemoParking:
+    room = space.interiors[0]
+    x = room.x0 + PARKING_INSET if corner.endswith("W") else room.x1 - PARKING_INSET
+    y = room.y0 + PARKING_INSET if corner.startswith("S") else room.y1 - PARKING_INSET
+    middle_x, middle_y = room.centre
+    yaw = round(math.atan2(middle_y - y, middle_x - x), 6)
+    return DemoParking(f"P-{space.code}-{corner}", space.code, _metres(x), _metres(y), yaw)
 
 
 def _start_pose() -> tuple[float, float, float]:

@@ -28,6 +28,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from cloudnav_core.camera import Intrinsics, Mount
 from maps.domain.vocabulary import Vocabulary
 from maps.exceptions import KeyframeError, said
 
@@ -43,46 +44,6 @@ DEPTH_EDGE = 0.05
 edge (a door frame's side, a wall's end) and its depth could belong to either side."""
 MIN_POINTS = 20
 """A keyframe with fewer 3D points than this is not worth keeping."""
-MIN_FOCAL, MAX_FOCAL = 1.0, 100_000.0
-"""Pixels: focal lengths outside these belong to no camera (a pinhole's field of view
-from nearly 180 degrees to a few thousandths of one at 640 px)."""
-
-
-@dataclass(frozen=True)
-class Intrinsics:
-    """A pinhole camera (no distortion): the robots' Xtion by default."""
-
-    width: int = 640
-    height: int = 480
-    fx: float = 525.0
-    fy: float = 525.0
-    cx: float = 319.5
-    cy: float = 239.5
-
-    def matrix(self) -> NDArray[np.float64]:
-        return np.array([[self.fx, 0, self.cx], [0, self.fy, self.cy], [0, 0, 1]], np.float64)
-
-    @classmethod
-    def from_k(cls, k: list[float] | tuple[float, ...], width: int, height: int) -> Intrinsics:
-        """From a ``CameraInfo``'s row-major ``K``; raises KeyframeError if it is not one."""
-        if len(k) != 9 or not all(math.isfinite(v) for v in k):
-            raise KeyframeError("camera_info", "K must be 9 finite numbers")
-        if not (MIN_FOCAL <= k[0] <= MAX_FOCAL and MIN_FOCAL <= k[4] <= MAX_FOCAL):
-            raise KeyframeError(
-                "camera_info", f"K's focal lengths must be within [{MIN_FOCAL}, {MAX_FOCAL}] px"
-            )
-        if not (0 <= k[2] <= width and 0 <= k[5] <= height):
-            raise KeyframeError("camera_info", "K's principal point must lie in the image")
-        return cls(width, height, float(k[0]), float(k[4]), float(k[2]), float(k[5]))
-
-
-@dataclass(frozen=True)
-class Mount:
-    """Where the camera sits on the robot: ``forward`` of its centre, ``height`` above
-    the floor, looking level along its heading."""
-
-    forward: float = 0.05
-    height: float = 0.25
 
 
 @dataclass(frozen=True, eq=False)

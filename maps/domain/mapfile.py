@@ -28,8 +28,9 @@ import numpy.typing as npt
 import yaml
 from PIL import Image
 
+from cloudnav_core.grid import FREE_THRESH, OCCUPIED_THRESH
+from cloudnav_core.messages import header, pose_2d
 from maps.exceptions import MapFileError, said
-from telemetry.domain.messages import header, pose_2d
 
 MapMode = Literal["trinary", "scale", "raw"]
 MAP_MODES: tuple[MapMode, ...] = ("trinary", "scale", "raw")
@@ -42,8 +43,6 @@ FREE = 0
 UNKNOWN = -1
 
 # What map_saver writes for a trinary map; its PGMs use 254 free, 0 occupied, 205 unknown.
-MAP_SAVER_OCCUPIED_THRESH = 0.65
-MAP_SAVER_FREE_THRESH = 0.196
 MAP_SAVER_FREE_PIXEL = 254
 MAP_SAVER_OCCUPIED_PIXEL = 0
 MAP_SAVER_UNKNOWN_PIXEL = 205
@@ -414,8 +413,8 @@ def export_map(
         image=image_name,
         mode="trinary" if trinary else "raw",
         negate=False,
-        occupied_thresh=MAP_SAVER_OCCUPIED_THRESH,
-        free_thresh=MAP_SAVER_FREE_THRESH,
+        occupied_thresh=OCCUPIED_THRESH,
+        free_thresh=FREE_THRESH,
     )
     return _pgm_bytes(pixels[::-1]), exported
 

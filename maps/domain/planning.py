@@ -32,15 +32,13 @@ import numba
 import numpy as np
 import numpy.typing as npt
 
-from maps.domain.grid import Cell, cell_of, centre_of, contains
-from robots.domain.se2 import Point
+from cloudnav_core.grid import OCCUPIED_AT, Cell, cell_of, cells_to_nearest, centre_of, contains
+from cloudnav_core.se2 import Point
 
 DEFAULT_ROBOT_RADIUS = 0.2
 """Metres: the radius ``plan_path`` (and the cloud's ``/cloudnav/plan_path``) inflates by
 for a caller that gives none. The simulated robot plans with its own
-(``robots.domain.params.RobotConfig.planning_radius``)."""
-OCCUPIED_THRESHOLD = 65
-"""Cells at or above this occupancy are obstacles (map_server's default 0.65)."""
+(``cloudnav_core.params.RobotConfig.planning_radius``)."""
 DEFAULT_TOLERANCE = 0.5
 """Metres: how far a start or goal inside an obstacle may move to a free cell (Nav2's
 planner tolerance)."""
@@ -144,7 +142,7 @@ def inflate(
     unknown_is_obstacle: bool = True,
     *,
     origin: Sequence[float] = (0.0, 0.0),
-    occupied_threshold: int = OCCUPIED_THRESHOLD,
+    occupied_threshold: int = OCCUPIED_AT,
     gradient_m: float = 0.0,
     gradient_weight: float = 1.0,
 ) -> Costmap:
@@ -159,7 +157,7 @@ def inflate(
     ``origin`` (x, y[, yaw ignored]) places cell (0, 0)'s corner in the map frame.
     Raises ValueError on a grid that is not 2-D or a non-positive resolution.
     """
-    cells = _clearance_in_cells(grid, resolution, unknown_is_obstacle, occupied_threshold)
+    cells = clearance_in_cells(grid, resolution, unknown_is_obstacle, occupied_threshold)
     # Compared in cells, with a hair of slack, so that a radius of exactly k cells blocks
     # the cells k away at every resolution (float32 metres would round either way).
     blocked = cells <= radius_m / resolution + 1e-4
@@ -173,7 +171,7 @@ def inflate(
     return Costmap(blocked, penalty, resolution, (origin[0], origin[1]), radius_m)
 
 
-def _clearance_in_cells(
+def clearance_in_cells(
     grid: npt.NDArray[np.int8],
     resolution: float,
     unknown_is_obstacle: bool,
@@ -187,9 +185,7 @@ def _clearance_in_cells(
     obstacle = grid >= occupied_threshold
     if unknown_is_obstacle:
         obstacle |= grid < 0
-    # The exact Euclidean transform (Felzenszwalb's, in OpenCV) costs ~5 ms a megacell.
-    cells = cv2.distanceTransform((~obstacle).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
-    return np.asarray(cells, dtype=np.float32)
+    return cells_to_nearest(obstacle)
 
 
 # ---------------------------------------------------------------------------------------
@@ -228,7 +224,7 @@ class GoalCheck:
         value = int(self.grid[cell])
         if value < 0:
             raise PoseRefused(what, point, "in unknown space")
-        if value >= OCCUPIED_THRESHOLD:
+        if value >= OCCUPIED_AT:
             raise PoseRefused(what, point, "in an obstacle")
         free = cell if not self.costmap.blocked[cell] else None
         reach = int(tolerance / self.costmap.resolution)

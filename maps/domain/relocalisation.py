@@ -39,7 +39,8 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from maps.domain.keyframes import Image, Intrinsics, Keyframe, Mount
+from cloudnav_core.camera import Intrinsics, Mount
+from maps.domain.keyframes import Image, Keyframe
 from maps.domain.vocabulary import Vocabulary
 
 Covariance = NDArray[np.float64]

@@ -6,7 +6,10 @@ goal, each a disc of its footprint plus margin (``Reservations.radius``) in one 
 mission waypoint for another robot whose disc would overlap a held one is, by its
 building's ``FleetRule``, refused with the reason or moved to the nearest free spot
 (``Reservations.place``). The same record names what stands in a stuck robot's way
-(``Reservations.neighbour``).
+(``Reservations.neighbour``), and whether a robot that finished its goal stands where
+others need to be (``Reservations.in_the_way``: another robot is going there, or it is a
+narrow place), and then the nearest free parking spot to send it to
+(``Reservations.nearest_parking``).
 
 Everything is in memory and costs a few dictionary operations: the relay feeds it every
 pose, and goals are checked against it where they are sent.
@@ -16,12 +19,12 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
 from enum import StrEnum
 from typing import Literal
 
-from robots.domain.se2 import Point
+from cloudnav_core.se2 import Point
 
 # After a goal is sent, the robot's statuses of the goal before it do not end it.
 GOAL_GRACE_S = 1.5
@@ -33,10 +36,13 @@ MOVE_REACH = 2.0
 
 
 class FleetRule(StrEnum):
-    """What a building does with a goal whose spot another robot holds."""
+    """What a building does with a goal whose spot another robot holds; ``OFF``: nothing,
+    every robot plans alone (goals go where asked; the robots sort it out among themselves,
+    as before the fleet rules; ``bench fleet`` measures it against them)."""
 
     REFUSE = "refuse"
     MOVE = "move"
+    OFF = "off"
 
 
 @dataclass(frozen=True)
@@ -53,6 +59,17 @@ class Hold:
         if self.why == "standing":
             return f"{self.robot} stands at ({self.x:.2f}, {self.y:.2f})"
         return f"{self.robot} is going to ({self.x:.2f}, {self.y:.2f})"
+
+
+@dataclass(frozen=True)
+class ParkingPlace:
+    """A building's parking spot ``name`` at (x, y, yaw) of sub-map ``map_id``."""
+
+    name: str
+    map_id: str
+    x: float
+    y: float
+    yaw: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -99,12 +116,57 @@ class Reservations:
         hold = Hold(robot, map_id.split("@", 1)[0], point[0], point[1], "goal")
         self._goals[robot] = (hold, self._clock())
 
-    def goal_over(self, robot: str) -> None:
+    def goal_over(self, robot: str) -> bool:
         """``robot`` says it has no active goal; statuses within GOAL_GRACE_S of a goal
-        being sent are those of the goal before it, and end nothing."""
+        being sent are those of the goal before it, and end nothing. True if this ended
+        the goal it held (False: it held none, or this is too soon)."""
         held = self._goals.get(robot)
         if held is not None and self._clock() - held[1] >= GOAL_GRACE_S:
             del self._goals[robot]
+            return True
+        return False
+
+    def standing(self, robot: str) -> Hold | None:
+        """Where ``robot`` stands, if it said."""
+        return self._standing.get(robot)
+
+    def going(self, robot: str) -> bool:
+        """Whether ``robot`` holds an active goal."""
+        return robot in self._goals
+
+    def in_the_way(self, robot: str, narrow: Callable[[str, Point], bool]) -> str:
+        """Why ``robot``, standing with no goal, stands where others need to be: another
+        robot is going to its spot, or ``narrow`` says its spot is a narrow place (of its
+        sub-map) others pass through; "" when it is in nobody's way."""
+        me = self._standing.get(robot)
+        if me is None or robot in self._goals:
+            return ""
+        spot = (me.x, me.y)
+        going = [
+            h
+            for h, _ in self._goals.values()
+            if h.robot != robot
+            and h.map_id == me.map_id
+            and math.dist((h.x, h.y), spot) < 2 * self.radius
+        ]
+        if going:
+            return f"{going[0].robot} is going to where it stands"
+        if narrow(me.map_id, spot):
+            return "it stands in a narrow place others pass through"
+        return ""
+
+    def nearest_parking(self, robot: str, places: Iterable[ParkingPlace]) -> ParkingPlace | None:
+        """The parking place nearest ``robot`` that no other robot holds: in its own sub-map
+        first, then in the others by straight distance (a building's sub-maps share its
+        frame); None when every one is held or it stands nowhere known."""
+        me = self._standing.get(robot)
+        if me is None:
+            return None
+        free = [p for p in places if self.holder(p.map_id, (p.x, p.y), robot) is None]
+        ranked = sorted(
+            free, key=lambda p: (p.map_id != me.map_id, math.dist((p.x, p.y), (me.x, me.y)))
+        )
+        return ranked[0] if ranked else None
 
     def leave(self, robot: str) -> None:
         """``robot`` is gone from this process: it holds nothing here any more."""
@@ -140,8 +202,8 @@ class Reservations:
         """Where ``robot``'s goal at ``point`` of ``map_id`` goes by ``rule``: as asked when
         no other robot holds it; else refused with the reason, or moved to the nearest
         spot within MOVE_REACH that nobody holds and ``standable`` accepts (refused when
-        there is none)."""
-        held = self.holder(map_id, point, robot)
+        there is none). ``FleetRule.OFF`` takes every goal as asked."""
+        held = None if rule is FleetRule.OFF else self.holder(map_id, point, robot)
         if held is None:
             return Placement(point)
         asked = f"The goal ({point[0]:.2f}, {point[1]:.2f}) is held: {held.describe()}"

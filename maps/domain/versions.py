@@ -18,16 +18,12 @@ from enum import StrEnum
 import numpy as np
 import numpy.typing as npt
 
-from maps.domain.grid import cell_of, contains
+from cloudnav_core.grid import FREE_BELOW, OCCUPIED_AT, cell_of, contains
+from cloudnav_core.se2 import Pose, ahead
 from maps.exceptions import IncomparableVersions
-from robots.domain.se2 import Pose, ahead
 
 Grid = npt.NDArray[np.int8]
 
-OCCUPIED_AT = 65
-"""Occupancy values at or above this are obstacles (map_saver's 0.65 threshold)."""
-FREE_BELOW = 20
-"""Occupancy values from 0 up to below this are free (map_saver's 0.196 threshold)."""
 TAG_FACE_CLEARANCE = 0.075
 """Metres in front of a tag's face that must stay free: tags hang on wall faces, so the
 cell holding the tag's own point may be the wall; the one 1.5 cells out must not be."""

@@ -23,9 +23,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from maps.domain.keyframes import DEPTH_RANGE, Depth, Intrinsics, Mount
-from maps.domain.slam import Grid, LogOddsGrid, Scan, SlamParams
-from robots.domain.se2 import Pose
+from cloudnav_core.camera import Intrinsics, Mount
+from cloudnav_core.se2 import Pose
+from maps.domain.keyframes import DEPTH_RANGE, Depth
+from maps.domain.slam.occupancy import Grid, LogOddsGrid
+from maps.domain.slam.params import SlamParams
+from maps.domain.slam.scans import Scan
 
 STRIDE = 4
 """Pixels: every STRIDE-th row and column of the depth image is read (160 beams from a

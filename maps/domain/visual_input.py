@@ -21,10 +21,11 @@ import cv2
 import numpy as np
 from PIL import Image as PILImage
 
-from maps.domain.keyframes import Depth, Image, Intrinsics
+from cloudnav_core.camera import Intrinsics
+from cloudnav_core.messages import depth_of
+from cloudnav_core.times import parse_stamp
+from maps.domain.keyframes import Depth, Image
 from maps.exceptions import KeyframeError
-from telemetry.domain.messages import depth_of
-from telemetry.domain.times import parse_stamp
 
 MAX_IMAGES = 8
 """Images one relocalisation request may carry."""
@@ -35,10 +36,34 @@ pixels times its scans: 50,000 scans of a 640x480 image took 14 s of CPU. Encode
 1 scan (baseline) or about 10 (progressive: libjpeg's default script; 6 for grey)."""
 MAX_COORDINATE = 1e6
 """Metres: a pose farther than this from its map's origin is no robot's."""
+MIN_FOCAL, MAX_FOCAL = 1.0, 100_000.0
+"""Pixels: focal lengths outside these belong to no camera (a pinhole's field of view
+from nearly 180 degrees to a few thousandths of one at 640 px)."""
 
 
 def grey_image(msg: Any, max_pixels: int, field: str = "image") -> Image:
     """The grey pixels of a ``CompressedImage``-shaped object (JPEG or PNG, base64)."""
+    data, (width, height) = _checked_image(msg, max_pixels, field)
+    pixels = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_GRAYSCALE)
+    if pixels is None or pixels.shape != (height, width):
+        raise KeyframeError(field, "the image is truncated or corrupt")
+    return np.asarray(pixels, np.uint8)
+
+
+def quarter_colour_image(msg: Any, max_pixels: int, field: str = "image") -> Image:
+    """The RGB pixels of a ``CompressedImage``-shaped object at a quarter of its width
+    and height (a JPEG's decoder scales it while decoding: cheap), for colouring a
+    keyframe's cloud."""
+    data, _ = _checked_image(msg, max_pixels, field)
+    pixels = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_REDUCED_COLOR_4)
+    if pixels is None:
+        raise KeyframeError(field, "the image is truncated or corrupt")
+    return np.asarray(cv2.cvtColor(pixels, cv2.COLOR_BGR2RGB), np.uint8)
+
+
+def _checked_image(msg: Any, max_pixels: int, field: str) -> tuple[bytes, tuple[int, int]]:
+    """The bytes of an image message and its (width, height), read from its header and
+    checked against the pixel limit and the JPEG scan limit before anything is decoded."""
     if not isinstance(msg, Mapping) or not isinstance(msg.get("data"), str):
         raise KeyframeError(field, "a sensor_msgs/CompressedImage with base64 'data' is required")
     try:
@@ -53,10 +78,7 @@ def grey_image(msg: Any, max_pixels: int, field: str = "image") -> Image:
     scans = jpeg_scans(data)
     if scans > MAX_JPEG_SCANS:
         raise KeyframeError(field, f"a JPEG of {scans} scans; at most {MAX_JPEG_SCANS} are decoded")
-    pixels = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_GRAYSCALE)
-    if pixels is None or pixels.shape != (height, width):
-        raise KeyframeError(field, "the image is truncated or corrupt")
-    return np.asarray(pixels, np.uint8)
+    return data, (width, height)
 
 
 def _size(data: bytes, field: str) -> tuple[int, int]:
@@ -156,7 +178,20 @@ def intrinsics_of(msg: Any, shape: tuple[int, ...]) -> Intrinsics:
         k = [float(v) for v in msg["K"]]
     except (TypeError, ValueError):
         raise KeyframeError("camera_info", "'K' must be numbers") from None
-    return Intrinsics.from_k(k, width, height)
+    return _intrinsics_from_k(k, width, height)
+
+
+def _intrinsics_from_k(k: list[float], width: int, height: int) -> Intrinsics:
+    """From a ``CameraInfo``'s row-major ``K``; raises KeyframeError if it is not one."""
+    if len(k) != 9 or not all(math.isfinite(v) for v in k):
+        raise KeyframeError("camera_info", "K must be 9 finite numbers")
+    if not (MIN_FOCAL <= k[0] <= MAX_FOCAL and MIN_FOCAL <= k[4] <= MAX_FOCAL):
+        raise KeyframeError(
+            "camera_info", f"K's focal lengths must be within [{MIN_FOCAL}, {MAX_FOCAL}] px"
+        )
+    if not (0 <= k[2] <= width and 0 <= k[5] <= height):
+        raise KeyframeError("camera_info", "K's principal point must lie in the image")
+    return Intrinsics(width, height, float(k[0]), float(k[4]), float(k[2]), float(k[5]))
 
 
 def planar_pose(value: Any) -> tuple[float, float, float]:

@@ -46,12 +46,13 @@ from enum import Enum
 
 import numpy as np
 
-from maps.domain.keyframes import Depth, FeatureExtractor, Image, Intrinsics, Keyframe, Mount
+from cloudnav_core.camera import Intrinsics, Mount
+from cloudnav_core.se2 import Pose, angle_between, compose, inverse, relative, transform
+from maps.domain.keyframes import Depth, FeatureExtractor, Image, Keyframe
 from maps.domain.relocalisation import Answer, KeyframeIndex, Params, QueryFrame, relocalise
-from maps.domain.slam import optimise_graph
+from maps.domain.slam.pose_graph import optimise_graph
 from maps.domain.vocabulary import Vocabulary
 from maps.exceptions import KeyframeError
-from robots.domain.se2 import Pose, angle_between, compose, inverse, relative, transform
 
 Edge = tuple[int, int, Pose, tuple[float, float, float], bool]
 

@@ -41,23 +41,25 @@ import math
 import threading
 import time
 from abc import ABC, abstractmethod
-from collections import deque
 from collections.abc import Callable
-from concurrent.futures import ThreadPoolExecutor
 from typing import Any, Protocol
 
 from asgiref.sync import sync_to_async
 from django.conf import settings
 
+from cloudnav_core import topics
+from cloudnav_core.messages import pose_of
+from cloudnav_core.workers import Inbox, Policy, Pool, TaskWorker
 from cloudnav_web.batches import UNREACHABLE
 from cloudnav_web.outage import REPORT
 from telemetry.domain import names
 from telemetry.domain.bus import OnMessage
-from telemetry.domain.messages import pose_of
 from telemetry.domain.video import stamp_seconds
 
-from ..domain.slam import Mapper, Scan, SlamParams
-from ..domain.visual_mapping import VisualMapper, frame_of
+from ..domain.slam.mapper import Mapper
+from ..domain.slam.params import SlamParams
+from ..domain.slam.scans import Scan
+from ..domain.visual_mapping import VisualMapper, colour_of, frame_of
 from ..domain.vocabulary import default_vocabulary
 from ..exceptions import KeyframeError, OutsideExtent
 from ..models import MappingSession
@@ -72,7 +74,7 @@ QUEUE_SCANS = 20
 SAVE_EVERY = 2.0
 """Seconds between writes of the map so far."""
 
-_EXECUTOR = ThreadPoolExecutor(max_workers=2, thread_name_prefix="mapping")
+_EXECUTOR = Pool("mapping", 2).executor  # stopped and joined at the end (the registry)
 
 
 class Tap(Protocol):
@@ -100,14 +102,13 @@ class SessionWorker(ABC):
     def __init__(self, session: MappingSession) -> None:
         self.session_pk = session.pk
         self.robot = session.robot.name
-        self.queue: deque[Any] = deque(maxlen=self.queue_size)
-        self.dropped = 0
+        self.queue: Inbox[Any] = Inbox("mapping", self.queue_size, Policy.DROP_OLDEST)
         self.bad_input = 0
         self.refusal = ""  # why the last input refused was refused
         self.cpu = 0.0
         self._odom: dict[str, Any] | None = None
         self._wake = asyncio.Event()
-        self._task: asyncio.Task[None] | None = None
+        self._worker = TaskWorker(f"mapping session {self.session_pk}", self._run)
         self._saved_at = 0.0
         self._started = time.monotonic()
         self.on_saved: Callable[[], None] | None = None
@@ -125,16 +126,23 @@ class SessionWorker(ABC):
     def on_odom(self, msg: dict[str, Any]) -> None:
         self._odom = msg
 
+    @property
+    def dropped(self) -> int:
+        """Items the queue dropped (its oldest) because mapping fell behind."""
+        return self.queue.dropped
+
     def _queue(self, item: Any) -> None:
-        if len(self.queue) == self.queue.maxlen:
-            self.dropped += 1
-        self.queue.append(item)
+        self.queue.put(item)
         self._wake.set()
 
     # --- the work ------------------------------------------------------------------------
 
     def start(self) -> None:
-        self._task = asyncio.get_running_loop().create_task(self._run())
+        self._worker.start()
+
+    @property
+    def _task(self) -> asyncio.Task[None] | None:
+        return self._worker.task
 
     @property
     def stopped(self) -> bool:
@@ -150,10 +158,11 @@ class SessionWorker(ABC):
         return f"its worker failed: {task.exception()!r}"
 
     async def stop(self, save: bool = True) -> None:
-        if self._task is not None:
-            self._task.cancel()
+        task = self._task
+        if task is not None:
+            task.cancel()
             with contextlib.suppress(asyncio.CancelledError, Exception):
-                await self._task  # a failure was taken by ``why_stopped``
+                await task  # a failure was taken by ``why_stopped``
         if save:
             await self._save()
 
@@ -168,8 +177,7 @@ class SessionWorker(ABC):
                 logger.exception("mapping session %s: a round failed", self.session_pk)
 
     async def _work(self) -> None:
-        batch = list(self.queue)
-        self.queue.clear()
+        batch = self.queue.take_all()
         if batch:
             await asyncio.get_running_loop().run_in_executor(_EXECUTOR, self._process, batch)
         if time.monotonic() - self._saved_at >= SAVE_EVERY:
@@ -260,7 +268,7 @@ class LaserWorker(SessionWorker):
             self.mapper = Mapper(self.params, start, prior)
 
     def taps(self) -> list[tuple[str, Callable[[dict[str, Any]], None]]]:
-        return [(names.SCAN, self.on_scan), (names.ODOM, self.on_odom)]
+        return [(topics.SCAN, self.on_scan), (topics.ODOM, self.on_odom)]
 
     def on_scan(self, msg: dict[str, Any]) -> None:
         self._queue((self._odom, msg))
@@ -317,10 +325,10 @@ class VisualWorker(SessionWorker):
 
     def taps(self) -> list[tuple[str, Callable[[dict[str, Any]], None]]]:
         return [
-            (names.CAMERA_IMAGE, self.on_image),
-            (names.CAMERA_DEPTH, self.on_depth),
-            (names.CAMERA_INFO, self.on_camera_info),
-            (names.ODOM, self.on_odom),
+            (topics.CAMERA_IMAGE, self.on_image),
+            (topics.CAMERA_DEPTH, self.on_depth),
+            (topics.CAMERA_INFO, self.on_camera_info),
+            (topics.ODOM, self.on_odom),
         ]
 
     def on_camera_info(self, msg: dict[str, Any]) -> None:
@@ -355,7 +363,8 @@ class VisualWorker(SessionWorker):
 
     def _add(self, item: Any) -> None:
         odometry, image, depth, info = item
-        self.mapper.add(frame_of(image, depth, info, odometry, self.max_pixels))
+        frame = frame_of(image, depth, info, odometry, self.max_pixels)
+        self.mapper.add(frame, colour_of(image, self.max_pixels))
 
     def _grid(self) -> tuple[Any, tuple[float, float]]:
         return self.mapper.grid()
@@ -402,10 +411,11 @@ class MappingRunner:
         self.tell = tell
         self.workers: dict[int, SessionWorker] = {}
         self._taps: dict[int, list[Tap]] = {}  # by session: the taps of its worker
-        self._task: asyncio.Task[None] | None = None
+        self._unmapped: dict[str, Tap] = {}  # robots here with no worker: their depth
+        self._worker = TaskWorker("mapping runner", self._run)
 
     def start(self) -> None:
-        self._task = asyncio.get_running_loop().create_task(self._run())
+        self._worker.start()
 
     async def _run(self) -> None:
         while True:
@@ -446,11 +456,36 @@ class MappingRunner:
                 ]
                 worker.start()
                 self._told(worker.robot, pk, "started")
+        self._watch_unmapped(here)
+
+    def _watch_unmapped(self, here: set[str]) -> None:
+        """Tap the depth of the robots here with no worker: the first frame one sends is
+        answered on its ``mapping`` topic (``NOT_MAPPING``), once until a session of it
+        starts and ends; nothing of it is read or kept."""
+        mapped = {worker.robot for worker in self.workers.values()}
+        for robot in [r for r in self._unmapped if r not in here or r in mapped]:
+            self._unmapped.pop(robot).close()
+        for robot in here - mapped - self._unmapped.keys():
+            depth = names.robot_topic(robot, topics.CAMERA_DEPTH)
+            self._unmapped[robot] = self.hub.tap(depth, self._not_mapping(robot))
+
+    def _not_mapping(self, robot: str) -> OnMessage:
+        """A tap's ``on_message`` that tells ``robot`` ``NOT_MAPPING`` the first time."""
+        told: list[bool] = []
+
+        def tell(_topic: Any, _msg: Any) -> None:
+            if not told:
+                told.append(True)
+                self._tell(robot, {"session": None, "event": "not_mapping", "reason": NOT_MAPPING})
+
+        return tell
 
     def _told(self, robot: str, session: int, what: str) -> None:
+        self._tell(robot, {"session": session, "event": what})
+
+    def _tell(self, robot: str, news: dict[str, Any]) -> None:
         if self.tell is not None:
-            text = json.dumps({"session": session, "event": what})
-            self.tell(names.robot_topic(robot, names.MAPPING), {"data": text})
+            self.tell(names.robot_topic(robot, topics.MAPPING), {"data": json.dumps(news)})
 
 
 def _message_to(callback: Callable[[dict[str, Any]], None]) -> OnMessage:
@@ -478,6 +513,10 @@ def _session_start(pk: int) -> tuple[MappingSession, Any, bytes] | None:
     return session, prior, bytes(session.keyframes)
 
 
+NOT_MAPPING = (
+    "camera frames are not mapped and nothing of them is kept: this robot has no running "
+    "mapping session (an operator starts one: POST /api/mapping/sessions/ with kind visual)"
+)
 DISCONNECTED = "the robot disconnected: resume the session or discard it"
 STOPPED = "mapping stopped on the server ({why}): resume the session or discard it"
 

@@ -17,13 +17,12 @@ import numpy as np
 from django.db import IntegrityError, transaction
 from django.db.models import QuerySet
 
+from cloudnav_core.grid import FREE_THRESH, OCCUPIED_THRESH
 from robots.fleet import is_online
 from robots.models import Robot, RobotState
 
 from .. import services, versions
 from ..domain.mapfile import (
-    MAP_SAVER_FREE_THRESH,
-    MAP_SAVER_OCCUPIED_THRESH,
     LoadedMap,
     MapMetadata,
     export_map,
@@ -35,6 +34,7 @@ from ..domain.visual_mapping import stored_keyframes
 from ..exceptions import KeyframeError, MappingError
 from ..models import Building, MappingSession, SubMap, SubMapVersion
 from ..visual import store
+from . import maps3d
 
 PATH_POINTS = 2000
 """Corrected poses kept for the page at most (the path is thinned evenly beyond)."""
@@ -174,8 +174,8 @@ def _meta(resolution: float, origin: tuple[float, float]) -> MapMetadata:
         image="map.pgm",
         resolution=resolution,
         origin=(origin[0], origin[1], 0.0),
-        occupied_thresh=MAP_SAVER_OCCUPIED_THRESH,
-        free_thresh=MAP_SAVER_FREE_THRESH,
+        occupied_thresh=OCCUPIED_THRESH,
+        free_thresh=FREE_THRESH,
         negate=False,
     )
 
@@ -224,6 +224,7 @@ def publish(session: MappingSession, by: Any = None, note: str = "") -> SubMapVe
         made = submap.versions.get(number=submap.revision)
     if session.kind == MappingSession.VISUAL:
         _register_keyframes(made.submap, session)
+        maps3d.store(made, maps3d.view_of(session))
     change_state(session, MappingSession.PUBLISHED, (MappingSession.FINISHED,))
     return made
 

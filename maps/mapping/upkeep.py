@@ -11,8 +11,9 @@ most) for its pose, and a scan whose pose never comes (none within ``PAIR_WITHIN
 seconds of its stamp) is not used (``unpaired``): the latest pose is not the pose of the
 scan, and a scan a turn's worth off made the fleet propose walls that were there.
 
-A paired scan taken ``MIN_MOVE`` from the last one is queued (a bounded queue: the
-oldest is dropped when the worker falls behind), and a worker thread adds it to the
+A paired scan taken ``MIN_MOVE`` from the last one is queued (an ``Inbox`` that drops
+the oldest when the worker falls behind, counted in ``dropped``), and the upkeep's
+worker thread (``cloudnav_core.workers``, stopped at shutdown) adds it to the
 evidence (``maps.domain.upkeep.Evidence``) of that sub-map's current version, which
 uses only scans whose pose the stored map confirms and never frees the wall a tag hangs
 on. A robot leaving the sub-map, or ``PASS_SECONDS`` of its own scans (by its stamps),
@@ -35,20 +36,20 @@ import math
 import time
 from collections import deque
 from collections.abc import Sequence
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 from django.db import transaction
 
+from cloudnav_core.messages import published_pose_of
+from cloudnav_core.times import parse_stamp
+from cloudnav_core.workers import Inbox, Policy, Pool, TaskWorker
 from telemetry.domain.bus import OnMessage, Topic
-from telemetry.domain.messages import published_pose_of
-from telemetry.domain.times import parse_stamp
 
 from .. import services, versions
 from ..domain.mapfile import export_map, load_map_upload, map_yaml_text
-from ..domain.slam import Scan
+from ..domain.slam.scans import Scan
 from ..domain.upkeep import Evidence, Proposal
 from ..domain.versions import Reason
 from ..exceptions import MappingError
@@ -73,12 +74,15 @@ PAIR_WITHIN = 0.02
 """Seconds: a pose pairs with a scan when their stamps are this close (the robot stamps
 a scan and the pose it gives for it alike)."""
 
-_EXECUTOR = ThreadPoolExecutor(max_workers=1, thread_name_prefix="upkeep")
+_EXECUTOR = Pool("upkeep", 1).executor  # stopped and joined at the end (the registry)
 
 Placed = tuple[str, tuple[float, float, float]]
 """A pose estimate: the Map ID and (x, y, yaw) in it."""
-Queued = tuple[str, str, tuple[float, float, float], float, dict[str, Any]]
-"""A scan waiting for the worker: robot, Map ID, pose estimate, stamp, the message."""
+Queued = tuple[
+    str, str, tuple[float, float, float], float, dict[str, Any], list[tuple[float, float]]
+]
+"""A scan waiting for the worker: robot, Map ID, pose estimate, stamp, the message, and
+where the other robots in that sub-map last said they were."""
 
 
 @dataclass
@@ -116,22 +120,29 @@ class UpkeepRunner:
     def __init__(self, hub: TopicTaps) -> None:
         self.hub = hub
         self.robots: dict[str, _Robot] = {}
-        self.queue: deque[Queued] = deque(maxlen=QUEUE_SCANS)
-        self.dropped = 0
+        self.queue: Inbox[Queued] = Inbox("upkeep scans", QUEUE_SCANS, Policy.DROP_OLDEST)
+        self._worker = TaskWorker("map upkeep", self._run)
         self.unpaired = 0  # scans whose pose never came
         self.maps: dict[str, _MapEvidence] = {}
         self._where: dict[str, str] = {}  # robot -> Map ID it last scanned in
+        # Map ID -> robot -> (x, y) it last said it was at there; robot -> that Map ID
+        self._standing: dict[str, dict[str, tuple[float, float]]] = {}
+        self._standing_in: dict[str, str] = {}
         self._saved_at = time.monotonic()
 
+    @property
+    def dropped(self) -> int:
+        """Scans the worker fell too far behind to take (the oldest go first)."""
+        return self.queue.dropped
+
     def start(self) -> None:
-        asyncio.get_running_loop().create_task(self._run())
+        self._worker.start()
 
     async def _run(self) -> None:
         loop = asyncio.get_running_loop()
         while True:
             self.sync_taps()
-            batch = list(self.queue)
-            self.queue.clear()
+            batch = self.queue.take_all()
             try:
                 if batch:
                     await loop.run_in_executor(_EXECUTOR, self.process, batch)
@@ -150,6 +161,7 @@ class UpkeepRunner:
             if name not in here:
                 for tap in self.robots.pop(name).taps:
                     tap.close()
+                self._stand(name, None)
         for name in here - self.robots.keys():
             robot = self.robots[name] = _Robot(name)
             robot.taps = [
@@ -165,6 +177,7 @@ class UpkeepRunner:
             if not math.isfinite(found.x + found.y + found.yaw):
                 return
             robot.poses.append((stamp, (found.map_id, (found.x, found.y, found.yaw))))
+            self._stand(robot.name, found.map_id, (found.x, found.y))
             self._pair_pending(robot, stamp)
 
         return on_pose
@@ -201,14 +214,28 @@ class UpkeepRunner:
         if not _moved(robot.taken, placed):
             return
         robot.taken = placed
-        if len(self.queue) == self.queue.maxlen:
-            self.dropped += 1
-        self.queue.append((robot.name, placed[0], placed[1], stamp, msg))
+        others = self._others_in(placed[0], robot)
+        self.queue.put((robot.name, placed[0], placed[1], stamp, msg, others))
+
+    def _stand(self, name: str, map_id: str | None, at: tuple[float, float] = (0.0, 0.0)) -> None:
+        """Note that robot ``name`` last said it was ``at`` in ``map_id`` (None: it left)."""
+        before = self._standing_in.pop(name, None)
+        if before is not None:
+            self._standing[before].pop(name, None)
+        if map_id is not None:
+            self._standing_in[name] = map_id
+            self._standing.setdefault(map_id, {})[name] = at
+
+    def _others_in(self, map_id: str, robot: _Robot) -> list[tuple[float, float]]:
+        """Where the other robots in sub-map ``map_id`` last said they were: what their
+        bodies return is not the map (a robot waiting in a doorway was proposed as a
+        new obstacle). A look-up of that sub-map's robots, not a pass over the fleet."""
+        return [at for name, at in self._standing.get(map_id, {}).items() if name != robot.name]
 
     # --- the worker thread -------------------------------------------------------------
 
     def process(self, batch: Sequence[Queued]) -> None:
-        for robot, map_id, pose, stamp, msg in batch:
+        for robot, map_id, pose, stamp, msg, others in batch:
             left = self._where.get(robot)
             if left is not None and left != map_id and left in self.maps:
                 self._end_pass(self.maps[left], robot)  # the robot left that sub-map
@@ -220,7 +247,7 @@ class UpkeepRunner:
                 scan = Scan.from_message(msg)
             except ValueError:
                 continue
-            held.evidence.add(pose, scan, robot)
+            held.evidence.add(pose, scan, robot, others)
             if stamp - held.pass_started.setdefault(robot, stamp) >= PASS_SECONDS:
                 self._end_pass(held, robot)
 

@@ -23,10 +23,12 @@ from robots.models import Robot
 from .. import versions
 from ..access import Role, buildings_for
 from ..domain.mapfile import map_yaml_text, occupancy_grid_json
+from ..domain.visual_cloud import FEED_KEYFRAMES, MAX_POINTS, PLY_VERTEX, feed_bytes
 from ..models import ChangeProposal, MappingSession
 from ..serializers import VersionSerializer
-from ..views import GRID_BYTES_PER_CELL, building_for
-from . import sessions, upkeep
+from ..views.lookups import building_for, submap_for
+from ..views.map_files import GRID_BYTES_PER_CELL
+from . import maps3d, sessions, upkeep
 
 
 class StartSerializer(serializers.Serializer[Any]):
@@ -172,6 +174,69 @@ class SessionCandidate(APIView):
         response = HttpResponse(archive.getvalue(), content_type="application/zip")
         response["Content-Disposition"] = f'attachment; filename="mapping_{session.pk}.zip"'
         return response
+
+
+MAP3D_NAMES = (maps3d.CLOUD, maps3d.OCTOMAP)
+OCTOMAP_BYTES_PER_POINT = 64
+"""An estimate of the memory the OctoMap's tree holds per point inserted, for the budget."""
+
+
+class SessionMap3D(APIView):
+    """A visual session's 3D map so far: ``cloud.ply`` (its coloured point cloud, binary
+    PLY, one point per 5 cm cube) or ``octomap.bt`` (an OctoMap); heavy work, made from
+    the state the session last saved. 409 for a laser session."""
+
+    @extend_schema(responses={(200, "application/octet-stream"): OpenApiTypes.BINARY})
+    def get(self, request: Request, pk: str, name: str) -> HttpResponseBase:
+        session = session_for(request, int(pk))
+        view = maps3d.view_of(session)
+        points = sum(len(c) for c in view.clouds)
+        per_point = PLY_VERTEX.itemsize * 4 if name == maps3d.CLOUD else OCTOMAP_BYTES_PER_POINT
+        need = min(points, 4 * MAX_POINTS) * per_point
+        response = heavy_response(
+            request, need, lambda: maps3d.made(view, name), "application/octet-stream"
+        )
+        return _attachment(response, f"mapping_{session.pk}_{name}")
+
+
+class SessionPoints(APIView):
+    """The live 3D view's feed (``visual_cloud.feed_bytes``): every keyframe's pose, the
+    loop closures, and the clouds of up to 8 keyframes from ``from`` on."""
+
+    @extend_schema(
+        parameters=[OpenApiParameter("from", int, description="the first keyframe sent")],
+        responses={(200, "application/octet-stream"): OpenApiTypes.BINARY},
+    )
+    def get(self, request: Request, pk: int) -> HttpResponse:
+        session = session_for(request, pk)
+        start = request.query_params.get("from", "0")
+        if not start.isdigit() or len(start) > 9:
+            raise serializers.ValidationError({"from": ["a keyframe's number (0, 1, ...)"]})
+        view = maps3d.view_of(session)
+        body = feed_bytes(view.clouds, view.poses, view.loops, int(start), FEED_KEYFRAMES)
+        return HttpResponse(body, content_type="application/octet-stream")
+
+
+class VersionMap3D(APIView):
+    """The 3D map (``cloud.ply`` or ``octomap.bt``) a visual session was published with
+    as this version; 404 for a version made otherwise."""
+
+    @extend_schema(responses={(200, "application/octet-stream"): OpenApiTypes.BINARY})
+    def get(
+        self, request: Request, building: str, map: str, number: str, name: str
+    ) -> HttpResponseBase:
+        submap = submap_for(request, building, map)
+        version = versions.version_of(submap, int(number))
+        data = maps3d.stored(version, name)
+        if data is None:
+            raise NotFound(f"{submap.map_id} v{number} was not mapped by a camera: no 3D map.")
+        response = HttpResponse(data, content_type="application/octet-stream")
+        return _attachment(response, f"{submap.building.code}_{submap.code}_v{number}_{name}")
+
+
+def _attachment(response: HttpResponseBase, filename: str) -> HttpResponseBase:
+    response["Content-Disposition"] = f'attachment; filename="{filename}"'
+    return response
 
 
 # What each action does: the state it leads to and the states it may start from.

@@ -9,7 +9,9 @@ first, and people's calls never occupy more than ``workers - 1`` threads (all of
 there is one), so a robot's call waits at most for the calls already running, never for
 the people queued. Each lane holds at most ``waiting`` calls and each caller at most
 ``per_caller`` calls, waiting or running; beyond either the call is refused at once
-(``RelocalisationBusy``), so a flood costs a bounded amount of memory and time.
+(``RelocalisationBusy``; the lanes drop the newest, and count it in ``refused``), so a
+flood costs a bounded amount of memory and time. The threads are named workers
+(``cloudnav_core.workers``), stopped and joined at the process's end.
 """
 
 from __future__ import annotations
@@ -22,6 +24,8 @@ from dataclasses import dataclass
 from typing import Any
 
 from django.conf import settings
+
+from cloudnav_core.workers import Worker
 
 PER_CALLER = 2
 """Calls one caller may have waiting or running at once."""
@@ -63,8 +67,9 @@ class RelocalisationLanes:
         self._people: deque[_Call] = deque()
         self._people_running = 0
         self._callers: Counter[str] = Counter()
+        self.refused = 0  # calls refused: the caller's share or the lane was full
         self._ready = threading.Condition()
-        self._threads: list[threading.Thread] = []
+        self._workers: list[Worker] = []
 
     def submit(self, caller: Caller, work: Callable[[], Any]) -> Future[Any]:
         """Queue ``work`` for ``caller``; its future holds what it returns or raises.
@@ -72,12 +77,14 @@ class RelocalisationLanes:
         lane = self._robots if caller.robot else self._people
         with self._ready:
             if self._callers[caller.key] >= self.per_caller:
+                self.refused += 1
                 raise RelocalisationBusy(
                     "your other relocalisation requests are still being answered; "
                     "ask again when they are done",
                     own=True,
                 )
             if len(lane) >= self.waiting:
+                self.refused += 1
                 raise RelocalisationBusy(
                     "the server is answering other relocalisation requests; ask again shortly",
                     own=False,
@@ -90,26 +97,31 @@ class RelocalisationLanes:
         return call.future
 
     def _start_threads(self) -> None:
-        while len(self._threads) < self.workers:
-            thread = threading.Thread(target=self._serve, name="relocalise", daemon=True)
-            self._threads.append(thread)
-            thread.start()
+        while len(self._workers) < self.workers:
+            name = f"relocalise-{len(self._workers)}"
+            worker = Worker(name, self._serve, wake=self._wake_all)
+            self._workers.append(worker)
+            worker.start()
 
-    def _next(self) -> _Call:
-        """The next call a free thread may take: a robot's, else a person's while people
-        hold fewer than their share of the threads."""
+    def _wake_all(self) -> None:
         with self._ready:
-            while True:
+            self._ready.notify_all()
+
+    def _next(self, stopping: threading.Event) -> _Call | None:
+        """The next call a free thread may take: a robot's, else a person's while people
+        hold fewer than their share of the threads; None once the thread is stopping."""
+        with self._ready:
+            while not stopping.is_set():
                 if self._robots:
                     return self._robots.popleft()
                 if self._people and self._people_running < self.people_share:
                     self._people_running += 1
                     return self._people.popleft()
                 self._ready.wait()
+            return None
 
-    def _serve(self) -> None:
-        while True:
-            call = self._next()
+    def _serve(self, stopping: threading.Event) -> None:
+        while (call := self._next(stopping)) is not None:
             try:
                 if call.future.set_running_or_notify_cancel():
                     _run(call)

@@ -18,7 +18,8 @@ from typing import Any
 from django.conf import settings
 from django.db import close_old_connections
 
-from maps.domain.keyframes import FeatureExtractor, Mount
+from cloudnav_core.camera import Mount
+from maps.domain.keyframes import FeatureExtractor
 from maps.domain.relocalisation import Answer, QueryFrame, relocalise
 from maps.domain.visual_input import (
     depth_image,

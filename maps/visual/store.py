@@ -21,6 +21,7 @@ from django.conf import settings
 from django.db import transaction
 from django.db.models import Count, Max, QuerySet
 
+from cloudnav_core.grid import cell_of
 from maps.domain.keyframes import Keyframe as Features
 from maps.domain.relocalisation import KeyframeIndex
 from maps.domain.vocabulary import default_vocabulary
@@ -43,8 +44,8 @@ def check_pose(submap: SubMap, pose: tuple[float, float, float]) -> None:
     cell of ``submap``'s grid."""
     grid = grid_of(submap)
     reach = math.ceil(POSE_SLACK / submap.resolution)
-    col = math.floor((pose[0] - submap.origin_x) / submap.resolution)
-    row = math.floor((pose[1] - submap.origin_y) / submap.resolution)
+    origin = (submap.origin_x, submap.origin_y)
+    row, col = cell_of(pose[:2], origin, submap.resolution, nudge=0.0)
     rows, cols = grid.shape
     inside = 0 <= row < rows and 0 <= col < cols
     near = grid[max(row - reach, 0) : row + reach + 1, max(col - reach, 0) : col + reach + 1]

@@ -11,14 +11,15 @@ loop, this on its own thread, and OpenCV releases the GIL while it works.
 from __future__ import annotations
 
 import logging
-import queue
 import threading
 from dataclasses import dataclass
 
 from django.conf import settings
 from django.db import close_old_connections
 
-from maps.domain.keyframes import Depth, FeatureExtractor, Image, Intrinsics, Mount
+from cloudnav_core.camera import Intrinsics, Mount
+from cloudnav_core.workers import Inbox, Policy, Worker
+from maps.domain.keyframes import Depth, FeatureExtractor, Image
 from maps.domain.vocabulary import default_vocabulary
 from maps.exceptions import KeyframeError
 from maps.models import SubMap
@@ -47,20 +48,18 @@ class Counts:
 
 
 class IngestQueue:
-    """At most ``size`` keyframes waiting; one thread works through them."""
+    """At most ``size`` keyframes waiting (a full inbox drops the newest: the robot tries
+    again with a later keyframe); one named worker thread works through them."""
 
     def __init__(self, size: int) -> None:
-        self._jobs: queue.Queue[Job] = queue.Queue(maxsize=size)
-        self._thread: threading.Thread | None = None
-        self._start_lock = threading.Lock()
+        self._jobs: Inbox[Job] = Inbox("keyframes", size, Policy.DROP_NEWEST)
+        self.worker = Worker("keyframes", self._work, wake=self._jobs.close)
         self.counts = Counts()
 
     def submit(self, job: Job) -> bool:
         """Queue ``job``; False (nothing queued) when the queue is full."""
-        self._ensure_running()
-        try:
-            self._jobs.put_nowait(job)
-        except queue.Full:
+        self.worker.start()
+        if not self._jobs.put(job):
             self.counts.refused += 1
             return False
         return True
@@ -69,16 +68,9 @@ class IngestQueue:
         """Return once every queued keyframe has been handled (for tests and commands)."""
         self._jobs.join()
 
-    def _ensure_running(self) -> None:
-        with self._start_lock:
-            if self._thread is None or not self._thread.is_alive():
-                self._thread = threading.Thread(target=self._work, name="keyframes", daemon=True)
-                self._thread.start()
-
-    def _work(self) -> None:
+    def _work(self, stopping: threading.Event) -> None:
         extractor = FeatureExtractor(default_vocabulary())
-        while True:
-            job = self._jobs.get()
+        while not stopping.is_set() and (job := self._jobs.get()) is not None:
             try:
                 self._ingest(extractor, job)
             except Exception:  # the worker must outlive any one keyframe
@@ -86,7 +78,7 @@ class IngestQueue:
                 self.counts.failed += 1
             finally:
                 close_old_connections()
-                self._jobs.task_done()
+                self._jobs.done()
 
     def _ingest(self, extractor: FeatureExtractor, job: Job) -> None:
         submap = SubMap.objects.select_related("building").filter(pk=job.submap_id).first()

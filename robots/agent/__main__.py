@@ -32,6 +32,7 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
+from cloudnav_core.params import RobotConfig
 from robots.agent.fleet import (
     FleetOptions,
     add_robot_arguments,
@@ -40,7 +41,6 @@ from robots.agent.fleet import (
     run_fleet,
 )
 from robots.agent.sim.changes import plan_changes
-from robots.domain.params import RobotConfig
 
 
 def arguments(argv: Sequence[str] | None = None) -> argparse.Namespace:

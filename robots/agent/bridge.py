@@ -38,17 +38,19 @@ import httpx
 import numpy as np
 from numpy.typing import NDArray
 
+from cloudnav_core.camera import CameraModel
+from cloudnav_core.grid import FREE_THRESH, OCCUPIED_THRESH
+from cloudnav_core.messages import Json, Odometry, ScanGeometry, laser_scan, odometry
+from cloudnav_core.params import RobotConfig
+from cloudnav_core.se2 import Point, Pose
 from maps.domain.mapfile import MapMetadata, export_map, map_yaml_text
 from maps.domain.planning import warm_up
 from robots.agent.client import RosbridgeClient, endpoints
-from robots.agent.navigation import LegDriver
-from robots.agent.perception import CameraModel
+from robots.agent.navigation.legs import LegDriver
 from robots.agent.robot import PoseTracker, Robot, declare, particle_filter
 from robots.agent.stack import StackDriver, StackPoseTracker
-from robots.agent.supervisor import BundleCache, MapsSupervisor
-from robots.domain.params import RobotConfig
-from robots.domain.se2 import Point, Pose
-from telemetry.domain.messages import Json, Odometry, ScanGeometry, laser_scan, odometry
+from robots.agent.supervisor.bundle_cache import BundleCache
+from robots.agent.supervisor.maps_supervisor import MapsSupervisor
 
 logger = logging.getLogger(__name__)
 
@@ -194,7 +196,8 @@ class BatteryReading:
 class DriverReadings:
     """The latest odometry, scan and camera frame of a ROS robot (a ``Hardware`` but for
     ``command``, which each backend publishes). A backend calls ``on_odom``, ``on_scan``
-    and ``on_image`` from its callbacks, and ``ready`` with the first odometry and scan."""
+    and ``on_image`` from its callbacks, and ``ready`` with the first odometry and scan
+    (or ``wait_ready``, which takes them from those callbacks)."""
 
     def __init__(self, camera_model: CameraModel) -> None:
         self.camera_model = camera_model
@@ -206,19 +209,36 @@ class DriverReadings:
         self._image_at = -math.inf
         self.scan_angles: NDArray[np.float64] = np.zeros(0)
         self.scan_mount: Pose = (0.0, 0.0, 0.0)  # the laser's frame taken as the base's
+        self._both_came = threading.Event()
 
     def ready(self, odom: Any, scan: Any) -> None:
         """Take the first odometry and scan (the scan's beams fix ``scan_angles``)."""
         self._odom, self._scan = odom, scan
         self.scan_angles = scan.angle_min + scan.angle_increment * np.arange(len(scan.ranges))
 
+    def wait_ready(self, timeout: float) -> bool:
+        """Wait up to ``timeout`` seconds for ``on_odom`` and ``on_scan`` to have had a
+        message each, then take the latest as the first (``ready``); False if one never came."""
+        if not self._both_came.wait(timeout):
+            return False
+        with self._lock:
+            odom, scan = self._odom, self._scan
+        self.ready(odom, scan)
+        return True
+
     def on_odom(self, msg: Any) -> None:
         with self._lock:
             self._odom = msg
+            self._note_arrival()
 
     def on_scan(self, msg: Any) -> None:
         with self._lock:
             self._scan = msg
+            self._note_arrival()
+
+    def _note_arrival(self) -> None:
+        if self._odom is not None and self._scan is not None:
+            self._both_came.set()
 
     def on_image(self, image: NDArray[np.uint8] | None) -> None:
         """A decoded frame (None: one that did not decode, dropped)."""
@@ -341,7 +361,9 @@ def write_map_files(
 ) -> str:
     """The sub-map as map-server files (PGM and YAML) under ``map_dir``; the YAML's path."""
     name = map_id.replace("/", "__")
-    meta = MapMetadata(f"{name}.pgm", float(resolution), origin, 0.65, 0.196, False)
+    meta = MapMetadata(
+        f"{name}.pgm", float(resolution), origin, OCCUPIED_THRESH, FREE_THRESH, False
+    )
     image, exported = export_map(cells, meta, f"{name}.pgm")
     map_dir.mkdir(parents=True, exist_ok=True)
     (map_dir / f"{name}.pgm").write_bytes(image)

@@ -39,7 +39,7 @@ import websockets
 from websockets.asyncio.client import ClientConnection
 from websockets.exceptions import ConnectionClosed, InvalidHandshake
 
-from telemetry.domain.messages import Json, Message
+from cloudnav_core.messages import Json, Message
 
 logger = logging.getLogger(__name__)
 

@@ -12,20 +12,27 @@ REP 117).
 ``ObstacleMemory`` keeps what the camera saw for a few seconds, moved by odometry, so a
 robot whose sensor looks only ahead still knows what stands beside it (the persistence
 of Nav2's obstacle layer); a remembered point the camera now sees through is cleared.
+It also answers where the robot may move (``may_enter``): near where it saw a person
+(or anything) moving in the last ``keep`` seconds, only onto floor the camera saw free in
+the last ``FRESH_FLOOR`` seconds, since that person may since have stepped, unseen, beside
+it (``robots.agent.navigation.driver``'s blind-side guard). Away from movers, anywhere.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
+from functools import partial
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from robots.agent.perception import CameraModel
-from robots.domain.params import RobotConfig
-from robots.domain.se2 import Pose, relative, transform
+from cloudnav_core.camera import CameraModel
+from cloudnav_core.params import RobotConfig
+from cloudnav_core.se2 import Pose, compose, relative, transform
+from robots.agent.tracking import Mover, ObstacleTracker
 
 Floats = NDArray[np.float64]
 
@@ -96,6 +103,19 @@ def _binned(ranges: Floats, bearings: Floats, angles: Floats) -> NDArray[np.floa
 HIDDEN_BEHIND = 0.1
 """m: a remembered return this far behind the new scan's return on its beam is hidden
 behind it, and stays remembered."""
+FRESH_FLOOR = 1.5
+"""s: floor the camera saw free this long ago still counts as free (a person walking at
+1 m/s crosses a robot's safety margin in well under that; see ``seen_free``)."""
+FREE_SHORT_OF = 0.05
+"""m: floor counts as seen free only this far short of its beam's return."""
+MOVER_SPREAD = 0.5
+"""m/s: how fast a mover may since have strayed from the way it was walking (turned,
+sped up)."""
+MOVER_REACH = 0.6
+"""m: a mover's reach beyond its centroid (a person's radius, 0.25 m, and a margin)."""
+WALKING = 0.3
+"""m/s: slower movers are not followed out of view (an occluded wall's edge slides as
+the robot moves; a person walks at 0.5 to 1.4 m/s)."""
 
 
 @dataclass
@@ -103,6 +123,15 @@ class _Seen:
     odom: Pose
     seconds: float
     points: Floats  # robot frame at ``odom``, shape (n, 2)
+
+
+@dataclass
+class _Looked:
+    """One scan as floor seen free: each beam's free range, from the sensor at ``odom``."""
+
+    odom: Pose
+    seconds: float
+    free: Floats  # per beam: metres seen free (``range_max`` where nothing was returned)
 
 
 class ObstacleMemory:
@@ -117,10 +146,20 @@ class ObstacleMemory:
     """
 
     def __init__(
-        self, mount: Pose = (0.0, 0.0, 0.0), keep: float = 4.0, range_max: float = math.inf
+        self,
+        mount: Pose = (0.0, 0.0, 0.0),
+        keep: float = 4.0,
+        range_max: float = math.inf,
+        range_min: float = 0.0,
     ) -> None:
-        self.mount, self.keep, self.range_max = mount, keep, range_max
+        self.mount, self.keep = mount, keep
+        self.range_min, self.range_max = range_min, range_max
         self._seen: list[_Seen] = []
+        self._looked: list[_Looked] = []
+        self._angles: Floats = np.zeros(0)
+        self._movers = ObstacleTracker()
+        self._unseen: list[Mover] = []
+        self._seconds = 0.0
 
     def update(
         self, ranges: NDArray[np.floating[Any]], angles: Floats, odom: Pose, seconds: float
@@ -137,7 +176,82 @@ class ObstacleMemory:
         ]
         if self.keep > 0:
             self._seen = [s for s in [_Seen(odom, seconds, fresh), *kept] if len(s.points)]
+            free = np.where(hit, metres, self.range_max) - FREE_SHORT_OF
+            self._looked = [
+                _Looked(odom, seconds, free),
+                *(looked for looked in self._looked if seconds - looked.seconds < FRESH_FLOOR),
+            ]
+            self._angles = angles
+            self._movers.update(fresh, odom, seconds)
+            self._movers.forget(seconds - self.keep)
+            self._seconds = seconds
+            self._unseen = self._movers_out_of_view()
         return np.concatenate([fresh, *(seen.points for seen in kept)])
+
+    def entry_check(self, odom: Pose) -> Callable[[Floats], NDArray[np.bool_]] | None:
+        """``may_enter`` at ``odom`` for a memory that looks only ahead; ``None`` (the
+        robot sees all round) for one that remembers nothing (a laser's scan)."""
+        return partial(self.may_enter, odom=odom) if self.keep > 0 else None
+
+    def may_enter(self, points: Floats, odom: Pose) -> NDArray[np.bool_]:
+        """For each point (robot frame at ``odom``, shape (n, 2)): whether the robot may
+        move onto it: it was seen free lately (``seen_free``), or nothing seen moving in
+        the last ``keep`` seconds could have got there since, at its pace plus
+        ``MOVER_PACE``."""
+        allowed = np.ones(len(points), bool)
+        if not self._unseen or not len(points):
+            return allowed
+        world = transform(odom, points)
+        for mover in self._unseen:
+            allowed &= self._out_of_reach(mover, world)
+        if allowed.all():
+            return allowed
+        return allowed | self.seen_free(points, odom)
+
+    def _out_of_reach(self, mover: Mover, world: Floats) -> NDArray[np.bool_]:
+        """Whether each odometry-frame point lies beyond where ``mover`` may be now: on
+        its way since it was last seen (walking on, or stopped anywhere along it), or
+        within ``MOVER_SPREAD`` times the time since of that way, plus ``MOVER_REACH``."""
+        age = self._seconds - mover.seconds
+        start = np.array(mover.centroid)
+        way = np.array(mover.velocity) * age
+        length = float(way @ way)
+        along = np.clip((world - start) @ way / length, 0.0, 1.0) if length > 0 else 0.0
+        nearest = start + np.multiply.outer(along, way)
+        reach = MOVER_REACH + MOVER_SPREAD * age
+        return np.asarray(np.hypot(*(world - nearest).T) > reach, bool)
+
+    def _movers_out_of_view(self) -> list[Mover]:
+        """Walkers seen lately and not in this scan, less those this scan sees again
+        (one now moving within their reach: the tracker may have given them a new track)."""
+        movers = [m for m in self._movers.movers.values() if m.speed >= WALKING]
+        seen = [m for m in movers if m.seconds == self._seconds]
+        again = np.array([s.centroid for s in seen]).reshape(-1, 2)
+        return [
+            m for m in movers if m.seconds < self._seconds and self._out_of_reach(m, again).all()
+        ]
+
+    def seen_free(self, points: Floats, odom: Pose) -> NDArray[np.bool_]:
+        """For each point (robot frame at ``odom``, shape (n, 2)): whether a scan of the
+        last ``FRESH_FLOOR`` seconds saw it free, inside its field of view, beyond the
+        sensor's near limit and short of its beam's return. With no memory (``keep=0``:
+        a laser's all-round scan) every point counts as seen."""
+        if self.keep <= 0:
+            return np.ones(len(points), bool)
+        seen = np.zeros(len(points), bool)
+        angles = self._angles
+        if not len(angles) or not len(points):
+            return seen
+        increment = (angles[-1] - angles[0]) / max(1, len(angles) - 1)
+        for looked in self._looked:
+            there = transform(relative(compose(looked.odom, self.mount), odom), points)
+            bearing = np.arctan2(there[:, 1], there[:, 0])
+            distance = np.hypot(there[:, 0], there[:, 1])
+            beam = np.rint((bearing - angles[0]) / increment).astype(np.intp)
+            inside = (beam >= 0) & (beam < len(angles))
+            free = looked.free[np.clip(beam, 0, len(angles) - 1)]
+            seen |= inside & (distance >= self.range_min) & (distance <= free)
+        return seen
 
     @staticmethod
     def _moved(seen: _Seen, odom: Pose) -> Floats:
@@ -172,5 +286,9 @@ def _points(mount: Pose, ranges: Floats, angles: Floats) -> Floats:
 def seen_obstacles(mount: Pose, config: RobotConfig) -> ObstacleMemory:
     """What a robot's local planner sees from a scan taken at ``mount``: a laser's
     all-round scan alone; for a scan made from depth, which looks ahead only, what the
-    camera saw in the last ``config.obstacle_memory`` seconds too."""
-    return ObstacleMemory(mount, config.obstacle_memory if config.sensors == "rgbd" else 0.0)
+    camera saw in the last ``config.obstacle_memory`` seconds too, and the floor it saw
+    free lately."""
+    if config.sensors != "rgbd":
+        return ObstacleMemory(mount, 0.0)
+    spec = DepthScanSpec()
+    return ObstacleMemory(mount, config.obstacle_memory, spec.range_max, spec.range_min)

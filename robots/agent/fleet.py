@@ -19,18 +19,20 @@ from dataclasses import dataclass, field, replace
 import httpx
 import numpy as np
 
+from cloudnav_core.params import RobotConfig
+from cloudnav_core.se2 import Pose
 from maps.domain.demo_building import demo_building
 from maps.domain.planning import warm_up
 from robots.agent.client import RosbridgeClient, endpoints
+from robots.agent.relocalise import PoseEstimate
 from robots.agent.robot import PoseTracker, Robot, declare, particle_filter
 from robots.agent.sim.changes import WorldChanges, changed_demo_world
 from robots.agent.sim.crowd import Crowd
 from robots.agent.sim.hardware import SimHardware
 from robots.agent.sim.world import World, demo_world
-from robots.agent.supervisor import BundleCache, MapsSupervisor
+from robots.agent.supervisor.bundle_cache import BundleCache
+from robots.agent.supervisor.maps_supervisor import MapsSupervisor
 from robots.agent.visual import VisualMap
-from robots.domain.params import RobotConfig
-from robots.domain.se2 import Pose
 
 logger = logging.getLogger(__name__)
 
@@ -43,6 +45,7 @@ class FleetOptions:
 
     server: str
     start: Pose | None = None  # every robot's; default: the demo's places by the entrance tag
+    starts: tuple[Pose, ...] = ()  # robot by robot (before ``start``)
     particles: int | None = None
     seed: int = 0
     robot: RobotConfig = field(default_factory=RobotConfig)
@@ -122,7 +125,8 @@ def build_robot(
         base_url=http_base, headers={"Authorization": f"Token {token}"}, timeout=10.0
     )
     seed, config = options.seed + 10 * index, options.robot
-    start = options.start or demo_start(index)
+    start = options.starts[index] if index < len(options.starts) else options.start
+    start = start or demo_start(index)
     hardware = SimHardware(
         world, start, seed=seed, limits=config.body, crowd=crowd, sensors=config.sensors
     )
@@ -181,6 +185,15 @@ async def run_fleet(fleet: list[FleetRobot], time_scale: float = 1.0) -> None:
             task.cancel()
         await asyncio.gather(*tasks, return_exceptions=True)
         await asyncio.gather(*(_close(member) for member in fleet))
+
+
+async def place_at_truth(fleet: list[FleetRobot], map_id: str) -> None:
+    """Tell each robot where it truly stands in sub-map ``map_id``, as an operator's
+    initial pose does (a robot without a camera reads no tag). Raises BundleError when
+    the map cannot be had."""
+    for member in fleet:
+        estimate = PoseEstimate(*member.robot.hardware.true_pose, np.diag([1e-4, 1e-4, 1e-4]))
+        await member.robot.supervisor.relocate(estimate, map_id, member.robot.tracker.odom)
 
 
 async def _close(member: FleetRobot) -> None:

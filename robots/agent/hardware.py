@@ -11,7 +11,7 @@ Nav2 with AMCL and a map server) takes the Maps Supervisor's maps, initial poses
 through it instead of the agent's own planner and controller.
 
 Rates and times are the software's clock (``Robot.seconds``); messages are
-``telemetry.domain.messages`` dicts, as the rosbridge client sends them.
+``cloudnav_core.messages`` dicts, as the rosbridge client sends them.
 """
 
 from __future__ import annotations
@@ -24,9 +24,9 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from robots.agent.perception import CameraModel
-from robots.domain.se2 import Point, Pose
-from telemetry.domain.messages import CompressedImage, Json, Odometry, compressed_image
+from cloudnav_core.camera import CameraModel
+from cloudnav_core.messages import CompressedImage, Json, Odometry, compressed_image
+from cloudnav_core.se2 import Point, Pose
 
 
 class Battery(Protocol):

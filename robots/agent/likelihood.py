@@ -26,21 +26,16 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from robots.domain.params import BeamModel
-from robots.domain.se2 import transform_each
+from cloudnav_core.grid import FREE_BELOW, OCCUPIED_AT, cells_of, cells_to_nearest
+from cloudnav_core.messages import scan_ranges
+from cloudnav_core.params import BeamModel
+from cloudnav_core.se2 import transform_each
 
 Floats = NDArray[np.float64]
 Grid = NDArray[np.int8]
-
-OCCUPIED_AT = 65
-"""Cells at or above this (0..100) are obstacles: map_saver's ``occupied_thresh`` 0.65."""
-FREE_BELOW = 20
-"""Cells from 0 up to this (excluded) are free: map_saver's ``free_thresh`` 0.196. Unknown
-(-1) and uncertain cells are neither; particles are never spread over them."""
 
 
 @dataclass(frozen=True)
@@ -65,7 +60,7 @@ def beams_of(scan: Mapping[str, Any], model: BeamModel) -> Beams:
 
     Raises KeyError for a missing field and ValueError for a non-positive ``range_max``.
     """
-    ranges = _ranges(scan["ranges"])
+    ranges = scan_ranges(scan["ranges"])
     range_min, range_max = float(scan["range_min"]), float(scan["range_max"])
     if range_max <= 0:
         raise ValueError("a laser scan needs a positive range_max")
@@ -75,13 +70,6 @@ def beams_of(scan: Mapping[str, Any], model: BeamModel) -> Beams:
     valid = np.isfinite(chosen) & (chosen >= range_min) & (chosen < range_max)
     angles = float(scan["angle_min"]) + picked[valid] * np.float64(scan["angle_increment"])
     return _in_robot_frame(chosen[valid], angles, model, model.z_rand / range_max)
-
-
-def _ranges(values: Sequence[float | None] | Floats) -> Floats:
-    """Ranges as floats, with rosbridge's ``null`` (no return) as NaN."""
-    if isinstance(values, np.ndarray):
-        return values.astype(np.float64)
-    return np.array([math.nan if v is None else v for v in values], np.float64)
 
 
 def _in_robot_frame(ranges: Floats, angles: Floats, model: BeamModel, floor: float) -> Beams:
@@ -160,8 +148,7 @@ class LikelihoodField:
         """Flat index of the cell under each point, clipped to the grid, and whether the
         point is on the map."""
         height, width = self.shape
-        col = np.floor((x - self.origin[0]) / self.resolution).astype(np.intp)
-        row = np.floor((y - self.origin[1]) / self.resolution).astype(np.intp)
+        row, col = cells_of(x, y, self.origin, self.resolution, nudge=0.0)
         inside = (col >= 0) & (col < width) & (row >= 0) & (row < height)
         np.clip(col, 0, width - 1, out=col)
         np.clip(row, 0, height - 1, out=row)
@@ -200,10 +187,10 @@ def _obstacle_distance(grid: Grid, resolution: float) -> NDArray[np.float32]:
     """Metres from each cell's centre to the nearest obstacle cell's face (the distance
     between centres less half a cell: a beam ends on the face, and without this the
     cloud leans half a cell into the walls); 0 on obstacles, ``inf`` with none."""
-    open_cells = (grid < OCCUPIED_AT).astype(np.uint8)
-    if open_cells.all():
+    obstacles = grid >= OCCUPIED_AT
+    if not obstacles.any():
         return np.full(grid.shape, np.inf, np.float32)
-    cells = cv2.distanceTransform(open_cells, cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
+    cells = cells_to_nearest(obstacles)
     return np.asarray(np.maximum(cells - 0.5, 0) * resolution, np.float32)
 
 
@@ -217,7 +204,7 @@ def _unseen(grid: Grid, distance: NDArray[np.float32], resolution: float) -> NDA
     open_edge = border & (grid < OCCUPIED_AT)
     if not open_edge.any():
         return np.zeros(grid.shape, bool)
-    cells = cv2.distanceTransform((~open_edge).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
+    cells = cells_to_nearest(open_edge)
     return np.asarray(distance > cells * resolution, np.bool_)
 
 

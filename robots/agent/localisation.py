@@ -39,9 +39,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from cloudnav_core.params import BeamModel, FilterParams
+from cloudnav_core.se2 import Pose, compose, relative, wrap
 from robots.agent.likelihood import Grid, LikelihoodField, beams_of
-from robots.domain.params import BeamModel, FilterParams
-from robots.domain.se2 import Pose, compose, relative, wrap
 
 Floats = NDArray[np.float64]
 

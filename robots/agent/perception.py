@@ -52,12 +52,13 @@ import numpy as np
 import zxingcpp
 from numpy.typing import NDArray
 
+from cloudnav_core.camera import CameraModel
+from cloudnav_core.messages import PinholeCalibration
+from cloudnav_core.se2 import Pose, angle_between
 from maps.domain.tagart import DEFAULT_DICTIONARY, DEFAULT_SIZE, QUIET_ZONE, aruco_dictionary
 from maps.domain.tagart import qr_offset as tag_qr_offset
 from maps.domain.tagpayload import TagPayload, parse_payload
 from maps.exceptions import TagPayloadError
-from robots.domain.se2 import Pose, angle_between
-from telemetry.domain.messages import PinholeCalibration
 
 Image = NDArray[np.uint8]
 Matrix = NDArray[np.float64]
@@ -71,36 +72,6 @@ _QR_FORMATS = zxingcpp.BarcodeFormats(zxingcpp.BarcodeFormat.QRCode)
 _QR_MARGIN = QUIET_ZONE
 """How much beyond the QR square the crop reaches, in units of the tag size: the quiet
 zone, which the decoder needs to see."""
-
-
-@dataclass(frozen=True)
-class CameraModel:
-    """Pinhole calibration (no distortion) and where the camera sits on the robot."""
-
-    width: int = 640
-    height: int = 480
-    fx: float = 525.0
-    fy: float = 525.0
-    cx: float = 319.5
-    cy: float = 239.5
-    mount_x: float = 0.05
-    mount_height: float = 0.25
-
-    def matrix(self) -> Matrix:
-        """The 3x3 intrinsic matrix K."""
-        return np.array([[self.fx, 0, self.cx], [0, self.fy, self.cy], [0, 0, 1]], np.float64)
-
-    def base_from_camera(self, point: Sequence[float] | Matrix) -> Matrix:
-        """A point (or a stack of points, shape (..., 3)) from the optical to the base frame."""
-        p = np.asarray(point, np.float64)
-        return np.stack(
-            [p[..., 2] + self.mount_x, -p[..., 0], self.mount_height - p[..., 1]], axis=-1
-        )
-
-    def base_direction(self, vector: Sequence[float] | Matrix) -> Matrix:
-        """A direction from the optical to the base frame (no offset)."""
-        v = np.asarray(vector, np.float64)
-        return np.stack([v[..., 2], -v[..., 0], -v[..., 1]], axis=-1)
 
 
 def pinhole_calibration(model: CameraModel) -> PinholeCalibration:

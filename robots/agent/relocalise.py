@@ -27,9 +27,9 @@ from typing import Protocol
 import numpy as np
 from numpy.typing import NDArray
 
+from cloudnav_core.messages import covariance_6x6
+from cloudnav_core.se2 import Pose, wrap
 from robots.agent.perception import TagDetection
-from robots.domain.se2 import Pose, wrap
-from telemetry.domain.messages import covariance_6x6
 
 Covariance = NDArray[np.float64]
 

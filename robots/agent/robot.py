@@ -47,20 +47,8 @@ from typing import Any, Generic, Protocol, TypeVar
 import numpy as np
 from numpy.typing import NDArray
 
-from robots.agent.client import RosbridgeClient
-from robots.agent.depth_scan import seen_obstacles
-from robots.agent.hardware import Hardware, compressed_image_message, encode_jpeg
-from robots.agent.localisation import ParticleFilter, odometry_delta
-from robots.agent.navigation import LegDriver, LocalObstacles, Navigator
-from robots.agent.perception import TagDetection, TagDetector, pinhole_calibration
-from robots.agent.relocalise import PoseEstimate
-from robots.agent.supervisor import BundleError, MapsSupervisor, SubMap
-from robots.agent.visual import LOST_SPREAD, TRUSTED_SPREAD, VisualMap, spread
-from robots.agent.whereabouts import Whereabouts
-from robots.domain.params import FilterParams, RobotConfig
-from robots.domain.se2 import Pose, compose, inverse
-from telemetry.domain import timecode
-from telemetry.domain.messages import (
+from cloudnav_core import timecode
+from cloudnav_core.messages import (
     Json,
     Message,
     battery_state,
@@ -74,8 +62,24 @@ from telemetry.domain.messages import (
     status_array,
     string_message,
     twist_of,
+    wait_order_of,
 )
-from telemetry.domain.names import CANCEL_GOAL, ROBOT_SERVICE_TYPES, ROBOT_TOPIC_TYPES
+from cloudnav_core.params import FilterParams, RobotConfig
+from cloudnav_core.se2 import Pose, compose, inverse
+from cloudnav_core.topics import CANCEL_GOAL, ROBOT_SERVICE_TYPES, ROBOT_TOPIC_TYPES
+from robots.agent.client import RosbridgeClient
+from robots.agent.depth_scan import seen_obstacles
+from robots.agent.hardware import Hardware, compressed_image_message, encode_jpeg
+from robots.agent.localisation import ParticleFilter, odometry_delta
+from robots.agent.navigation.clearance import LocalObstacles
+from robots.agent.navigation.legs import LegDriver
+from robots.agent.navigation.navigator import Navigator
+from robots.agent.perception import TagDetection, TagDetector, pinhole_calibration
+from robots.agent.relocalise import PoseEstimate
+from robots.agent.supervisor.maps_supervisor import MapsSupervisor
+from robots.agent.supervisor.submaps import BundleError, SubMap
+from robots.agent.visual import LOST_SPREAD, TRUSTED_SPREAD, VisualMap, spread
+from robots.agent.whereabouts import Whereabouts
 
 logger = logging.getLogger(__name__)
 
@@ -190,7 +194,7 @@ class Frame:
 
 class Publisher(Protocol):
     """Where the robot's messages go: the rosbridge client (a recorder, in tests). ``msg``
-    is a message of ``telemetry.domain.messages``."""
+    is a message of ``cloudnav_core.messages``."""
 
     async def publish(self, topic: str, msg: Any) -> bool: ...
 
@@ -259,6 +263,10 @@ class Robot(Generic[H]):
             map_id = f"{self.supervisor.current.building}/{map_id}"
         self.navigator.set_goal(map_id, (goal.x, goal.y, goal.yaw), self.seconds)
 
+    def on_right_of_way(self, msg: Json) -> None:
+        """The cloud's right of way: wait at a spot before a narrow place, or go on."""
+        self.navigator.give_way(wait_order_of(msg))
+
     def on_initial_pose(self, msg: Json) -> None:
         """An operator's pose estimate, in the sub-map its frame names."""
         found = initial_pose_of(msg)
@@ -310,7 +318,7 @@ class Robot(Generic[H]):
         frame = self._look() if self._due(*rates) else None
         here = self.hardware.odom_pose
         points = self.seen.update(ranges, self.hardware.scan_angles, here, self.seconds)
-        self._drive(LocalObstacles(points))
+        self._drive(LocalObstacles(points, may_enter=self.seen.entry_check(here)))
         self._check_map()
         await self._publish(scan, frame)
 
@@ -509,4 +517,5 @@ def declare(robot: Robot[Any], client: RosbridgeClient) -> None:
     client.subscribe("cmd_vel", ROBOT_TOPIC_TYPES["cmd_vel"], robot.on_cmd_vel)
     client.subscribe("goal", ROBOT_TOPIC_TYPES["goal"], robot.on_goal)
     client.subscribe("initialpose", ROBOT_TOPIC_TYPES["initialpose"], robot.on_initial_pose)
+    client.subscribe("right_of_way", ROBOT_TOPIC_TYPES["right_of_way"], robot.on_right_of_way)
     client.advertise_service(CANCEL_GOAL, ROBOT_SERVICE_TYPES[CANCEL_GOAL], robot.on_cancel)

@@ -21,20 +21,15 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
+from cloudnav_core.params import RobotConfig
+from cloudnav_core.se2 import Point, Pose
 from robots.agent.hardware import NavigationStack, StackGoal
-from robots.agent.navigation import (
-    RETARGET,
-    STOP,
-    Command,
-    Drive,
-    Driver,
-    DriveState,
-    LocalObstacles,
-)
+from robots.agent.navigation.clearance import LocalObstacles
+from robots.agent.navigation.commands import STOP, Command
+from robots.agent.navigation.driver import RETARGET, Driver
+from robots.agent.navigation.legs import Drive, DriveState
 from robots.agent.robot import PoseTracker
-from robots.agent.supervisor import SubMap
-from robots.domain.params import RobotConfig
-from robots.domain.se2 import Point, Pose
+from robots.agent.supervisor.submaps import SubMap
 
 logger = logging.getLogger(__name__)
 

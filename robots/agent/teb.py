@@ -49,9 +49,9 @@ import numpy as np
 from numpy.typing import NDArray
 from threadpoolctl import ThreadpoolController
 
+from cloudnav_core.params import RobotConfig, TebConfig
+from cloudnav_core.se2 import Point, Pose, inverse, transform, wrap
 from robots.agent.tracking import ObstacleTracker, SeenObstacles
-from robots.domain.params import RobotConfig, TebConfig
-from robots.domain.se2 import Point, Pose, inverse, transform, wrap
 
 Floats = NDArray[np.float64]
 Command = tuple[float, float]

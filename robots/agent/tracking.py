@@ -16,13 +16,14 @@ predicted to move slowly.
 
 from __future__ import annotations
 
+import itertools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
 
-from robots.domain.se2 import Pose, transform
+from cloudnav_core.se2 import Pose, transform
 
 Floats = NDArray[np.float64]
 
@@ -55,11 +56,29 @@ class SeenObstacles:
         return np.asarray(self.points + self.velocities * t, np.float64)
 
 
+_keys = itertools.count()
+
+
+@dataclass(frozen=True)
+class Mover:
+    """Where something was last seen moving: ``centroid`` and ``velocity`` (m/s) in the
+    odometry frame, and the time it was seen."""
+
+    centroid: tuple[float, float]
+    velocity: tuple[float, float]
+    seconds: float
+
+    @property
+    def speed(self) -> float:
+        return math.hypot(*self.velocity)
+
+
 @dataclass
 class _Track:
     centroid: tuple[float, float]  # odometry frame
     velocity: tuple[float, float] = (0.0, 0.0)
     age: int = 0
+    key: int = field(default_factory=lambda: next(_keys))
 
 
 class ObstacleTracker:
@@ -68,6 +87,8 @@ class ObstacleTracker:
     def __init__(self) -> None:
         self._tracks: list[_Track] = []
         self._seconds: float | None = None
+        self.movers: dict[int, Mover] = {}
+        """The last sighting of each moving track, by track; ``forget`` drops old ones."""
 
     def update(self, points: Floats, odom: Pose, seconds: float) -> SeenObstacles:
         """The returns ``points`` (robot frame, in scan order) with the velocities of
@@ -84,10 +105,16 @@ class ObstacleTracker:
                 continue
             track = self._follow(transform(odom, cluster).mean(axis=0), dt)
             tracks.append(track)
-            if track.age >= 2 and math.hypot(*track.velocity) >= STILL:
+            speed = math.hypot(*track.velocity)
+            if track.age >= 2 and speed >= STILL:
                 velocities[members] = _into_robot_frame(track.velocity, odom[2])
+                self.movers[track.key] = Mover(track.centroid, track.velocity, seconds)
         self._tracks = tracks
         return SeenObstacles(near, velocities)
+
+    def forget(self, before: float) -> None:
+        """Drop the movers last seen before ``before`` (seconds)."""
+        self.movers = {k: m for k, m in self.movers.items() if m.seconds >= before}
 
     def _follow(self, centroid: Floats, dt: float | None) -> _Track:
         """The track ``centroid`` continues (matched within ``GATE``), or a new one."""
@@ -102,7 +129,7 @@ class ObstacleTracker:
             weight * measured[1] + (1 - weight) * match.velocity[1],
         )
         self._tracks.remove(match)  # one cluster per track
-        return _Track(here, velocity, match.age + 1)
+        return _Track(here, velocity, match.age + 1, match.key)
 
 
 def _clusters(points: Floats) -> list[NDArray[np.intp]]:

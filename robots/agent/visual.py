@@ -28,11 +28,12 @@ import httpx
 import numpy as np
 from numpy.typing import NDArray
 
+from cloudnav_core.camera import CameraModel
+from cloudnav_core.messages import camera_info, compressed_depth, compressed_image
+from cloudnav_core.se2 import Pose
 from robots.agent.hardware import encode_jpeg
-from robots.agent.perception import CameraModel, pinhole_calibration
+from robots.agent.perception import pinhole_calibration
 from robots.agent.relocalise import PoseEstimate
-from robots.domain.se2 import Pose
-from telemetry.domain.messages import camera_info, compressed_depth, compressed_image
 
 logger = logging.getLogger(__name__)
 

@@ -21,7 +21,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from enum import Enum, IntEnum
 
-from telemetry.domain.messages import DiagnosticStatus, diagnostic_status
+from cloudnav_core.messages import DiagnosticStatus, diagnostic_status
 
 
 class Localisation(Enum):

@@ -50,8 +50,16 @@ function parseJson(text) {
   }
 }
 
+/** GET a binary answer (a 3D map's feed) as an ArrayBuffer; ApiError when refused. */
+async function bytes(url) {
+  const response = await fetch(url, { credentials: "same-origin" });
+  if (!response.ok) throw new ApiError(response.status, parseJson(await response.text()));
+  return response.arrayBuffer();
+}
+
 export const api = {
   get: (url) => request("GET", url),
+  bytes,
   post: (url, body) => request("POST", url, body),
   put: (url, body) => request("PUT", url, body),
   patch: (url, body) => request("PATCH", url, body),
@@ -75,6 +83,8 @@ export const urls = {
     `/api/buildings/${b}/route?from=${encodeURIComponent(from)}&to=${encodeURIComponent(to)}`,
   tags: (b, m) => `/api/tags/?building=${b}${m ? `&map=${m}` : ""}`,
   tag: (id) => `/api/tags/${id}/`,
+  parking: (b) => `/api/buildings/${b}/parking/`,
+  parkingSpot: (b, id) => `/api/buildings/${b}/parking/${id}/`,
   newTag: () => "/api/tags/",
   tagPrint: (id, ext) => `/api/tags/${id}/print.${ext}`,
   tagSheet: (b) => `/api/buildings/${b}/tags/print.pdf`,

@@ -8,6 +8,7 @@ import { FloorPlan, LAYERS } from "./floorplan.js";
 import { planarPose, poseStamped } from "./geometry.js";
 import { heardRecently, liveness } from "./liveness.js";
 import { MissionsPanel } from "./missions.js";
+import { ParkingSpots } from "./parking.js";
 import { badge, connectFleet, el, navigationState, pageConfig, placePose, stopRobot, whereabouts } from "./page.js";
 
 const TRAIL_POINTS = 300;
@@ -25,6 +26,7 @@ const $ = (id) => document.getElementById(id);
 const config = pageConfig();
 const building = config.building;
 const mayDrive = ["operator", "admin"].includes(config.role);
+const mayEdit = config.role === "admin";
 const connection = connectFleet();
 const plan = new FloorPlan($("floor-plan"));
 const wrap = $("floor-plan");
@@ -35,7 +37,7 @@ window.cloudnav.floorPlan = plan;
 function newTrack(name) {
   return {
     name, pose: null, map: null, heard: 0, live: false, trail: [], plan: [], goal: null,
-    route: [], nav: null, whereabouts: null, elsewhere: null,
+    route: [], nav: null, whereabouts: null, elsewhere: null, giveWay: null,
   };
 }
 
@@ -102,12 +104,33 @@ function listen(name) {
     heard();
     onStatus(track, msg);
   }, { queue_length: 1 });
+  connection.subscribe(`${ns}/right_of_way`, "std_msgs/String", (msg) => {
+    track.giveWay = giveWayOf(msg.data);
+    plan.changed();
+    renderList();
+  });
   connection.subscribe(`${ns}/localisation`, "diagnostic_msgs/DiagnosticStatus", (msg) => {
     heard();
     track.whereabouts = whereabouts(msg);
     if (track.whereabouts.state === "lost") track.pose = null;
     plan.changed();
   }, { queue_length: 1 });
+}
+
+/**
+ * The cloud's right of way for a robot (``/r/right_of_way``): null when it may go, else
+ * where it waits ({spot, place, waitingFor, message}, in the building frame).
+ */
+function giveWayOf(data) {
+  let order;
+  try {
+    order = JSON.parse(data);
+  } catch {
+    return null;
+  }
+  if (order?.state !== "wait" || splitMapId(order.map_id)[0] !== building) return null;
+  const [x, y, yaw] = order.spot;
+  return { spot: { x, y, yaw }, place: { x: order.place[0], y: order.place[1] }, waitingFor: order.waiting_for, message: order.message };
 }
 
 function onPose(track, msg) {
@@ -207,6 +230,8 @@ function stateOf(track) {
   if (!track.live) return liveness(track.heard);
   if (track.elsewhere) return [`in ${track.elsewhere}`, "plain"];
   if (track.whereabouts?.state === "lost") return ["lost", "warn"];
+  if (track.giveWay) return [`waits for ${track.giveWay.waitingFor}`, "warn"];
+  if ([...plan.robots.values()].some((t) => t.giveWay?.waitingFor === track.name)) return ["right of way", "ok"];
   return ["online", "ok"];
 }
 
@@ -239,6 +264,7 @@ function renderSelected() {
   $("selected-name").textContent = track.name;
   $("selected-state").replaceChildren(badge(word, kind));
   $("selected-map").textContent = track.live && track.map ? track.map : "—";
+  $("selected-way").textContent = track.giveWay ? track.giveWay.message : "—";
   $("selected-goal").textContent = track.goal ? `${track.goal.map} · ${track.goal.pose.x.toFixed(2)}, ${track.goal.pose.y.toFixed(2)}` : "none";
   $("selected-open").href = `/robots/${encodeURIComponent(track.name)}/`;
   $("selected-follow").classList.toggle("active", following);
@@ -262,13 +288,15 @@ function ageTracks() {
 
 function selectTool(tool) {
   const next = plan.tool === tool ? null : tool;
-  if (next && !plan.selected) {
+  if (next === "goal" && !plan.selected) {
     hint("Click a robot on the plan (or in the list) first: the goal is for it.");
     return;
   }
   plan.setTool(next);
-  $("tool-goal").classList.toggle("active", next === "goal");
-  hint(next ? `Press where ${plan.selected} should go and drag towards its heading.` : "");
+  $("tool-goal")?.classList.toggle("active", next === "goal");
+  $("tool-parking")?.classList.toggle("active", next === "parking");
+  if (next === "parking") hint("Tap the plan where robots may wait (drag for its heading).");
+  else hint(next ? `Press where ${plan.selected} should go and drag towards its heading.` : "");
 }
 
 function hint(text) {
@@ -321,6 +349,10 @@ function bindControls() {
   });
   plan.addEventListener("pose", (event) => {
     if (event.detail.tool === "goal") sendGoal(event.detail);
+    if (event.detail.tool === "parking") {
+      selectTool(null);
+      parking.place(event.detail);
+    }
   });
   plan.addEventListener("hover", ({ detail }) => {
     $("plan-cursor").textContent = `${detail.x.toFixed(2)}, ${detail.y.toFixed(2)} m${detail.map ? ` · ${detail.map}` : ""}`;
@@ -336,6 +368,7 @@ function bindControls() {
     $("tool-goal").addEventListener("click", () => selectTool("goal"));
     $("selected-stop").addEventListener("click", () => stopSelected());
   }
+  if (mayEdit) $("tool-parking").addEventListener("click", () => selectTool("parking"));
   for (const [key, title] of Object.entries(LAYERS)) {
     const box = el("input", { type: "checkbox", checked: true, dataset: { layer: key } });
     box.addEventListener("change", () => plan.setLayer(key, box.checked));
@@ -346,9 +379,13 @@ function bindControls() {
   });
 }
 
+const parking = new ParkingSpots({
+  plan, building, editable: mayEdit, list: $("parking-list"), empty: $("parking-empty"), hint,
+});
 bindControls();
 new MissionsPanel({ building, plan, connection, mayDrive, hint }).start();
 loadBuilding().catch((error) => hint(`Cannot load the building: ${error.message}`));
+parking.load().catch((error) => hint(`Cannot load the parking spots: ${error.message}`));
 refreshFleet();
 setInterval(refreshFleet, FLEET_MS);
 setInterval(ageTracks, 500);

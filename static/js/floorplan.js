@@ -21,6 +21,7 @@ const COLORS = {
   tag: "#b3128a",
   outline: "rgba(28, 35, 51, 0.35)",
   hover: "#2f6fed",
+  waiting: "#d64545",
 };
 const HIT_RADIUS_PX = 16;
 const DRAG_THRESHOLD_PX = 4;
@@ -375,6 +376,7 @@ export class FloorPlan extends EventTarget {
     if (this.visible.plans) tracks.forEach((t) => polyline(ctx, project, t.plan, COLORS.plan, 2, [6, 4]));
     if (this.visible.routes) tracks.forEach((t) => this.#drawGoal(ctx, project, t));
     if (this.visible.routes) this.#drawWaypoints(ctx, project);
+    tracks.forEach((t) => this.#drawGiveWay(ctx, project, t));
     tracks.forEach((t) => this.#drawRobot(ctx, project, t));
     if (this.drag) {
       const color = this.tool === "waypoint" ? COLORS.waypoint : COLORS.goal;
@@ -428,6 +430,25 @@ export class FloorPlan extends EventTarget {
       const [sx, sy] = project(point.x, point.y);
       label(ctx, String(index + 1), sx - 12, sy - 6, COLORS.waypoint);
     });
+  }
+
+  /** Where a robot giving way waits (a ring), joined to the narrow place it waits for. */
+  #drawGiveWay(ctx, project, track) {
+    const way = track.giveWay;
+    if (!way) return;
+    polyline(ctx, project, [way.spot, way.place], COLORS.waiting, 1.5, [3, 3]);
+    const [sx, sy] = project(way.spot.x, way.spot.y);
+    const [px, py] = project(way.place.x, way.place.y);
+    ctx.save();
+    ctx.strokeStyle = COLORS.waiting;
+    ctx.lineWidth = 2;
+    ctx.beginPath();
+    ctx.arc(sx, sy, Math.max(6, 0.25 * project.scale), 0, Math.PI * 2);
+    ctx.stroke();
+    ctx.fillStyle = COLORS.waiting;
+    ctx.fillRect(px - 3, py - 3, 6, 6);
+    ctx.restore();
+    label(ctx, `${track.name} waits for ${way.waitingFor}`, sx + 8, sy + 14, COLORS.waiting);
   }
 
   #drawRobot(ctx, project, track) {

@@ -3,9 +3,11 @@
 // resume, discard or (admins) publish it. The server tells the page when the session
 // changes or saves its map (the robot's latched `mapping` topic); the page reads it then,
 // and once every SLOW_MS for what no mapping worker tells (a finished session published
-// or discarded from another page).
+// or discarded from another page). A visual session's 3D map is drawn beside the grid
+// (map3d.js), fed the new keyframes' points each time the session saves.
 
 import { ApiError, api } from "./api.js";
+import { CloudView } from "./map3d.js";
 import { MapView } from "./mapview.js";
 import { askToConfirm, el, fixed, pageConfig } from "./page.js";
 
@@ -17,7 +19,8 @@ const card = $("mapping-card");
 const sessionsUrl = "/api/mapping/sessions/";
 const state = { session: null, snapshot: 0 };
 const view = new MapView($("mapping-canvas"));
-window.cloudnav = { ...(window.cloudnav || {}), mapping: { view, state } };
+let cloud = null; // the 3D view, made for the first visual session (a WebGL context)
+window.cloudnav = { ...(window.cloudnav || {}), mapping: { view, state, cloud: () => cloud } };
 
 async function refresh() {
   try {
@@ -52,9 +55,20 @@ async function show(session) {
     state.snapshot = session.snapshot;
     $("mapping-wrap").dataset.snapshot = session.snapshot;
   }
+  $("mapping-3d-wrap").hidden = !visual;
+  if (visual && session.snapshot) await show3d(session);
   view.set("trail", (session.path || []).map(([x, y]) => ({ x, y })));
   const last = (session.path || []).at(-1);
   view.set("robot", last ? { x: last[0], y: last[1], yaw: last[2] } : null);
+}
+
+async function show3d(session) {
+  try {
+    cloud = cloud || new CloudView($("mapping-3d"));
+    await cloud.update(session.id);
+  } catch (error) {
+    say("error", `3D view: ${error.message}`);
+  }
 }
 
 function say(kind, text) {

@@ -41,6 +41,7 @@ from .encoding import Outgoing, Variant, Wire
 from .limits import ConnectionLimits, Holdings, check_room
 from .names import canonical_type
 from .protocol import Json, PublishFrame
+from .timers import Cancellable, Scheduler
 
 logger = logging.getLogger(__name__)
 
@@ -53,14 +54,6 @@ class Peer(Protocol):
 
     def deliver(self, wire: Wire) -> None:
         """Send or queue one encoded message; never blocks, never raises."""
-
-
-class Cancellable(Protocol):
-    def cancel(self) -> None: ...
-
-
-# call_later(delay_seconds, callback) -> a handle that can be cancelled (asyncio's signature)
-Scheduler = Callable[[float, Callable[[], None]], Cancellable]
 
 
 class BusListener(Protocol):

@@ -46,6 +46,8 @@ class Kind(StrEnum):
     MAP_VERSION_CHANGED = "map_version_changed"
     ROBOT_STOPPED = "robot_stopped"
     WAYPOINT_TIMED_OUT = "waypoint_timed_out"
+    RIGHT_OF_WAY = "right_of_way"
+    FLEET_RULE = "fleet_rule"
     ALERT_CLEARED = "alert_cleared"
 
 
@@ -127,6 +129,7 @@ class _Watch:
     localised_once: bool = False  # since it connected; before that it is starting
     starting_overdue: bool = False
     stuck_since: float = 0.0  # the anchor time the stuck alert was raised at
+    moved_at: float = -math.inf  # when it last moved STUCK_METRES from where it was
     # Alerts that may be open for this robot: those raised here, and after it connects
     # any from before (another process, an earlier run), which the log clears if open.
     raised: set[Kind] = field(default_factory=set)
@@ -214,10 +217,22 @@ class EventDeriver:
         anchor = watch.anchor
         if anchor is None or math.hypot(x - anchor[0], y - anchor[1]) >= STUCK_METRES:
             watch.anchor = (x, y, now)
+            watch.moved_at = now if anchor is not None else watch.moved_at
         return []
 
     def heard(self, robot: str, now: float) -> None:
         self._watch(robot, now)
+
+    def moved_within(self, robot: str, seconds: float, now: float) -> bool:
+        """True if ``robot`` moved STUCK_METRES or more in the last ``seconds``."""
+        watch = self._watches.get(robot)
+        return watch is not None and now - watch.moved_at <= seconds
+
+    def stuck_since(self, robot: str) -> float | None:
+        """When ``robot``'s current stuck spell began (its last real move), None when it
+        is not stuck."""
+        watch = self._watches.get(robot)
+        return watch.stuck_since if watch is not None and watch.stuck else None
 
     def nav_status(self, robot: str, msg: Mapping[str, Any], now: float) -> list[EventDraft]:
         """A GoalStatusArray: an aborted, rejected or lost goal once, with its reason."""
@@ -366,6 +381,20 @@ class EventDeriver:
                 now, Kind.ROBOT_STOPPED, Severity.WARNING, robot, text, actor, watch.building, done
             )
         ]
+
+    def server_said(
+        self,
+        robot: str,
+        kind: Kind,
+        text: str,
+        now: float,
+        severity: Severity = Severity.INFO,
+        **data: Any,
+    ) -> list[EventDraft]:
+        """What the server decided for ``robot`` (who waits in a narrow place, what the
+        fleet rule does with a stuck robot), said in ``text``."""
+        watch = self._watches.get(robot) or _Watch()
+        return [EventDraft(now, kind, severity, robot, text, "server", watch.building, data)]
 
     def waypoint_timed_out(
         self, robot: str, waypoint: Mapping[str, Any], then: str, now: float

@@ -8,15 +8,13 @@ a float there, which strict clients reject).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from telemetry.exceptions import BadFrame, LimitReached
 
 from .limits import ByteBudget
 from .protocol import FragmentFrame
-
-if TYPE_CHECKING:
-    from .bus import Cancellable, Scheduler
+from .timers import Cancellable, Scheduler
 
 
 def split(text: str, size: int, fragment_id: Any) -> list[FragmentFrame]:

@@ -1,4 +1,5 @@
-"""ROS names, the fleet's topic names and the channel-layer group names, built here only.
+"""ROS names, the fleet's names and the channel-layer group names, built here only (a
+robot's own topics and services are ``cloudnav_core.topics``).
 
 A name is normalised to its absolute form (``rosapi/topics`` is ``/rosapi/topics``); a robot
 connection's relative names resolve into its namespace ``/{robot}/...``, except the global
@@ -22,48 +23,6 @@ ROSAPI = "/rosapi"
 CLOUDNAV = "/cloudnav"
 # Called by relative name from any connection, and advertised by none: the server's own.
 GLOBAL_NAMESPACES = frozenset({ROSAPI.strip("/"), CLOUDNAV.strip("/")})
-
-# Topics of each robot, relative to its namespace, with their message types (docs/design.md).
-ROBOT_TOPIC_TYPES = {
-    "pose": "geometry_msgs/PoseStamped",
-    "odom": "nav_msgs/Odometry",
-    "scan": "sensor_msgs/LaserScan",
-    "plan": "nav_msgs/Path",
-    "nav_status": "actionlib_msgs/GoalStatusArray",
-    "map_id": "std_msgs/String",
-    "localisation": "diagnostic_msgs/DiagnosticStatus",
-    "battery": "sensor_msgs/BatteryState",
-    "camera/image/compressed": "sensor_msgs/CompressedImage",
-    "camera/depth/image/compressedDepth": "sensor_msgs/CompressedImage",
-    "camera/depth/image": "sensor_msgs/Image",
-    "camera/camera_info": "sensor_msgs/CameraInfo",
-    "cmd_vel": "geometry_msgs/Twist",
-    "goal": "geometry_msgs/PoseStamped",
-    "initialpose": "geometry_msgs/PoseWithCovarianceStamped",
-    # Published by the server (latched): the robot's mapping session changed or saved its map.
-    "mapping": "std_msgs/String",
-}
-# Services each robot serves, relative to its namespace, with their types: operators may
-# call them (a robot's goal is cancelled by a call, since operators publish only commands).
-CANCEL_GOAL = "cancel_goal"
-ROBOT_SERVICE_TYPES = {CANCEL_GOAL: "std_srvs/Trigger"}
-# What operators may publish to a robot they may drive.
-COMMAND_TOPICS = frozenset({"cmd_vel", "goal", "initialpose"})
-# Topics whose last message every new subscriber receives, whatever the publisher asked.
-LATCHED_TOPICS = frozenset({"map_id", "localisation", "mapping"})
-CMD_VEL = "cmd_vel"
-POSE = "pose"
-MAP_ID = "map_id"
-NAV_STATUS = "nav_status"
-LOCALISATION = "localisation"
-BATTERY = "battery"
-MAPPING = "mapping"
-GOAL = "goal"
-ODOM = "odom"
-SCAN = "scan"
-CAMERA_IMAGE = "camera/image/compressed"
-CAMERA_DEPTH = "camera/depth/image/compressedDepth"
-CAMERA_INFO = "camera/camera_info"
 
 
 def absolute(name: str, namespace: str = "") -> str:

@@ -17,7 +17,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from .names import COMMAND_TOPICS, first_segment, is_reserved, suffix_in
+from cloudnav_core.topics import COMMAND_TOPICS, SERVER_TOPICS
+
+from .names import first_segment, is_reserved, suffix_in
 
 
 @dataclass(frozen=True, slots=True)
@@ -76,7 +78,11 @@ def may_subscribe(principal: Principal, owner: Owner | None) -> bool:
 
 def may_publish(principal: Principal, name: str, owner: Owner | None) -> bool:
     if principal.robot is not None:
-        return owner is not None and owner.robot == principal.robot
+        return (
+            owner is not None
+            and owner.robot == principal.robot
+            and suffix_in(name, owner.robot) not in SERVER_TOPICS
+        )
     if owner is None:
         return principal.admin and not is_reserved(name)
     return suffix_in(name, owner.robot) in COMMAND_TOPICS and may_drive(principal, owner)

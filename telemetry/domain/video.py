@@ -19,9 +19,10 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from .messages import NANOS
+from cloudnav_core.messages import NANOS
+from cloudnav_core.times import parse_stamp
+
 from .names import canonical_type
-from .times import parse_stamp
 
 MJPEG = "mjpeg"
 VP8 = "vp8"

@@ -362,13 +362,22 @@ def repair(path: Path) -> None:
 def repair_all(root: Path) -> int:
     """Repair every unfinished file under ``root`` that no live writer holds (what a
     stopped or killed process left); return how many."""
-    count = 0
     if not root.is_dir():
         return 0
-    for directory in root.iterdir():
-        for path in directory.glob(f"*{SUFFIX}") if directory.is_dir() else []:
-            if not finished(path) and _repair_if_closed(path):
-                count += 1
+    return sum(_repair_directory(directory) for directory in root.iterdir())
+
+
+def repair_robot(root: Path, robot: str) -> int:
+    """Repair the robot's unfinished files that no live writer holds (see ``repair_all``);
+    return how many."""
+    return _repair_directory(robot_dir(root, robot))
+
+
+def _repair_directory(directory: Path) -> int:
+    count = 0
+    for path in directory.glob(f"*{SUFFIX}") if directory.is_dir() else []:
+        if not finished(path) and _repair_if_closed(path):
+            count += 1
     return count
 
 

@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass
+
+from django.db.models import Prefetch
 
 from maps.models import Building
 from robots.models import Robot
@@ -49,11 +52,23 @@ def _plan_of(settings: RecordingSettings | None) -> Plan:
 
 def plan_for(robot: str) -> Plan:
     """The union of what the robot's buildings record (the fastest camera rate wins); a
-    robot of no building records the defaults."""
-    buildings = list(Building.objects.filter(robots__name=robot).select_related("recording"))
-    if not buildings:
-        return DEFAULT if Robot.objects.filter(name=robot).exists() else NOTHING
+    robot of no building records the defaults, a robot unknown nothing."""
+    return plans_for([robot])[robot]
+
+
+def plans_for(robots: Iterable[str]) -> dict[str, Plan]:
+    """``plan_for`` of each of ``robots``, in two queries whatever their number."""
+    wanted = set(robots)
+    buildings = Prefetch("buildings", Building.objects.select_related("recording"))
+    found = Robot.objects.filter(name__in=wanted).prefetch_related(buildings)
+    plans = {robot.name: _union(robot.buildings.all()) for robot in found}
+    return {robot: plans.get(robot, NOTHING) for robot in wanted}
+
+
+def _union(buildings: Iterable[Building]) -> Plan:
     plans = [_plan_of(getattr(b, "recording", None)) for b in buildings]
+    if not plans:
+        return DEFAULT
     topics = frozenset().union(*(p.topics for p in plans))
     intervals = [p.camera_interval for p in plans if p.camera_interval > 0]
     return Plan(topics, min(intervals) if intervals else 0.0)

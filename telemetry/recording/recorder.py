@@ -5,8 +5,9 @@ loop for every message the bus fans out, local or from another process, and does
 dictionary look-ups and one append: is the topic a robot's, is that robot connected to
 this process (so in scaled mode each robot is recorded once, by the process it is
 connected to), does its plan record this topic (and is a camera frame due). The message
-goes into that robot's bounded queue; when the queue is full the message is counted in
-``dropped`` and left, so the relay never waits. One writer thread drains the queues,
+goes into that robot's bounded inbox, which drops the newest (``Policy.DROP_NEWEST``):
+when it is full the message is counted in ``dropped`` and left, so the relay never waits.
+One named writer thread (a registered ``Worker``) drains the inboxes,
 serialises to ROS 1, writes the robot's rotating files, refreshes the plans from the
 database and applies each building's retention. Events come two ways: those this
 process's event log derives through ``Recorder.event`` at once, the others (another
@@ -15,17 +16,20 @@ process's, a request's) from the event log every ``events_seconds``.
 
 from __future__ import annotations
 
+import functools
 import logging
 import threading
 import time
 from collections import deque
 from collections.abc import Callable, Iterable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from django.conf import settings
 
+from cloudnav_core import topics
+from cloudnav_core.workers import Inbox, Policy, Worker
 from telemetry.config import setting
 from telemetry.domain import names, ros1
 from telemetry.domain.bus import Topic
@@ -70,19 +74,29 @@ def recording_on() -> bool:
     return bool(setting("CLOUDNAV_RECORDING", True, env_flag))
 
 
+Queued = tuple[str, str, Mapping[str, Any], int]
+"""A message waiting for the writer: topic, type, the message, its log time (ns)."""
+
+
 @dataclass
 class RobotQueue:
     """One robot's messages waiting for the writer, and what it had to drop."""
 
+    queue: Inbox[Queued]
     plan: Plan | None = None
-    queue: deque[tuple[str, str, Mapping[str, Any], int]] = field(default_factory=deque)
     last_camera: float = 0.0
-    dropped: int = 0
+    lost: int = 0  # written to a full disk
     written: int = 0
     failed: int = 0
 
+    @property
+    def dropped(self) -> int:
+        """Messages not recorded: the inbox's (full) and the disk's (full)."""
+        return self.queue.dropped + self.lost
 
-PlanSource = Callable[[str], Plan]
+
+# the robots -> each one's plan (``plans.plans_for``: one round of queries for them all)
+PlanSource = Callable[[list[str]], Mapping[str, Plan]]
 RetentionSource = Callable[[], Iterable[Retention]]
 # (last event id read or None at first, the robots recorded here) -> (last id, events):
 # the events of the log this process's event log did not derive (``foreign_events``)
@@ -109,18 +123,23 @@ class Recorder:
         self._events_at = 0.0
         self.robots: dict[str, RobotQueue] = {}
         self._writers: dict[str, files.RotatingFiles] = {}
-        self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
+        self._worker = Worker("recorder", self._run)
         self._plans_at = 0.0
         self._retention_at = 0.0
         self._leaving: deque[RobotQueue] = deque()
+        self._arrived: deque[str] = deque()  # robots whose files to repair
         # flush requests: the robots whose files to flush, and what to set when done
         self._flushes: deque[tuple[frozenset[str], threading.Event]] = deque()
 
     # ------------------------------------------------------------ on the relay loop
 
     def connected(self, robot: str) -> None:
-        self.robots.setdefault(robot, RobotQueue())
+        """Record ``robot``, which arrived here; what a process it was recorded by before
+        left unfinished (killed) is repaired now, not at the next retention pass."""
+        if robot not in self.robots:
+            queue: Inbox[Queued] = Inbox(robot, self.config.queue_size, Policy.DROP_NEWEST)
+            self.robots[robot] = RobotQueue(queue)
+            self._arrived.append(robot)
 
     def disconnected(self, robot: str) -> None:
         """Stop taking the robot's messages; what is queued is still written."""
@@ -143,11 +162,8 @@ class Recorder:
             if plan is None or now - entry.last_camera < plan.camera_interval:
                 return
             entry.last_camera = now
-        if len(entry.queue) >= self.config.queue_size:
-            entry.dropped += 1
-            return
-        type_name = topic.type or names.ROBOT_TOPIC_TYPES.get(suffix, "")
-        entry.queue.append((name, type_name, msg, int(now * 1e9)))
+        type_name = topic.type or topics.ROBOT_TOPIC_TYPES.get(suffix, "")
+        entry.queue.put((name, type_name, msg, int(now * 1e9)))
 
     def event(self, draft: EventDraft) -> None:
         """An event the server derived: queued on its robot's ``/{robot}/events`` channel
@@ -156,11 +172,8 @@ class Recorder:
         entry = self.robots.get(draft.robot or "")
         if entry is None or (entry.plan is not None and not entry.plan.topics):
             return
-        if len(entry.queue) >= self.config.queue_size:
-            entry.dropped += 1
-            return
         topic = names.robot_topic(draft.robot or "", EVENTS_TOPIC)
-        entry.queue.append((topic, EVENT_TYPE, as_log(draft), int(draft.time * 1e9)))
+        entry.queue.put((topic, EVENT_TYPE, as_log(draft), int(draft.time * 1e9)))
 
     def stats(self) -> dict[str, dict[str, int]]:
         return {
@@ -173,7 +186,7 @@ class Recorder:
         end their files' open chunks, so reading the files now gives everything recorded
         up to now (an export). Waits at most ``timeout`` seconds; False when the writer
         did not answer in time (or is not running)."""
-        if self._thread is None or not self._thread.is_alive():
+        if not self._worker.alive:
             return False
         done = threading.Event()
         self._flushes.append((frozenset(robots), done))
@@ -182,20 +195,18 @@ class Recorder:
     # ------------------------------------------------------------ the writer thread
 
     def start(self) -> None:
-        self._thread = threading.Thread(target=self._run, name="recorder", daemon=True)
-        self._thread.start()
+        self._worker.start()
 
     def stop(self, timeout: float = 10.0) -> None:
         """Write what is queued, finish every file and stop the thread."""
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join(timeout)
+        self._worker.stop()
+        self._worker.join(timeout)
 
-    def _run(self) -> None:
+    def _run(self, stopping: threading.Event) -> None:
         self._guarded(self._repair)
-        while not self._stop.is_set():
+        while not stopping.is_set():
             self._guarded(self.step)
-            self._stop.wait(self.config.poll_seconds)
+            stopping.wait(self.config.poll_seconds)
         self._guarded(self.step)
         for writer in self._writers.values():
             self._guarded(writer.close)
@@ -215,14 +226,19 @@ class Recorder:
         """One pass of the writer: plans when due, every queue drained, retention when due."""
         now = time.monotonic()
         flushes = [self._flushes.popleft() for _ in range(len(self._flushes))]
-        if now - self._plans_at >= self.config.plan_seconds or self._unplanned():
-            self._refresh_plans()
+        if now - self._plans_at >= self.config.plan_seconds:
+            self._refresh_plans(list(self.robots))
             self._plans_at = now
+        elif unplanned := [r for r, e in list(self.robots.items()) if e.plan is None]:
+            self._refresh_plans(unplanned)  # robots that just arrived
         if self.foreign_events is not None and now - self._events_at >= self.config.events_seconds:
             self._events_at = now
             self._guarded(self._read_foreign_events)
         while self._leaving:
             self._drain(self._leaving.popleft())
+        while self._arrived:
+            robot = self._arrived.popleft()
+            self._guarded(functools.partial(files.repair_robot, self.config.root, robot))
         self._close_idle()
         for robot, entry in list(self.robots.items()):
             self._drain(entry, robot=robot)
@@ -247,15 +263,16 @@ class Recorder:
             if writer is not None:
                 self._guarded(writer.flush)
 
-    def _unplanned(self) -> bool:
-        return any(e.plan is None for e in list(self.robots.values()))
-
-    def _refresh_plans(self) -> None:
-        for robot, entry in list(self.robots.items()):
-            try:
-                entry.plan = self.plans(robot)
-            except Exception:
-                log.exception("recorder: no plan for %s", robot)
+    def _refresh_plans(self, robots: list[str]) -> None:
+        try:
+            plans = self.plans(robots)
+        except Exception:
+            log.exception("recorder: no plans for %d robots", len(robots))
+            return
+        for robot, plan in plans.items():
+            entry = self.robots.get(robot)
+            if entry is not None:
+                entry.plan = plan
 
     def _close_idle(self) -> None:
         """Finish the files of robots that left."""
@@ -264,9 +281,7 @@ class Recorder:
 
     def _drain(self, entry: RobotQueue, robot: str | None = None) -> None:
         plan = entry.plan
-        queue = entry.queue
-        while queue:
-            topic, type_name, msg, log_time = queue.popleft()
+        for topic, type_name, msg, log_time in entry.queue.take_all():
             robot = robot or names.first_segment(topic)
             suffix = topic[len(robot) + 2 :]
             if plan is not None and not recorded(plan, suffix):
@@ -302,7 +317,7 @@ class Recorder:
             entry.written += 1
         except OSError:
             # a full disk: make room from this robot's oldest files and carry on
-            entry.dropped += 1
+            entry.lost += 1
             self._guarded(writer.close)
             self._writers.pop(robot, None)
             self._guarded(lambda: self._free_space(robot))

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import atexit
 from collections.abc import Callable
 from typing import TypeVar
 
@@ -13,7 +12,7 @@ from telemetry.domain.events import EventDraft
 from telemetry.events import foreign_events
 
 from .elsewhere import flush_elsewhere
-from .plans import Plan, Retention, plan_for, retentions
+from .plans import Plan, Retention, plans_for, retentions
 from .recorder import Recorder, RecorderConfig, recording_on
 
 T = TypeVar("T")
@@ -24,17 +23,17 @@ _recorder: Recorder | None = None
 def start_recorder() -> Recorder | None:
     """This process's recorder, started on first call; None when recording is off.
 
-    It is stopped at exit, finishing its files; a process killed outright leaves files
+    It is stopped at the process's end (``cloudnav_core.workers.REGISTRY``), finishing
+    its files; a process killed outright leaves files
     that are read up to their last chunk and repaired by the next start."""
     global _recorder
     if _recorder is None:
         if not recording_on():
             return None
         _recorder = Recorder(
-            RecorderConfig.load(), _plan, _retentions, foreign_events=_foreign_events
+            RecorderConfig.load(), _plans, _retentions, foreign_events=_foreign_events
         )
-        _recorder.start()
-        atexit.register(_recorder.stop)
+        _recorder.start()  # a registered worker: stopped and joined at the end
     return _recorder
 
 
@@ -63,8 +62,8 @@ def _closing(query: Callable[[], T]) -> T:
         connection.close()
 
 
-def _plan(robot: str) -> Plan:
-    return _closing(lambda: plan_for(robot))
+def _plans(robots: list[str]) -> dict[str, Plan]:
+    return _closing(lambda: plans_for(robots))
 
 
 def _retentions() -> list[Retention]:

@@ -12,15 +12,15 @@ from rest_framework.request import Request
 from rest_framework.response import Response
 from rest_framework.views import APIView
 
+from cloudnav_core import topics
 from maps.access import Role
 from maps.models import Building
-from maps.views import building_for
-from telemetry.domain import names
+from maps.views.lookups import building_for
 from telemetry.event_views import IsPerson
 from telemetry.models import RecordingSettings
 
 # Topics an admin may choose, relative to the robot; the camera is chosen by its rate.
-RECORDABLE = sorted(topic for topic in names.ROBOT_TOPIC_TYPES if not topic.startswith("camera/"))
+RECORDABLE = sorted(topic for topic in topics.ROBOT_TOPIC_TYPES if not topic.startswith("camera/"))
 
 
 class RecordingSettingsSerializer(serializers.ModelSerializer[RecordingSettings]):

@@ -5,6 +5,8 @@
   JPEG bytes go out untouched; otherwise the frame is re-encoded once, in a worker thread.
 - ``Vp8Pipeline`` (``vp8``): one libvpx encoder writing one live WebM stream
   (``telemetry.domain.webm.LiveWebm``) that every viewer reads from its own cursor.
+- ``RtcPipeline`` (WebRTC, VP8 or H.264): one encoder whose newest packet every WHEP
+  viewer's track sends as it is (``telemetry.video.webrtc``).
 
 A pipeline takes only the newest frame whenever it is free: when encoding is slower than
 the camera, frames are skipped, never queued. Encoders run in the relay's thread pool
@@ -21,7 +23,9 @@ from abc import ABC, abstractmethod
 from collections.abc import Callable
 from concurrent.futures import Executor
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar
+
+import av
 
 from telemetry.domain import jpeg, multipart
 from telemetry.domain.newest import Closed, Newest
@@ -34,8 +38,9 @@ from telemetry.domain.video import (
     Vp8Params,
 )
 from telemetry.domain.video_stats import StreamStats
-from telemetry.domain.vp8 import Vp8Encoder
+from telemetry.domain.vp8 import MILLISECONDS, Vp8Encoder
 from telemetry.domain.webm import EncodedFrame, FrameClock, LiveWebm
+from telemetry.domain.webrtc import WEBRTC_H264, h264_keyframe, new_encoder
 from telemetry.video.feeds import CameraFeed
 
 if TYPE_CHECKING:
@@ -48,6 +53,8 @@ T = TypeVar("T")
 MAX_INTERVAL_BYTES = 2 * 2**20
 # A new pipeline starts from the feed's current frame if it is at most this old.
 FRESH_FOR = 1.0
+# At most one keyframe asked by a WebRTC pipeline's lagging viewers per second.
+KEYFRAME_EVERY = 1.0
 
 
 @dataclass(frozen=True, slots=True)
@@ -206,4 +213,56 @@ class Vp8Pipeline(Pipeline):
 
     def _closed(self) -> None:
         self.appended.close()
+        self.encoder.close()
+
+
+class RtcPipeline(Pipeline):
+    """One encoder whose packets every viewer's track sends; ``output`` holds the newest."""
+
+    def __init__(self, feed: CameraFeed, params: StreamParams, executor: Executor) -> None:
+        super().__init__(feed, params, executor)
+        self.encoder = new_encoder(params)
+        self.output: Newest[av.Packet[Any]] = Newest()
+        self.epoch: float | None = None
+        self._last_sent = 0.0
+        self._last_key_asked = 0.0
+
+    def ask_keyframe(self) -> None:
+        """Make the next packet a keyframe, unless one was asked less than a second ago."""
+        now = time.monotonic()
+        if now - self._last_key_asked >= KEYFRAME_EVERY:
+            self._last_key_asked = now
+            self.encoder.force_keyframe()
+
+    async def _take(self, frame: Frame) -> None:
+        if (
+            self.params.fps is not None
+            and frame.received - self._last_sent < 0.95 / self.params.fps
+        ):
+            return
+        self._last_sent = frame.received
+        if self.epoch is None:
+            self.epoch = frame.received
+        stamp = int((frame.received - self.epoch) * 1000)
+        if frame.is_h264:
+            packets: list[av.Packet[Any]] | None = [self._passed_through(frame, stamp)]
+        else:
+            packets = await self._in_worker(lambda: self.encoder.packets(frame, stamp))
+        for packet in packets or []:
+            self.output.put(packet)
+            self.stats.produced(time.time(), packet.size)
+
+    def _passed_through(self, frame: Frame, stamp: int) -> av.Packet[Any]:
+        """The robot's own H.264 access unit as a packet, never decoded. Raises BadFrame
+        unless the stream asks for H.264 as the robot sends it."""
+        if self.params.type != WEBRTC_H264 or not self.params.image.untouched:
+            raise BadFrame("an H.264 camera is relayed as it is: ask type=h264, no width/height")
+        packet = av.Packet(frame.data)
+        packet.pts = stamp
+        packet.time_base = MILLISECONDS
+        packet.is_keyframe = h264_keyframe(frame.data)
+        return packet
+
+    def _closed(self) -> None:
+        self.output.close()
         self.encoder.close()

@@ -16,17 +16,17 @@ import asyncio
 import time
 import weakref
 from collections.abc import AsyncIterator
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Executor
 from contextlib import asynccontextmanager
 from typing import Any
 
-from cloudnav_web import shutdown
+from cloudnav_core.workers import Pool
 from cloudnav_web.heavy import Ticket, video_budget
 from telemetry.domain.video import SOURCE, VP8, StreamParams, encoder_memory
 from telemetry.domain.webrtc import MIME_TYPES
 from telemetry.hub import Hub, get_hub
 from telemetry.video.feeds import CameraFeed
-from telemetry.video.pipelines import ImagePipeline, Pipeline, Vp8Pipeline
+from telemetry.video.pipelines import ImagePipeline, Pipeline, RtcPipeline, Vp8Pipeline
 
 # Encoding threads; libvpx and OpenCV release the GIL, and the machines have two cores.
 WORKERS = 2
@@ -35,7 +35,7 @@ WORKERS = 2
 class VideoRelay:
     """Feeds by topic and pipelines by ``(topic, params)`` for this process's viewers."""
 
-    def __init__(self, hub: Hub, executor: ThreadPoolExecutor) -> None:
+    def __init__(self, hub: Hub, executor: Executor) -> None:
         self.hub = hub
         self.executor = executor
         self.feeds: dict[str, CameraFeed] = {}
@@ -118,8 +118,6 @@ class VideoRelay:
 
 
 def _pipeline_kind(params: StreamParams) -> type[Pipeline]:
-    from telemetry.video.webrtc import RtcPipeline  # it builds on this module
-
     if params.type in MIME_TYPES:
         return RtcPipeline
     return Vp8Pipeline if params.type == VP8 else ImagePipeline
@@ -132,16 +130,16 @@ def _entry(topic: str, kind: str, params: str, viewers: int) -> dict[str, Any]:
 _relays: weakref.WeakKeyDictionary[asyncio.AbstractEventLoop, VideoRelay] = (
     weakref.WeakKeyDictionary()
 )
-_executor: ThreadPoolExecutor | None = None
+_encoders: Pool | None = None
 
 
-def _encoding_threads() -> ThreadPoolExecutor:
-    """Return the process's encoding threads (shared by the relays of every event loop)."""
-    global _executor
-    if _executor is None:
-        _executor = ThreadPoolExecutor(WORKERS, thread_name_prefix="video")
-        shutdown.on_shutdown(_executor.shutdown)  # joined before the interpreter exits
-    return _executor
+def encoding_threads() -> Pool:
+    """Return the process's encoding threads (shared by the relays of every event loop),
+    registered to be stopped and joined before the interpreter exits."""
+    global _encoders
+    if _encoders is None:
+        _encoders = Pool("video", WORKERS)
+    return _encoders
 
 
 async def get_video_relay() -> VideoRelay:
@@ -150,5 +148,5 @@ async def get_video_relay() -> VideoRelay:
     relay = _relays.get(loop)
     if relay is None:
         hub = await get_hub()
-        relay = _relays.setdefault(loop, VideoRelay(hub, _encoding_threads()))
+        relay = _relays.setdefault(loop, VideoRelay(hub, encoding_threads().executor))
     return relay

@@ -1,11 +1,12 @@
 """WebRTC video by WHEP: one encoder per camera and parameter set, one peer per viewer.
 
-``RtcPipeline`` encodes the camera's newest frame once (VP8 or H.264, in the relay's
-encoding threads) and keeps the newest packet; each viewer's ``PacketTrack`` hands the
-packets to aiortc, which sends an ``av.Packet`` as it is (no re-encoding per viewer). A
-viewer that falls behind skips to the newest packet, then waits for the next keyframe
-(and asks the encoder for one, at most once a second), so it loses frames and nobody else
-does. The pipeline stops with its last viewer, as every relay pipeline does.
+``RtcPipeline`` (``telemetry.video.pipelines``) encodes the camera's newest frame once
+(VP8 or H.264, in the relay's encoding threads) and keeps the newest packet; each
+viewer's ``PacketTrack`` hands the packets to aiortc, which sends an ``av.Packet`` as it
+is (no re-encoding per viewer). A viewer that falls behind skips to the newest packet,
+then waits for the next keyframe (and asks the encoder for one, at most once a second),
+so it loses frames and nobody else does. The pipeline stops with its last viewer, as
+every relay pipeline does.
 
 ``WhepSessions`` holds this process's peer connections by their resource id (the
 ``Location`` a viewer DELETEs). A viewer that vanishes without a DELETE is dropped when
@@ -41,19 +42,15 @@ from aiortc.exceptions import InvalidAccessError, InvalidStateError, OperationEr
 from aiortc.mediastreams import MediaStreamError, MediaStreamTrack
 from django.conf import settings
 
-from telemetry.domain.newest import Closed, Newest
-from telemetry.domain.video import BadFrame, Frame, StreamParams
-from telemetry.domain.vp8 import MILLISECONDS
-from telemetry.domain.webrtc import MIME_TYPES, WEBRTC_H264, h264_keyframe, new_encoder
-from telemetry.video.pipelines import Pipeline
+from telemetry.domain.newest import Closed
+from telemetry.domain.video import StreamParams
+from telemetry.domain.webrtc import MIME_TYPES
+from telemetry.video.pipelines import RtcPipeline
 
 if TYPE_CHECKING:
-    from concurrent.futures import Executor
-
     from cloudnav_web.heavy import Ticket
     from telemetry.domain.rules import Principal
     from telemetry.video.cameras import Camera
-    from telemetry.video.feeds import CameraFeed
 from telemetry.video.relay import VideoRelay
 
 logger = logging.getLogger(__name__)
@@ -61,7 +58,6 @@ logger = logging.getLogger(__name__)
 aioice.ice.CONSENT_INTERVAL = 1  # module constants of aioice
 aioice.ice.CONSENT_FAILURES = 3
 ENDED_KEPT = 256
-KEYFRAME_EVERY = 1.0  # at most one keyframe asked by lagging viewers per second
 
 
 class OfferRefused(Exception):
@@ -70,58 +66,6 @@ class OfferRefused(Exception):
 
 class TooManySessions(Exception):
     """The client holds as many WebRTC sessions as it may."""
-
-
-class RtcPipeline(Pipeline):
-    """One encoder whose packets every viewer's track sends; ``output`` holds the newest."""
-
-    def __init__(self, feed: CameraFeed, params: StreamParams, executor: Executor) -> None:
-        super().__init__(feed, params, executor)
-        self.encoder = new_encoder(params)
-        self.output: Newest[av.Packet[Any]] = Newest()
-        self.epoch: float | None = None
-        self._last_sent = 0.0
-        self._last_key_asked = 0.0
-
-    def ask_keyframe(self) -> None:
-        """Make the next packet a keyframe, unless one was asked less than a second ago."""
-        now = time.monotonic()
-        if now - self._last_key_asked >= KEYFRAME_EVERY:
-            self._last_key_asked = now
-            self.encoder.force_keyframe()
-
-    async def _take(self, frame: Frame) -> None:
-        if (
-            self.params.fps is not None
-            and frame.received - self._last_sent < 0.95 / self.params.fps
-        ):
-            return
-        self._last_sent = frame.received
-        if self.epoch is None:
-            self.epoch = frame.received
-        stamp = int((frame.received - self.epoch) * 1000)
-        if frame.is_h264:
-            packets: list[av.Packet[Any]] | None = [self._passed_through(frame, stamp)]
-        else:
-            packets = await self._in_worker(lambda: self.encoder.packets(frame, stamp))
-        for packet in packets or []:
-            self.output.put(packet)
-            self.stats.produced(time.time(), packet.size)
-
-    def _passed_through(self, frame: Frame, stamp: int) -> av.Packet[Any]:
-        """The robot's own H.264 access unit as a packet, never decoded. Raises BadFrame
-        unless the stream asks for H.264 as the robot sends it."""
-        if self.params.type != WEBRTC_H264 or not self.params.image.untouched:
-            raise BadFrame("an H.264 camera is relayed as it is: ask type=h264, no width/height")
-        packet = av.Packet(frame.data)
-        packet.pts = stamp
-        packet.time_base = MILLISECONDS
-        packet.is_keyframe = h264_keyframe(frame.data)
-        return packet
-
-    def _closed(self) -> None:
-        self.output.close()
-        self.encoder.close()
 
 
 class PacketTrack(MediaStreamTrack):

@@ -3,7 +3,10 @@
 It creates what is missing and leaves everything else alone, so running it again (every
 ``make demo`` does) keeps what people did since: sub-maps, tags and users that exist are
 not touched (a tag an admin moved or placed stays, a changed password stays), and the
-topology is seeded only into a building that has no edges yet. Robot tokens are kept in a
+topology is seeded only into a building that has no edges yet. The demo's parking spots
+are added where missing, never over people's: one whose name is taken, or with a spot
+already within ``PARKING_SPACING`` of it in its sub-map, is left out, and no spot is
+changed or removed. Robot tokens are kept in a
 file (``--tokens-file``) so the simulated robots can read them; a robot whose token in that
 file no longer matches gets a new one.
 """
@@ -11,6 +14,7 @@ file no longer matches gets a new one.
 from __future__ import annotations
 
 import json
+import math
 import os
 from pathlib import Path
 from typing import Any
@@ -24,12 +28,14 @@ from maps import services
 from maps.domain.demo_building import DemoBuilding, demo_building, submap_metadata
 from maps.domain.mapfile import load_map_upload, map_yaml_text
 from maps.domain.topology import Edge
-from maps.models import Building, EnvironmentalTag
+from maps.models import Building, EnvironmentalTag, ParkingSpot
 from robots.models import Robot
 from robots.services import register_robot, rotate_token
 from robots.tokens import token_digest
 
 DEMO_USERS = ("admin", "operator", "viewer")
+PARKING_SPACING = 1.0
+"""Metres: a demo parking spot nearer than this to a spot people made is not added."""
 
 
 class Command(BaseCommand):
@@ -49,6 +55,7 @@ class Command(BaseCommand):
             building = self._building(demo)
             self._submaps(building, demo)
             self._tags(building, demo)
+            self._parking(building, demo)
             if not building.edges.exists():
                 self._topology(building, demo)
             passwords = self._users(building)
@@ -91,6 +98,26 @@ class Command(BaseCommand):
                 y=tag.y,
                 yaw=tag.yaw,
                 size=tag.size,
+            )
+
+    def _parking(self, building: Building, demo: DemoBuilding) -> None:
+        submaps = {s.code: s for s in building.submaps.defer("image")}
+        spots = building.parking_spots.values_list("name", "submap__code", "x", "y")
+        taken = list(spots)
+        for spot in demo.parking:
+            if spot.submap not in submaps or any(
+                name == spot.name
+                or (code == spot.submap and math.dist((x, y), (spot.x, spot.y)) < PARKING_SPACING)
+                for name, code, x, y in taken
+            ):
+                continue
+            ParkingSpot.objects.create(
+                building=building,
+                submap=submaps[spot.submap],
+                name=spot.name,
+                x=spot.x,
+                y=spot.y,
+                yaw=spot.yaw,
             )
 
     def _topology(self, building: Building, demo: DemoBuilding) -> None:
@@ -142,7 +169,8 @@ class Command(BaseCommand):
         write = self.stdout.write
         write(
             f"Demo building {building.code}: {building.submaps.count()} sub-maps, "
-            f"{building.tags.count()} tags, {building.edges.count()} edges."
+            f"{building.tags.count()} tags, {building.edges.count()} edges, "
+            f"{building.parking_spots.count()} parking spots."
         )
         for name, password in passwords.items():
             kept = "(was there: its password is unchanged)"

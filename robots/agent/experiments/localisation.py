@@ -47,6 +47,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from cloudnav_core.se2 import Pose, wrap
 from maps.domain.demo_building import DemoBuilding, DemoTag, demo_building
 from maps.domain.demo_building import submap_grid as decoded_grid
 from robots.agent.likelihood import Grid
@@ -57,7 +58,6 @@ from robots.agent.sim.body import DiffDriveBody
 from robots.agent.sim.camera import Camera
 from robots.agent.sim.laser import Laser
 from robots.agent.sim.world import World, demo_world
-from robots.domain.se2 import Pose, wrap
 
 TRIALS = 15
 QUICK_TRIALS = 3

@@ -32,9 +32,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from cloudnav_core.camera import CameraModel
 from maps.domain.tagart import qr_centre
 from maps.domain.tagpayload import TagPayload, encode_payload
-from robots.agent.perception import CameraModel, TagDetector
+from robots.agent.perception import TagDetector
 from robots.agent.sim.camera import Camera
 from robots.agent.sim.world import SimTag, World, world_from_grid
 

@@ -19,8 +19,8 @@ from sensor_msgs.msg import (  # type: ignore[import-not-found,unused-ignore]
     LaserScan,
 )
 
+from cloudnav_core.camera import CameraModel
 from robots.agent.bridge import DriverReadings, camera_model_of, image_of_jpeg
-from robots.agent.perception import CameraModel
 
 
 def calibrated_camera(topic: str, wait: float) -> CameraModel:

@@ -32,6 +32,7 @@ from nav_msgs.msg import (  # type: ignore[import-not-found,unused-ignore]
 from nav_msgs.srv import LoadMap  # type: ignore[import-not-found,unused-ignore]
 from numpy.typing import NDArray
 
+from cloudnav_core.se2 import Point, Pose
 from robots.agent.bridge import (
     StackReadings,
     load_map_files,
@@ -43,7 +44,6 @@ from robots.agent.bridge import (
     write_initial_pose,
 )
 from robots.agent.hardware import StackGoal
-from robots.domain.se2 import Point, Pose
 
 logger = logging.getLogger(__name__)
 

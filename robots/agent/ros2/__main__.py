@@ -21,6 +21,9 @@ the ROS 1 bridge (``robots.agent.bridge``).
 from __future__ import annotations
 
 import argparse
+import logging
+import os
+import signal
 import threading
 from collections.abc import Sequence
 from typing import Any
@@ -32,6 +35,8 @@ from robots.agent.bridge import (
     run_node,
     stack_options,
 )
+
+logger = logging.getLogger(__name__)
 
 
 def arguments(argv: Sequence[str] | None = None) -> tuple[argparse.Namespace, list[str]]:
@@ -57,14 +62,29 @@ async def main(options: argparse.Namespace, ros_args: list[str]) -> None:
     node = rclpy.create_node(options.node)
     executor = MultiThreadedExecutor()
     executor.add_node(node)
-    spinning = threading.Thread(target=executor.spin, daemon=True)
+    ending = threading.Event()
+    spinning = threading.Thread(target=spin_or_stop, args=(executor, ending), daemon=True)
     spinning.start()
     try:
         await run_bridge(options, lambda: hardware(node, options), lambda: stack(node, options))
     finally:
+        ending.set()
         executor.shutdown()
         node.destroy_node()
         rclpy.try_shutdown()
+
+
+def spin_or_stop(executor: Any, ending: threading.Event) -> None:
+    """Spin ``executor``; if spinning fails before the bridge is ``ending``, the bridge
+    stops (SIGTERM to itself: the robot is stopped and its goal cancelled on the way out)
+    rather than drive on readings that no longer come."""
+    try:
+        executor.spin()
+    except Exception:
+        if ending.is_set():
+            return
+        logger.exception("the ROS 2 executor failed: the bridge stops")
+        os.kill(os.getpid(), signal.SIGTERM)
 
 
 def hardware(node: Any, options: argparse.Namespace) -> Any:

@@ -23,25 +23,26 @@ from sensor_msgs.msg import (  # type: ignore[import-not-found,unused-ignore]
     LaserScan,
 )
 
+from cloudnav_core.camera import CameraModel
 from robots.agent.bridge import DriverReadings, camera_model_of, image_of_jpeg, image_of_raw
-from robots.agent.perception import CameraModel
 
 
 def first_message(node: Node, kind: Any, topic: str, timeout: float) -> Any:
     """The first ``kind`` on ``topic`` within ``timeout`` seconds (the node spinning
-    elsewhere); None if none came."""
+    elsewhere); None if none came. The subscription stays, ignoring what comes later:
+    destroying it from this thread while another spins the node can kill that thread's
+    executor (rclpy raises InvalidHandle while it builds its wait set), and the robot
+    would hear nothing more."""
     came: list[Any] = []
     arrived = threading.Event()
 
     def take(msg: Any) -> None:
-        came.append(msg)
-        arrived.set()
+        if not came:
+            came.append(msg)
+            arrived.set()
 
-    subscription = node.create_subscription(kind, topic, take, qos_profile_sensor_data)
-    try:
-        arrived.wait(timeout)
-    finally:
-        node.destroy_subscription(subscription)
+    node.create_subscription(kind, topic, take, qos_profile_sensor_data)
+    arrived.wait(timeout)
     return came[0] if came else None
 
 
@@ -79,11 +80,8 @@ class Ros2Hardware(DriverReadings):
             node.create_subscription(Image, camera, self._on_raw, sensors)
         else:
             node.create_subscription(CompressedImage, camera, self._on_jpeg, sensors)
-        first_odom = first_message(node, Odometry, odom, timeout)
-        first_scan = first_message(node, LaserScan, scan, timeout)
-        if first_odom is None or first_scan is None:
+        if not self.wait_ready(timeout):
             raise TimeoutError(f"no odometry on {odom} or no scan on {scan} in {timeout} s")
-        self.ready(first_odom, first_scan)
 
     def _on_jpeg(self, msg: Any) -> None:
         # Decoded here, off the control loop; a frame that does not decode is dropped.

@@ -34,6 +34,7 @@ from rclpy.qos import (  # type: ignore[import-not-found,unused-ignore]
     ReliabilityPolicy,
 )
 
+from cloudnav_core.se2 import Point, Pose, compose
 from robots.agent.bridge import (
     StackReadings,
     load_map_files,
@@ -46,7 +47,6 @@ from robots.agent.bridge import (
 )
 from robots.agent.hardware import StackGoal
 from robots.agent.ros2 import stamp_seconds
-from robots.domain.se2 import Point, Pose, compose
 
 logger = logging.getLogger(__name__)
 

@@ -19,11 +19,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from cloudnav_core.messages import Odometry, odometry
+from cloudnav_core.params import BodyLimits
+from cloudnav_core.se2 import Pose, wrap
 from robots.agent.sim.crowd import NO_DISCS, Movers, disc_clearance
 from robots.agent.sim.world import World
-from robots.domain.params import BodyLimits
-from robots.domain.se2 import Pose, wrap
-from telemetry.domain.messages import Odometry, odometry
 
 
 @dataclass(frozen=True)

@@ -25,12 +25,12 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from cloudnav_core.camera import CameraModel
+from cloudnav_core.se2 import Pose, ahead
 from maps.domain.tagart import TagFace, face_size, plate_right_axis, tag_face
-from robots.agent.perception import CameraModel
 from robots.agent.sim.crowd import Discs, Movers, cast_discs
 from robots.agent.sim.wallpaper import EAST, FAR_LEVELS, NORTH, PANEL_WIDTH, SOUTH, TEXEL, WEST
 from robots.agent.sim.world import OBSTACLE, RayHits, SimTag, World
-from robots.domain.se2 import Pose, ahead
 
 Image = NDArray[np.uint8]
 Floats = NDArray[np.float64]

@@ -32,9 +32,9 @@ from typing import Protocol
 import numpy as np
 from numpy.typing import NDArray
 
+from cloudnav_core.se2 import Point, Pose
 from maps.domain.planning import Costmap, PlanningError, inflate, plan_on
 from robots.agent.sim.world import FREE, World
-from robots.domain.se2 import Point, Pose
 
 Floats = NDArray[np.float64]
 

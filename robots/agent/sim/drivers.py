@@ -14,11 +14,11 @@ from abc import ABC, abstractmethod
 from collections.abc import Sequence
 from typing import Any
 
+from cloudnav_core.se2 import Pose
 from robots.agent.bridge import quaternion_of, set_pose
 from robots.agent.fleet import demo_start, parse_pose
 from robots.agent.hardware import encode_jpeg
 from robots.agent.sim.hardware import SimHardware
-from robots.domain.se2 import Pose
 
 ODOM_FRAME = "odom"
 BASE_FRAME = "base_footprint"

@@ -11,17 +11,17 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from cloudnav_core.camera import CameraModel
+from cloudnav_core.messages import Json, Odometry, laser_scan
+from cloudnav_core.params import BodyLimits, Sensors
+from cloudnav_core.se2 import Pose
 from robots.agent.depth_scan import DepthScanSpec, depth_to_scan
-from robots.agent.perception import CameraModel
 from robots.agent.sim.battery import SimBattery
 from robots.agent.sim.body import DiffDriveBody
 from robots.agent.sim.camera import Camera
 from robots.agent.sim.crowd import Crowd
 from robots.agent.sim.laser import Laser, LaserSpec
 from robots.agent.sim.world import World
-from robots.domain.params import BodyLimits, Sensors
-from robots.domain.se2 import Pose
-from telemetry.domain.messages import Json, Odometry, laser_scan
 
 DEPTH_SCAN_FRAME = "camera_depth_frame"
 

@@ -14,10 +14,10 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from cloudnav_core.messages import Json, ScanGeometry, laser_scan
+from cloudnav_core.se2 import Pose, ahead
 from robots.agent.sim.crowd import Movers, cast_discs
 from robots.agent.sim.world import World
-from robots.domain.se2 import Pose, ahead
-from telemetry.domain.messages import Json, ScanGeometry, laser_scan
 
 Ranges = NDArray[np.float32]
 

@@ -53,8 +53,11 @@ from sensor_msgs.msg import (  # type: ignore[import-not-found,unused-ignore]
 )
 from tf2_msgs.msg import TFMessage  # type: ignore[import-not-found,unused-ignore]
 
+from cloudnav_core.messages import PinholeCalibration
+from cloudnav_core.se2 import Pose
 from robots.agent.bridge import planar_covariance, pose_of, set_pose
-from robots.agent.navigation import Driver, DriveState
+from robots.agent.navigation.driver import Driver
+from robots.agent.navigation.legs import DriveState
 from robots.agent.perception import pinhole_calibration
 from robots.agent.ros2 import stamp_seconds
 from robots.agent.ros2.navigation import LATCHED
@@ -70,8 +73,6 @@ from robots.agent.sim.drivers import (
 )
 from robots.agent.sim.hardware import SimHardware
 from robots.agent.sim.stand_in import StandInStack, write_plan
-from robots.domain.se2 import Pose
-from telemetry.domain.messages import PinholeCalibration
 
 CONTROL_PERIOD = 0.1
 """Seconds between the action server's control steps."""

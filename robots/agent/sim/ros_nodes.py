@@ -40,8 +40,10 @@ from sensor_msgs.msg import (  # type: ignore[import-not-found,unused-ignore]
     LaserScan,
 )
 
+from cloudnav_core.se2 import Pose
 from robots.agent.bridge import pose_of, set_pose
-from robots.agent.navigation import Driver, DriveState
+from robots.agent.navigation.driver import Driver
+from robots.agent.navigation.legs import DriveState
 from robots.agent.perception import pinhole_calibration
 from robots.agent.sim.drivers import (
     BASE_FRAME,
@@ -55,7 +57,6 @@ from robots.agent.sim.drivers import (
 )
 from robots.agent.sim.hardware import SimHardware
 from robots.agent.sim.stand_in import StandInStack, write_plan
-from robots.domain.se2 import Pose
 
 CONTROL_RATE = 10.0
 """Hz of the move_base stand-in's controller."""

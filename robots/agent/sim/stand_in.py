@@ -15,12 +15,14 @@ from typing import Any
 
 import numpy as np
 
+from cloudnav_core.messages import laser_scan
+from cloudnav_core.se2 import Pose, compose, inverse
 from robots.agent.bridge import planar_covariance, pose_of, scan_geometry, set_pose
-from robots.agent.navigation import Drive, Driver, LocalObstacles
+from robots.agent.navigation.clearance import LocalObstacles
+from robots.agent.navigation.driver import Driver
+from robots.agent.navigation.legs import Drive
 from robots.agent.robot import PoseTracker, particle_filter
-from robots.agent.supervisor import SubMap
-from robots.domain.se2 import Pose, compose, inverse
-from telemetry.domain.messages import laser_scan
+from robots.agent.supervisor.submaps import SubMap
 
 PARTICLES = 200
 """The stand-in AMCL's particles after an initial pose."""

@@ -21,6 +21,7 @@ from functools import cached_property, lru_cache
 import numpy as np
 from numpy.typing import NDArray
 
+from cloudnav_core.grid import OCCUPIED_AT, cell_of
 from maps.domain.demo_building import DemoBuilding, DemoTag, demo_building
 from maps.domain.tagart import DEFAULT_DICTIONARY, QR_VERSION
 from maps.domain.tagpayload import TagPayload, encode_payload
@@ -28,9 +29,6 @@ from robots.agent.sim.wallpaper import Wallpaper, appearance_of, tags_by_face
 
 FREE, WALL, OBSTACLE = 0, 1, 2
 """Cell materials."""
-
-OCCUPIED_AT = 50
-"""Occupancy values at or above this (of 0..100) are walls; -1 (unknown) is free."""
 
 WALL_HEIGHT = 2.5
 """Metres: what the camera draws above the floor for every solid cell."""
@@ -127,9 +125,7 @@ class World:
 
     def cell_of(self, x: float, y: float) -> tuple[int, int]:
         """``(row, col)`` of the cell holding ``(x, y)``; may lie outside the grid."""
-        col = math.floor((x - self.origin[0]) / self.resolution)
-        row = math.floor((y - self.origin[1]) / self.resolution)
-        return row, col
+        return cell_of((x, y), self.origin, self.resolution, nudge=0.0)
 
     def disc_is_free(self, x: float, y: float, radius: float) -> bool:
         """True unless a solid cell lies closer than ``radius`` to ``(x, y)``."""
@@ -156,7 +152,7 @@ def world_from_grid(
     obstacles: Iterable[Obstacle] = (),
 ) -> World:
     """A world whose walls are the cells of ``grid`` (an occupancy grid) at ``OCCUPIED_AT`` or
-    above, with ``tags`` and extra ``obstacles``."""
+    above (-1, unknown, is free), with ``tags`` and extra ``obstacles``."""
     cells = np.where(np.asarray(grid) >= OCCUPIED_AT, WALL, FREE).astype(np.uint8)
     world = World(cells, (float(origin[0]), float(origin[1])), float(resolution))
     return world.with_tags(*tags).with_obstacles(*obstacles)

@@ -1,22 +1,5 @@
-"""The Maps Supervisor: which sub-map the robot is in, the bundles it holds, and what to
-drive to next on the way to a goal in another sub-map.
-
-Bundles
-=======
-
-``BundleCache`` holds every bundle the robot has fetched, keyed by Map ID, with its
-version and ETag. Entering a sub-map asks the server again *conditionally*
-(``If-None-Match``): the answer is ``304 Not Modified`` with no body when nothing
-changed, so a held map costs one small round trip and is never downloaded again; the
-round trip is worth it because an admin may have edited the map, its tags or the
-topology since. When the server cannot be reached, a held bundle is used as it is.
-
-Frames
-======
-
-Sub-maps of one building share one frame (each map_server origin places its image in
-the building's frame, as the demo's do). A tag's stored pose, found in whichever held
-bundle holds that tag, therefore places the robot in the sub-map it enters too.
+"""``MapsSupervisor``: which sub-map the robot is in, and what to drive to next on the way
+to a goal in another sub-map, tick by tick.
 
 The procedure (the paper's)
 ===========================
@@ -47,33 +30,26 @@ search goes on.
 from __future__ import annotations
 
 import asyncio
-import base64
-import binascii
 import logging
 import math
-from collections.abc import Callable, Iterable, Mapping
-from dataclasses import dataclass, field
-from enum import Enum
-from typing import Any, Protocol
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass
+from typing import Protocol
 
-import httpx
 import numpy as np
 from numpy.typing import NDArray
 
-from maps.domain.mapfile import load_map_upload
-from maps.domain.planning import Costmap, inflate
-from maps.domain.topology import Edge, RouteStep, TagLink, route_between
-from maps.domain.versions import map_ref
+from cloudnav_core.se2 import Pose, ahead, compose, inverse, wrap
+from maps.domain.topology import RouteStep, route_between
 from maps.exceptions import MapStoreError
 from robots.agent.perception import TagDetection
 from robots.agent.relocalise import PoseEstimate, relocalise
+from robots.agent.supervisor.bundle_cache import BundleCache
+from robots.agent.supervisor.legs import Destination, Leg, LegKind
+from robots.agent.supervisor.submaps import BundleError, StoredTag, SubMap
 from robots.agent.whereabouts import Localisation, Whereabouts
-from robots.domain.params import PlannerConfig
-from robots.domain.se2 import Pose, ahead, compose, inverse, wrap
 
 logger = logging.getLogger(__name__)
-
-Grid = NDArray[np.int8]
 
 APPROACH = 0.5
 """Metres in front of a tag where the robot stops to read its QR code."""
@@ -93,209 +69,6 @@ SEARCH_TURNS = 1.5
 """Full turns a lost robot makes looking for a tag before it gives up."""
 LOOK_AROUND_AFTER = 2.0
 """Seconds at a tag's approach pose without reading it before looking around."""
-MAX_MAP_PIXELS = 16 * 2**20
-
-
-class BundleError(Exception):
-    """A bundle could not be fetched or made sense of."""
-
-
-# --- bundles ---------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class StoredTag:
-    """A tag as its bundle stores it: pose in the building frame, the sub-map it is in
-    and the one it leads to."""
-
-    marker_id: int
-    x: float
-    y: float
-    yaw: float
-    size: float
-    submap: str
-    links_to: str
-
-
-@dataclass(frozen=True, eq=False)
-class SubMap:
-    """One decoded bundle: grid (int8, row 0 = bottom), its frame, tags and topology."""
-
-    building: str
-    code: str
-    version: str
-    etag: str
-    grid: Grid = field(repr=False)
-    resolution: float
-    origin: tuple[float, float, float]
-    tags: Mapping[int, StoredTag]
-    nodes: tuple[str, ...]
-    edges: tuple[Edge, ...]
-    crossings: tuple[TagLink, ...] | None = None  # None: a server that did not send them
-    revision: int | None = None  # the version's number; None: a server without versions
-    _costmaps: dict[tuple[float, PlannerConfig], Costmap] = field(
-        default_factory=dict, init=False, repr=False
-    )
-
-    @property
-    def map_id(self) -> str:
-        return f"{self.building}/{self.code}"
-
-    @property
-    def map_ref(self) -> str:
-        """The Map ID with the version held (``building/code@v<n>``), what ``map_id`` says."""
-        return self.map_id if self.revision is None else map_ref(self.map_id, self.revision)
-
-    def costmap(self, radius: float, planner: PlannerConfig) -> Costmap:
-        """The grid inflated for a robot of ``radius`` (metres) by ``planner``, computed
-        once per bundle version."""
-        key = (radius, planner)
-        if key not in self._costmaps:
-            self._costmaps[key] = self._inflated(self.grid, radius, planner)
-        return self._costmaps[key]
-
-    def costmap_with(
-        self, points: NDArray[np.float64], radius: float, planner: PlannerConfig
-    ) -> Costmap:
-        """The costmap with obstacles at ``points`` (map frame, shape (n, 2)) added."""
-        grid = self.grid.copy()
-        cols = np.floor((points[:, 0] - self.origin[0]) / self.resolution).astype(np.intp)
-        rows = np.floor((points[:, 1] - self.origin[1]) / self.resolution).astype(np.intp)
-        inside = (rows >= 0) & (rows < grid.shape[0]) & (cols >= 0) & (cols < grid.shape[1])
-        grid[rows[inside], cols[inside]] = 100
-        return self._inflated(grid, radius, planner)
-
-    def _inflated(self, grid: Grid, radius: float, planner: PlannerConfig) -> Costmap:
-        return inflate(
-            grid,
-            radius,
-            self.resolution,
-            origin=self.origin,
-            gradient_m=planner.gradient,
-            gradient_weight=planner.gradient_weight,
-        )
-
-
-def submap_from_bundle(document: Mapping[str, Any], etag: str) -> SubMap:
-    """Decode a bundle (``GET .../bundle``'s JSON). Raises BundleError for anything
-    missing or unreadable, map files included."""
-    try:
-        image = document["image"]
-        data = base64.b64decode(image["data"], validate=True)
-        loaded = load_map_upload(document["yaml"].encode(), {image["name"]: data}, MAX_MAP_PIXELS)
-        code, topology = str(document["map"]), document["topology"]
-        return SubMap(
-            building=str(document["building"]),
-            code=code,
-            version=str(document["version"]),
-            etag=etag,
-            grid=loaded.grid,
-            resolution=loaded.meta.resolution,
-            origin=loaded.meta.origin,
-            tags={int(t["marker_id"]): _stored_tag(t, code) for t in document["tags"]},
-            nodes=tuple(str(node["code"]) for node in topology["nodes"]),
-            edges=tuple(_edge(e) for e in topology["edges"]),
-            crossings=_crossings(topology.get("crossings")),
-            revision=_revision(document.get("revision")),
-        )
-    except (KeyError, TypeError, ValueError, AttributeError, binascii.Error) as error:
-        raise BundleError(f"a bundle that cannot be read: {error!r}") from None
-    except MapStoreError as error:  # map file errors
-        raise BundleError(f"the bundle's map cannot be loaded: {error}") from None
-
-
-def _revision(value: Any) -> int | None:
-    return None if value is None else int(value)
-
-
-def _edge(document: Mapping[str, Any]) -> Edge:
-    return Edge(str(document["a"]), str(document["b"]), float(document["cost"]))
-
-
-def _crossings(documents: Iterable[Mapping[str, Any]] | None) -> tuple[TagLink, ...] | None:
-    if documents is None:
-        return None
-    return tuple(TagLink(int(c["marker_id"]), str(c["from"]), str(c["to"])) for c in documents)
-
-
-def _stored_tag(document: Mapping[str, Any], submap: str) -> StoredTag:
-    return StoredTag(
-        marker_id=int(document["marker_id"]),
-        x=float(document["x"]),
-        y=float(document["y"]),
-        yaw=float(document["yaw"]),
-        size=float(document.get("size", 0.06)),
-        submap=submap,
-        links_to=str(document["links_to"]),
-    )
-
-
-class BundleCache:
-    """Bundles fetched over HTTP with the robot's token, kept by Map ID.
-
-    ``http`` is an ``httpx.AsyncClient`` whose base URL is the server and whose headers
-    carry ``Authorization: Token ...``. ``downloads`` counts 200 answers, ``revalidated``
-    304 answers.
-    """
-
-    def __init__(self, http: httpx.AsyncClient) -> None:
-        self.http = http
-        self.held: dict[str, SubMap] = {}
-        self.downloads = 0
-        self.revalidated = 0
-
-    async def load(self, map_id: str) -> SubMap:
-        """The sub-map ``map_id`` (``building/code``), current as the server has it.
-
-        Asks conditionally when held; falls back to the held copy when the server cannot
-        be reached. Raises BundleError when it is neither held nor fetchable.
-        """
-        held = self.held.get(map_id)
-        try:
-            response = await self._get(map_id, held)
-        except httpx.HTTPError as error:
-            if held is None:
-                raise BundleError(f"{map_id}: {error!r}") from None
-            logger.warning("bundle %s: %r; using the held copy", map_id, error)
-            return held
-        return self._stored(map_id, held, response)
-
-    async def _get(self, map_id: str, held: SubMap | None) -> httpx.Response:
-        building, _, code = map_id.partition("/")
-        headers = {"If-None-Match": held.etag} if held is not None else {}
-        url = f"/api/buildings/{building}/maps/{code}/bundle"
-        return await self.http.get(url, headers=headers)
-
-    def _stored(self, map_id: str, held: SubMap | None, response: httpx.Response) -> SubMap:
-        if response.status_code == 304 and held is not None:
-            self.revalidated += 1
-            return held
-        if response.status_code != 200:
-            raise BundleError(f"{map_id}: HTTP {response.status_code}")
-        submap = submap_from_bundle(response.json(), response.headers.get("ETag", ""))
-        logger.info("bundle %s downloaded (%s)", map_id, "changed" if held else "new")
-        self.downloads += 1
-        self.held[map_id] = submap
-        return submap
-
-    def find_tag(self, building: str, marker_id: int, first: SubMap | None) -> StoredTag | None:
-        """The stored tag ``marker_id`` of ``building`` from any held bundle, ``first``'s
-        preferred (marker ids are unique in a building)."""
-        maps = [first] if first is not None else []
-        maps += [m for m in self.held.values() if m.building == building]
-        return next((m.tags[marker_id] for m in maps if marker_id in m.tags), None)
-
-    def tag_links(self, building: str) -> list[TagLink]:
-        """Every tag of ``building`` that a held bundle stores, as the router wants them."""
-        return [
-            TagLink(tag.marker_id, tag.submap, tag.links_to)
-            for submap in self.held.values()
-            if submap.building == building
-            for tag in submap.tags.values()
-        ]
-
-
-# --- the procedure ---------------------------------------------------------------------
 
 
 class Relocalisable(Protocol):
@@ -309,27 +82,6 @@ class Relocalisable(Protocol):
         """Localise in ``submap`` from now on."""
 
 
-class LegKind(Enum):
-    HOLD = "hold"  # stand still: a bundle is on its way
-    SEARCH = "search"  # turn on the spot, looking for a marker
-    APPROACH = "approach"  # drive to a point in front of a tag, to read it
-    FINAL = "final"  # drive to the goal itself
-    FAIL = "fail"  # the goal cannot be reached
-
-
-@dataclass(frozen=True)
-class Leg:
-    """What to drive to now: ``target`` is a pose in the estimate's frame (the current
-    sub-map's, or odometry's when lost); ``marker`` the tag approached; ``text`` says
-    what is going on, for ``nav_status``."""
-
-    kind: LegKind
-    text: str
-    target: Pose | None = None
-    marker: int | None = None
-    submap: SubMap | None = None  # where to plan; None: drive straight by sight
-
-
 @dataclass(frozen=True)
 class Sighting:
     """A marker seen: its pose in the odometry frame (invariant under pose resets), when,
@@ -338,21 +90,6 @@ class Sighting:
     marker: Pose
     seconds: float
     detection: TagDetection
-
-
-@dataclass(frozen=True)
-class Destination:
-    """A goal's sub-map and pose in it."""
-
-    building: str
-    code: str
-    pose: Pose
-
-    @classmethod
-    def parse(cls, map_id: str, pose: Pose) -> Destination | None:
-        """From a goal's frame ``building/code``; None if it is not one."""
-        building, slash, code = map_id.strip().partition("/")
-        return cls(building, code, pose) if slash and building and code else None
 
 
 class MapsSupervisor:

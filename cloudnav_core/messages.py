@@ -1,7 +1,7 @@
 """ROS messages as rosbridge JSON: their schemas, the builders that write them, and the
 readers of the ones received. The server and the robot agent both use this module.
 
-Conventions (rosbridge's JSON): a time is ``{"sec", "nanosec"}`` (``telemetry.domain.times``
+Conventions (rosbridge's JSON): a time is ``{"sec", "nanosec"}`` (``cloudnav_core.times``
 adds ROS 1's ``secs/nsecs`` where the server writes for clients of both generations);
 ``uint8[]`` fields are base64 text; NaN and infinity cannot be written in JSON and become
 ``null``, so a ``LaserScan`` range with no return (REP 117's ``+inf``) is ``null``.
@@ -15,6 +15,7 @@ message from the network must never stop a robot's loop or the server's relay.
 from __future__ import annotations
 
 import base64
+import json
 import math
 import struct
 from collections.abc import Iterable, Mapping, Sequence
@@ -27,7 +28,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from robots.domain import se2
+from cloudnav_core import se2
 
 NANOS = 1_000_000_000
 
@@ -422,6 +423,13 @@ def laser_scan(
     }
 
 
+def scan_ranges(values: Sequence[float | None] | NDArray[Any]) -> NDArray[np.float64]:
+    """A ``LaserScan``'s ranges as floats, with rosbridge's ``null`` (no return) as NaN."""
+    if isinstance(values, np.ndarray):
+        return values.astype(np.float64)
+    return np.array([math.nan if v is None else v for v in values], np.float64)
+
+
 def path_of(frame_id: str, poses: Iterable[se2.Pose], stamp: Stamp) -> Path:
     """``nav_msgs/Path`` of ``poses``, each stamped as the path."""
     return {
@@ -670,6 +678,67 @@ def published_pose_of(msg: Message) -> Pose2D | None:
     pose = pose_of(msg)
     _last_published = (msg, pose)
     return pose
+
+
+def path_points_of(msg: Message) -> tuple[str, list[se2.Point]] | None:
+    """The frame (a Map ID) and points of a ``nav_msgs/Path``, or None if it is not one
+    (a point without a finite position included)."""
+    try:
+        frame = msg["header"]["frame_id"]
+        points = [
+            (float(p["pose"]["position"]["x"]), float(p["pose"]["position"]["y"]))
+            for p in msg["poses"]
+        ]
+    except (KeyError, TypeError, ValueError, AttributeError):
+        return None
+    if not isinstance(frame, str) or not all(_finite(*p) for p in points):
+        return None
+    return frame, points
+
+
+@dataclass(frozen=True)
+class WaitOrder:
+    """The cloud's word on a robot's ``right_of_way`` topic that it must wait: at ``spot``
+    (x, y, yaw in sub-map ``map_id``) until ``waiting_for`` has passed the narrow place
+    at ``place``. No order (``go``) lets it drive on."""
+
+    map_id: str
+    spot: se2.Pose
+    place: se2.Point
+    waiting_for: str
+    message: str = ""
+
+
+def right_of_way_message(order: WaitOrder | None, message: str = "") -> String:
+    """``std_msgs/String`` on ``/r/right_of_way``: ``data`` is JSON, ``{"state": "go",
+    "message"}`` or ``{"state": "wait", "map_id", "spot": [x, y, yaw], "place": [x, y],
+    "waiting_for", "message"}``."""
+    if order is None:
+        return string_message(json.dumps({"state": "go", "message": message}))
+    body = {
+        "state": "wait",
+        "map_id": order.map_id,
+        "spot": [round(v, 3) for v in order.spot],
+        "place": [round(v, 3) for v in order.place],
+        "waiting_for": order.waiting_for,
+        "message": order.message,
+    }
+    return string_message(json.dumps(body))
+
+
+def wait_order_of(msg: Message) -> WaitOrder | None:
+    """The wait order in a ``right_of_way`` message; None for ``go`` or a message that is
+    not one (a robot drives on rather than stop on a word it cannot read)."""
+    try:
+        body = json.loads(msg["data"])
+        if body["state"] != "wait":
+            return None
+        x, y, yaw = (float(v) for v in body["spot"])
+        px, py = (float(v) for v in body["place"])
+        order = WaitOrder(str(body["map_id"]), (x, y, yaw), (px, py), str(body["waiting_for"]))
+    except (KeyError, TypeError, ValueError, AttributeError):
+        return None
+    return order if _finite(x, y, yaw, px, py) else None
 
 
 def goal_of(msg: Message) -> Pose2D | None:

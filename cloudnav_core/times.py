@@ -10,7 +10,7 @@ import time
 from collections.abc import Mapping
 from typing import Any
 
-from telemetry.domain.messages import NANOS, Time, ros_time
+from cloudnav_core.messages import NANOS, Time, ros_time
 
 
 def parse_stamp(value: Mapping[str, Any]) -> tuple[int, int]:

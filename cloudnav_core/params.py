@@ -215,7 +215,7 @@ class RobotConfig:
     jpeg_quality: int = 80
     camera_timecode: bool = False
     """Stamp each published picture with the wall-clock time code of
-    ``telemetry.domain.timecode`` (glass-to-glass delay measurements); it hides the top
+    ``cloudnav_core.timecode`` (glass-to-glass delay measurements); it hides the top
     strip of the picture."""
     local_planner: LocalPlanner = "dwa"
     """``dwa`` (``controller``) or ``teb`` (``teb``)."""

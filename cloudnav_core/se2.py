@@ -80,3 +80,18 @@ def transform_each(poses: Floats, x: Floats | float, y: Floats | float) -> tuple
     each of ``poses`` (shape (n, 3)), in the parent frame: x and y of shape (n, m)."""
     c, s = np.cos(poses[:, 2:3]), np.sin(poses[:, 2:3])
     return poses[:, 0:1] + c * x - s * y, poses[:, 1:2] + s * x + c * y
+
+
+def aligning(source: Floats, target: Floats) -> Pose:
+    """The rigid motion (no scale) that best carries ``source`` points (shape (n, 2)) onto
+    ``target`` (the same points as another frame has them), in least squares: Umeyama's
+    closed form (1991) in the plane. Raises ValueError for fewer than 2 points."""
+    if len(source) < 2 or source.shape != target.shape:
+        raise ValueError("aligning needs 2 or more point pairs of one shape")
+    source_mean, target_mean = source.mean(axis=0), target.mean(axis=0)
+    covariance = (target - target_mean).T @ (source - source_mean)
+    u, _, vt = np.linalg.svd(covariance)
+    flip = np.diag([1.0, float(np.sign(np.linalg.det(u @ vt)) or 1.0)])
+    rotation = u @ flip @ vt
+    x, y = target_mean - rotation @ source_mean
+    return float(x), float(y), math.atan2(float(rotation[1, 0]), float(rotation[0, 0]))

@@ -1,0 +1,10 @@
+"""The robotics core below every app and the robot side: plain Python, no Django.
+
+What the server and the robot share has one home here: the planar geometry (``se2``), a
+robot's parameters (``params``), occupancy grids (``grid``), the camera (``camera``), the
+ROS messages with their readers (``messages``), their times (``times``), the cameras'
+time code (``timecode``), a robot's topics and services (``topics``), and the one way to
+run background work (``workers``: bounded inboxes with a named drop policy, named
+workers stopped and joined at shutdown). Nothing here imports maps, robots, telemetry or
+cloudnav_web (import-linter, pyproject.toml).
+"""
