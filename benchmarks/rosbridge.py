@@ -21,7 +21,10 @@ the robots on the first half of the processes and the subscribers on the others,
 ``p50_ms``, ``p99_ms``, ``server_cpu`` (every server process and Redis, in cores) and
 ``cpu_s_per_1000`` (CPU seconds per 1,000 delivered messages). With ``--saturate`` it adds
 ``saturation_1`` and ``saturation_2``: the highest delivered msg/s meeting ``--p99-limit``
-without loss on one process, and with robots and subscribers spread over two.
+without loss on one process, and with robots and subscribers spread over two, each with
+``saturation_N_failed_step``: the figures of the first rate that failed (its
+``load_cpu_percent`` and ``load_lagging`` say whether the load, not the servers, was the
+limit).
 """
 
 from __future__ import annotations
@@ -681,11 +684,13 @@ def scaled(server: Server, options: dict[str, Any]) -> dict[str, Any]:
     if options["saturate"]:
         both = (0, 1)
         for name, placement in (("saturation_1", ((0,), (0,))), ("saturation_2", (both, both))):
-            best, _steps = highest_good_rate(server, {**options, "json": True}, *placement)
+            best, steps = highest_good_rate(server, {**options, "json": True}, *placement)
             found[name] = round(best.delivered, 1) if best is not None else None
             found[name + "_cpu_s_per_1000"] = (
                 scaled_figures(best)["cpu_s_per_1000"] if best else None
             )
+            # the step that failed, and whether the load (not the servers) was its limit
+            found[name + "_failed_step"] = steps[-1]
     return found
 
 

@@ -185,9 +185,11 @@ class RosbridgeConsumer(AsyncWebsocketConsumer):  # type: ignore[misc]  # Channe
         name = await self.access.resolve(op.topic)
         await self.access.require("advertise", name)
         self.hub.advertise(self._conn, name, op.type, op.latch, op.id)
+        await self.hub.relay.written()  # other processes know it before the next frame
 
     async def on_unadvertise(self, op: protocol.Unadvertise) -> None:
         self.hub.unadvertise(self._conn, await self.access.resolve(op.topic), op.id)
+        await self.hub.relay.written()
 
     # ------------------------------------------------------------ services
 
@@ -204,9 +206,11 @@ class RosbridgeConsumer(AsyncWebsocketConsumer):  # type: ignore[misc]  # Channe
         name = await self.access.resolve(op.service)
         await self.access.require("advertise_service", name)
         self.hub.calls.advertise_service(self._conn, name, op)
+        await self.hub.relay.written()
 
     async def on_unadvertise_service(self, op: protocol.UnadvertiseService) -> None:
         self.hub.calls.unadvertise_service(self._conn, await self.access.resolve(op.service))
+        await self.hub.relay.written()
 
     # ------------------------------------------------------------ actions
 
@@ -214,9 +218,11 @@ class RosbridgeConsumer(AsyncWebsocketConsumer):  # type: ignore[misc]  # Channe
         name = await self.access.resolve(op.action)
         await self.access.require("advertise_service", name)
         self.hub.calls.advertise_action(self._conn, name, op)
+        await self.hub.relay.written()
 
     async def on_unadvertise_action(self, op: protocol.UnadvertiseAction) -> None:
         self.hub.calls.unadvertise_action(self._conn, await self.access.resolve(op.action))
+        await self.hub.relay.written()
 
     async def on_send_action_goal(self, op: protocol.SendActionGoal) -> None:
         name = await self.access.resolve(op.action)

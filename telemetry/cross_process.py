@@ -33,6 +33,9 @@ class CrossProcess(Protocol):
 
     async def settled(self) -> None: ...
 
+    async def written(self) -> None:
+        """Wait until what was queued for the other processes so far has reached them."""
+
     def send(self, channel: str, message: dict[str, Any]) -> None: ...
 
     def remote(self, channel: str, conn_key: str) -> Peer:
@@ -63,6 +66,9 @@ class NullRelay:
         return None
 
     async def settled(self) -> None:
+        pass
+
+    async def written(self) -> None:
         pass
 
     def send(self, channel: str, message: dict[str, Any]) -> None:

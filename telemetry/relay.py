@@ -96,6 +96,7 @@ class Relay:
         self.process = uuid.uuid4().hex[:12]
         self.topics = TopicChannels(redis, hub.received_from_elsewhere)
         self._outbox: asyncio.Queue[_Call] = asyncio.Queue()
+        self._last_queued: asyncio.Future[None] | None = None
         self._tasks: list[asyncio.Task[None]] = []
         # this process's part of the shared directory, to write again after Redis restarts
         self._mine: dict[str, dict[str, str]] = {}
@@ -131,6 +132,7 @@ class Relay:
             self.dropped += 1
         queued = _Call(call, args, asyncio.get_running_loop().create_future())
         self._outbox.put_nowait(queued)
+        self._last_queued = queued.done
         return queued.done
 
     async def _send_loop(self) -> None:
@@ -173,6 +175,14 @@ class Relay:
         """Wait until Redis has confirmed every topic subscription asked for so far (at
         most ``SETTLE_WITHIN`` seconds: with Redis down, subscribing goes on regardless)."""
         await self.topics.settled()
+
+    async def written(self) -> None:
+        """Wait until every directory write and message queued so far has reached Redis
+        (they run in order; at most ``SETTLE_WITHIN`` seconds: with Redis down, the
+        connection goes on regardless)."""
+        last = self._last_queued
+        if last is not None and not last.done():
+            await asyncio.wait([last], timeout=SETTLE_WITHIN)
 
     # ------------------------------------------------------------ directory
 
