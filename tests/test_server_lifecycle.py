@@ -10,9 +10,9 @@ import cv2
 import numpy as np
 import pytest
 
-from telemetry.domain.camera_feed import Camera
-from telemetry.domain.http_stream import open_stream
 from tests.conftest import make_building, make_robot
+from tests.support.camera_feed import Camera
+from tests.support.http_stream import open_stream
 
 pytestmark = pytest.mark.django_db(transaction=True)
 
