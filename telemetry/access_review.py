@@ -15,16 +15,16 @@ from typing import TYPE_CHECKING
 from channels.db import database_sync_to_async
 
 from robots.fleet import FleetTracker
-from telemetry.connection import Connection
 from telemetry.domain import names
 from telemetry.domain.bus import TopicBus
 from telemetry.domain.rules import Principal
 from telemetry.revocation import AccessChange, RobotRecord, revoked, robot_records
-from telemetry.service_calls import ServiceCalls
+from telemetry.rosbridge.connection import Connection
+from telemetry.rosbridge.service_calls import ServiceCalls
 from telemetry.services import Access, Registry
 
 if TYPE_CHECKING:
-    from telemetry.hub import Client
+    from telemetry.rosbridge.hub import Client
 
 logger = logging.getLogger(__name__)
 

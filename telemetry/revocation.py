@@ -126,7 +126,7 @@ def announce(change: AccessChange) -> None:
             finally:
                 client.close()
             return
-        from telemetry.hub import running_hubs
+        from telemetry.rosbridge.hub import running_hubs
 
         for loop, hub in running_hubs():
             # a fresh context: not this thread's (asgiref's executor state stays here)

@@ -32,8 +32,8 @@ from telemetry.domain.video import (
     is_camera,
 )
 from telemetry.exceptions import InvalidName
-from telemetry.fleet_feed import fleet_type
-from telemetry.hub import Hub
+from telemetry.rosbridge.fleet_feed import fleet_type
+from telemetry.rosbridge.hub import Hub
 
 # The rosbridge server's own identity rules, so a robot or a person is the same principal
 # over HTTP as over its WebSocket (their scope-based entry point checks a WebSocket origin).

@@ -20,7 +20,7 @@ What every process must see lives in Redis under ``names.redis_key``: which proc
 advertises which topic, service and action, which robots it serves, latched messages and
 parameters. A process counts as alive while its heartbeat key exists.
 
-Single-process mode has a ``NullRelay`` (``telemetry.cross_process``): the same methods,
+Single-process mode has a ``NullRelay`` (``telemetry.rosbridge.cross_process``): the same methods,
 doing nothing and finding nothing, so the hub and its parts never ask which mode they run
 in. Only ``Hub.start`` chooses.
 """
@@ -48,7 +48,7 @@ from telemetry.revocation import AccessChange, access_channel
 from telemetry.stop import STOP_REQUEST
 
 if TYPE_CHECKING:
-    from telemetry.hub import Hub
+    from telemetry.rosbridge.hub import Hub
 
 logger = logging.getLogger(__name__)
 
