@@ -14,10 +14,10 @@ import itertools
 import logging
 from typing import Any
 
+from telemetry.access.rules import Principal
 from telemetry.domain.encoding import Outgoing, Wire
 from telemetry.domain.outbox import Outbox
 from telemetry.domain.protocol import Json, level_shows, status
-from telemetry.domain.rules import Principal
 from telemetry.rosbridge.transport import (
     AsgiSend,
     DaphneSink,

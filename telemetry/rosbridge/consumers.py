@@ -19,6 +19,7 @@ from typing_extensions import override
 from cloudnav_core import topics
 from cloudnav_web.batches import UNREACHABLE
 from cloudnav_web.outage import REPORT
+from telemetry.access.decisions import Access, authenticate
 from telemetry.domain import protocol
 from telemetry.domain.bus import SubscribeParams
 from telemetry.domain.decoding import decode_frame
@@ -30,7 +31,6 @@ from telemetry.rosbridge.connection import Connection
 from telemetry.rosbridge.hub import Client, Hub, get_hub
 from telemetry.rosbridge.server_services import ServiceCall
 from telemetry.rosbridge.transport import SCOPE_KEY
-from telemetry.services import Access, authenticate
 
 logger = logging.getLogger(__name__)
 

@@ -11,7 +11,7 @@ they share, each named by what it does.
   at are refused where they are sent, and goals another robot's spot holds are refused or
   moved by the building's fleet rule (``maps.domain.reservations``, fed by the fleet feed);
 - the fleet feed (``telemetry.rosbridge.fleet_feed``): robots' pose, Map ID, events and missions;
-- the access review (``telemetry.access_review``): what an access change withdraws;
+- the access review (``telemetry.access.review``): what an access change withdraws;
 - parameters (``telemetry.rosbridge.params``) and the event log (``telemetry.events``);
 - the relay to the other server processes (``telemetry.rosbridge.relay``), or in single-process
   mode a ``NullRelay`` that does nothing and finds nothing (``telemetry.rosbridge.cross_process``),
@@ -47,7 +47,8 @@ from maps.services import GOAL_CHECK_RADIUS
 from robots.fleet import FleetTracker
 from robots.missions import Goal
 from robots.teleop import RedisLockStore
-from telemetry.access_review import AccessReview
+from telemetry.access.decisions import Access, Registry
+from telemetry.access.review import AccessReview
 from telemetry.domain import names, protocol
 from telemetry.domain.bus import EVERY_TOPIC, OnMessage, SubscribeParams, TopicBus, TopicTap
 from telemetry.domain.encoding import Outgoing
@@ -72,7 +73,6 @@ from telemetry.rosbridge.server_services import ServerParts, ServerService
 from telemetry.rosbridge.service_calls import ServiceCalls
 from telemetry.rosbridge.service_registry import server_services
 from telemetry.rosbridge.teleop_gate import TeleopGate
-from telemetry.services import Access, Registry
 from telemetry.stop import RobotStop
 from telemetry.stuck_rule import StuckRule
 

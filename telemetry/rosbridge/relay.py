@@ -39,12 +39,12 @@ from redis.exceptions import ConnectionError as RedisDown
 from redis.exceptions import TimeoutError as RedisTimeout
 
 from cloudnav_web.outage import REDIS_REPORT
+from telemetry.access.revocation import AccessChange, access_channel
 from telemetry.domain import names
 from telemetry.domain.bus import Topic
 from telemetry.domain.encoding import Wire
 from telemetry.domain.protocol import Json
 from telemetry.recording.elsewhere import FLUSH_REQUEST, FLUSHED
-from telemetry.revocation import AccessChange, access_channel
 from telemetry.stop import STOP_REQUEST
 
 if TYPE_CHECKING:
@@ -288,7 +288,7 @@ class Relay:
     # ------------------------------------------------------------ access changes
 
     async def _access_loop(self) -> None:
-        """Apply each access change announced by any process (``telemetry.revocation``);
+        """Apply each access change announced by any process (``telemetry.access.revocation``);
         a new subscription each time it (re)starts."""
         access = self.redis.pubsub()
         try:

@@ -10,12 +10,12 @@ import json
 from collections.abc import Iterable
 
 from cloudnav_core.times import now_stamp
+from telemetry.access.decisions import Access
 from telemetry.domain import names
 from telemetry.domain.names import canonical_type
 from telemetry.domain.protocol import Json
 from telemetry.exceptions import NotAllowed, ServiceFailed
 from telemetry.rosbridge.server_services import ServerService, ServiceCall
-from telemetry.services import Access
 
 SERVER_NODE = "/cloudnav"
 

@@ -7,6 +7,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
+from telemetry.access.decisions import Access
 from telemetry.domain import protocol
 from telemetry.domain.bus import Peer
 from telemetry.domain.calls import CallTable, PendingCall
@@ -17,7 +18,6 @@ from telemetry.exceptions import ActionFailed, NotAllowed, RosbridgeError, Servi
 from telemetry.rosbridge.connection import Connection
 from telemetry.rosbridge.cross_process import CrossProcess
 from telemetry.rosbridge.server_services import ServerService, ServiceCall
-from telemetry.services import Access
 
 
 class ServiceCalls:

@@ -29,7 +29,7 @@ from django.db.models.signals import m2m_changed, post_delete, post_save, pre_de
 
 from maps.models import Building, Membership
 from robots.models import Robot
-from telemetry.domain.rules import Owner, Principal
+from telemetry.access.rules import Owner, Principal
 
 logger = logging.getLogger(__name__)
 
