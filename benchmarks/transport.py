@@ -1,8 +1,8 @@
 """Cross-process transports on Redis: messages/s from one sender to one receiver, and CPU.
 
-The alternatives the scaled mode's relay chose between (``telemetry/relay.py``): channels_redis'
-``RedisChannelLayer`` and ``RedisPubSubChannelLayer`` (one ``group_send`` per message), and
-Redis pub/sub through redis-py's asyncio client, one ``PUBLISH`` per round trip
+The alternatives the scaled mode's relay chose between (``telemetry/rosbridge/relay.py``):
+channels_redis' ``RedisChannelLayer`` and ``RedisPubSubChannelLayer`` (one ``group_send``
+per message), and Redis pub/sub through redis-py's asyncio client, one ``PUBLISH`` per round trip
 (``--batch 1``) or pipelined, ``--batch`` messages per round trip. Sender and receiver run
 in this one process, so ``msg_per_s`` counts both ends' work on one core, and
 ``cpu_ms_per_1000`` is this process's CPU time per 1,000 messages carried (Redis's own CPU

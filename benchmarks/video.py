@@ -12,8 +12,8 @@ viewer (p50, p99), the encoder's share of a core (from the relay's statistics) a
 server's CPU. The second paper's Table I measured web_video_server at 687 KB/s for MJPEG
 at quality 90 and 291 KB/s for VP8 at its default bitrate.
 
-The robot's camera and the viewers' stream client are the application's
-(``telemetry.domain.camera_feed``, ``telemetry.domain.http_stream``), shared with the tests.
+The robot's camera and the viewers' stream client live in ``tests/support/``
+(``tests.support.camera_feed``, ``tests.support.http_stream``), shared with the tests.
 ``--seed N`` draws the camera's texture and noise (7, the default, is the scene the
 figures in the README were measured on); ``--json`` prints one JSON object instead of
 the table.
@@ -35,11 +35,11 @@ import numpy as np
 import psutil
 
 from benchmarks.rosbridge import Server, start_server
-from telemetry.domain.camera_feed import Camera, camera_frames
-from telemetry.domain.http_stream import open_stream
 from telemetry.domain.multipart import PartReader
 from telemetry.domain.video_stats import percentile
-from telemetry.domain.webm import WebmReader
+from tests.support.camera_feed import Camera, camera_frames
+from tests.support.http_stream import open_stream
+from tests.support.webm_reader import WebmReader
 
 ROBOT = "b0"
 TOPIC = f"/{ROBOT}/camera/image/compressed"

@@ -34,11 +34,11 @@ from playwright.async_api import Page, async_playwright
 from benchmarks.rosbridge import Server, start_server
 from benchmarks.video import ROBOT, TOPIC
 from cloudnav_core import timecode
-from telemetry.domain.camera_feed import Camera, camera_frames
-from telemetry.domain.http_stream import open_stream
 from telemetry.domain.jpeg import decode
 from telemetry.domain.video_stats import percentile
-from telemetry.domain.whep_client import WhepViewer
+from tests.support.camera_feed import Camera, camera_frames
+from tests.support.http_stream import open_stream
+from tests.support.whep_client import WhepViewer
 
 CHROMIUM = "/usr/bin/chromium"
 CHROMIUM_ARGS = [

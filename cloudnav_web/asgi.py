@@ -3,7 +3,7 @@
 Browsers authenticate with their Django session (``AuthMiddlewareStack``); the rosbridge
 consumer checks their origin and robot tokens itself. Outside the demo, the server refuses
 to start with the public default ``SECRET_KEY``. ``TransportProbe`` sits outermost so
-the consumer can reach daphne's own ``send`` (see ``telemetry.transport``). Under daphne,
+the consumer can reach daphne's own ``send`` (see ``telemetry.rosbridge.transport``). Under daphne,
 ``bodies.install`` refuses request bodies that are too large, or come without credentials
 that hold, before daphne keeps them, and ``headers.install`` closes connections whose
 headers do not arrive in time; ``access_log.install`` sends daphne's access log through
@@ -40,8 +40,8 @@ from cloudnav_web import (  # noqa: E402
     redaction,
     shutdown,
 )
-from telemetry.routing import websocket_urlpatterns  # noqa: E402
-from telemetry.transport import TransportProbe  # noqa: E402
+from telemetry.rosbridge.routing import websocket_urlpatterns  # noqa: E402
+from telemetry.rosbridge.transport import TransportProbe  # noqa: E402
 
 deployment.refuse_demo_secret_key()
 bodies.install()

@@ -3,7 +3,7 @@
 Each worker is a ``cloudnav_core.workers`` worker: it registers with ``REGISTRY`` when it
 starts, and ``cloudnav_web.shutdown`` stops and joins them all on SIGTERM (the registry
 does at exit elsewhere). ``install`` (from the ASGI application, ``cloudnav_web.asgi``)
-has each hub (one per event loop, ``telemetry.hub.get_hub``) start, once it has started,
+has each hub (one per event loop, ``telemetry.rosbridge.hub.get_hub``) start, once it has started,
 the workers that tap its topics: the mapping runner (``maps.mapping.runner``, SLAM
 sessions) and map upkeep (``maps.mapping.upkeep``); the recorder starts with the hub it
 taps (``Hub.start``). The workers serving requests start with the first request that
@@ -16,7 +16,7 @@ from __future__ import annotations
 
 from maps.mapping.runner import MappingRunner
 from maps.mapping.upkeep import UpkeepRunner
-from telemetry.hub import Hub, on_hub_start
+from telemetry.rosbridge.hub import Hub, on_hub_start
 
 
 def install() -> None:

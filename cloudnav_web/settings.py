@@ -196,7 +196,7 @@ if REDIS_URL:
         "default": {
             "BACKEND": "channels_redis.core.RedisChannelLayer",
             # a socket timeout longer than channels_redis' 5 s blocking pop, or a receive
-            # in a lull fails with redis-py's default 5 s timeout (telemetry.relay)
+            # in a lull fails with redis-py's default 5 s timeout (telemetry.rosbridge.relay)
             "CONFIG": {
                 "hosts": [{"address": REDIS_URL, "socket_timeout": 15}],
                 "capacity": 1000,

@@ -7,7 +7,8 @@ class TelemetryConfig(AppConfig):
     name = "telemetry"
 
     def ready(self) -> None:
-        from telemetry import map_events, revocation
+        from telemetry import map_events
+        from telemetry.access import revocation
 
         revocation.connect_signals()
         map_events.connect_signals()

@@ -1,4 +1,5 @@
-"""Errors of the rosbridge server; ``telemetry.replies`` maps each to its rosbridge answer.
+"""Errors of the rosbridge server; ``telemetry.rosbridge.replies`` maps each to its
+rosbridge answer.
 
 No Django here: the domain modules raise these, and the robot agent may import them.
 """

@@ -22,14 +22,14 @@ from channels.db import database_sync_to_async
 
 from cloudnav_core import topics
 from robots import missions
-from telemetry.connection import Connection
-from telemetry.cross_process import CrossProcess
 from telemetry.domain import names
 from telemetry.domain.encoding import Wire
 from telemetry.events import EventLog
-from telemetry.server_services import Stopped
-from telemetry.service_calls import ServiceCalls
-from telemetry.teleop_gate import TeleopGate
+from telemetry.rosbridge.connection import Connection
+from telemetry.rosbridge.cross_process import CrossProcess
+from telemetry.rosbridge.server_services import Stopped
+from telemetry.rosbridge.service_calls import ServiceCalls
+from telemetry.rosbridge.teleop_gate import TeleopGate
 
 # The relay message asking the process a robot is connected to to halt it there.
 STOP_REQUEST = "rb.stop"

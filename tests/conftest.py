@@ -25,7 +25,15 @@ from robots.models import Robot
 from robots.services import register_robot
 from telemetry.domain.bus import OnMessage, Topic, TopicTap
 
-pytest_plugins = ["tests.fixtures_live"]
+# Fixtures that several test files share and conftest does not hold: the live servers, the
+# scaled mode's two rosbridge processes (``cluster``, ``connect``), the ROS 2 installs
+# (``ros2_venv``) and the demo's robots seeded with their tokens (``tokens``).
+pytest_plugins = [
+    "tests.fixtures_live",
+    "tests.support.scaled_rosbridge",
+    "tests.support.ros2",
+    "tests.support.demo_operator",
+]
 
 # Fixtures that start real server, agent or browser processes: a test that asks for one,
 # directly or through another fixture, is marked ``live``. A test whose database writes

@@ -35,7 +35,7 @@ from cloudnav_core.topics import CANCEL_GOAL, ROBOT_SERVICE_TYPES, ROBOT_TOPIC_T
 from robots.agent.client import Backoff, RosbridgeClient
 from robots.agent.hardware import compressed_image_message
 from robots.agent.whereabouts import Localisation, Whereabouts
-from telemetry.cloud import TELEOP_LOCK
+from telemetry.rosbridge.cloud import TELEOP_LOCK
 from tests.conftest import make_robot
 from tests.fixtures_live import LiveServer, operator_handshake, until
 

@@ -19,7 +19,17 @@ import pytest
 from benchmarks.ros_bridge import start_node, stop_node
 from robots.agent.ros import ros_path
 from tests.fixtures_live import wait_for
-from tests.test_agent_live import ACTIVE, CORRIDOR_A, PREEMPTED, ROBOT, START, Operator, pose
+from tests.support.agent_operator import ACTIVE, CORRIDOR_A, PREEMPTED, ROBOT, START, Operator, pose
+from tests.support.ros_robot import (
+    ATRIUM_1,
+    BACK_IN_CORRIDOR_A,
+    IN_ATRIUM_1,
+    SUCCEEDED,
+    TAG_1_APPROACH,
+    TURNING,
+    cloud_grid,
+    log_tails,
+)
 
 pytestmark = [
     pytest.mark.skipif(
@@ -317,7 +327,7 @@ async def test_the_bridge_node_carries_an_operators_goal_to_ros_and_survives_the
     from nav_msgs.msg import Odometry  # type: ignore[import-not-found,unused-ignore]
     from sensor_msgs.msg import LaserScan  # type: ignore[import-not-found,unused-ignore]
 
-    from tests.test_agent_live import with_covariance
+    from tests.support.agent_operator import with_covariance
 
     # The robot's drivers: a base standing still and a laser seeing open space.
     odom = Odometry()
@@ -377,22 +387,6 @@ async def test_the_bridge_node_carries_an_operators_goal_to_ros_and_survives_the
 
 
 # --- a ROS 1 robot of rospy nodes, its own move_base, the bridge and the cloud -----------
-
-ATRIUM_1 = "boccioni_1/Atrium1"
-IN_ATRIUM_1 = (20.0, 23.8, 0.0)
-BACK_IN_CORRIDOR_A = (14.0, 23.2, math.pi)
-TAG_1_APPROACH = (17.3, 22.6)  # 0.5 m in front of tag 1, which leads to Atrium 1
-SUCCEEDED = 3
-SUB_MAP_SIZES = {CORRIDOR_A: (392, 160), ATRIUM_1: (232, 232)}  # width, height
-TURNING = 0.4  # rad/s, the operator's teleop
-
-
-def log_tails(directory: Path) -> str:
-    """The end of each ``*.log`` (and of each node's ``*.jsonl`` events) in ``directory``,
-    for a failure's message."""
-    tails = [(p, 3000) for p in sorted(directory.glob("*.log"))]
-    tails += [(p, 600) for p in sorted(directory.glob("*.jsonl"))]
-    return "\n".join(f"--- {p.name}\n{p.read_text(errors='replace')[-size:]}" for p, size in tails)
 
 
 class RosSide:
@@ -466,21 +460,6 @@ def echoed_map_info(ros_env: dict[str, str]) -> str:
     )
     assert echoed.returncode == 0, echoed.stderr
     return echoed.stdout
-
-
-async def cloud_grid(server: Any, token: str, map_id: str) -> Any:
-    """The grid of ``map_id`` as the cloud serves it to the robot."""
-    import httpx
-
-    from robots.agent.supervisor.submaps import submap_from_bundle
-
-    building, _, code = map_id.partition("/")
-    async with httpx.AsyncClient(
-        base_url=server.url, headers={"Authorization": f"Token {token}"}, timeout=30
-    ) as http:
-        answer = await http.get(f"/api/buildings/{building}/maps/{code}/bundle")
-    assert answer.status_code == 200
-    return submap_from_bundle(answer.json(), "").grid
 
 
 @pytest.mark.slow

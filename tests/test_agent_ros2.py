@@ -27,8 +27,8 @@ import pytest
 from benchmarks import ros2_bridge
 from benchmarks.ros_bridge import start_node, stop_node
 from tests.fixtures_live import wait_for, worker_index
-from tests.test_agent_live import ACTIVE, CORRIDOR_A, ROBOT, Operator, pose
-from tests.test_agent_ros import (
+from tests.support.agent_operator import ACTIVE, CORRIDOR_A, ROBOT, Operator, pose
+from tests.support.ros_robot import (
     ATRIUM_1,
     BACK_IN_CORRIDOR_A,
     IN_ATRIUM_1,
@@ -43,15 +43,6 @@ from tests.test_agent_ros import (
 TELEOP_HOLD = 0.5  # robots.agent.robot.TELEOP_HOLD: the dead-man's delay
 DOMAINS_PER_WORKER = 25
 _domains = itertools.count()
-
-
-@pytest.fixture(scope="session", params=["jazzy", "kilted"])
-def ros2_venv(request: pytest.FixtureRequest) -> Path:
-    """The ROS 2 virtualenv of the distro, built by ``scripts/ros2_env.sh`` (cached)."""
-    try:
-        return ros2_bridge.ros2_venv(request.param)
-    except RuntimeError as failed:
-        pytest.fail(str(failed))
 
 
 @pytest.fixture

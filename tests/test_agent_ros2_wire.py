@@ -21,7 +21,6 @@ from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
 from benchmarks.agent import ROOT
 from benchmarks.ros2_bridge import graph_env
-from tests.test_agent_ros2 import ros2_venv  # noqa: F401 (a fixture)
 
 GOAL = """geometry_msgs/PoseStamped pose
 string behavior_tree"""
@@ -160,7 +159,7 @@ def robot_side(env: dict[str, str], asked: dict[str, Any]) -> dict[str, Any]:
 
 
 @pytest.fixture(scope="module")
-def answered(ros2_venv: Path) -> dict[str, Any]:  # noqa: F811
+def answered(ros2_venv: Path) -> dict[str, Any]:
     """The robot side's answers to Jazzy's feedback and to a succeeded and an aborted
     result of its own distro's layout (Jazzy and Kilted share it)."""
     results = {

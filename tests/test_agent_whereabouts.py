@@ -5,25 +5,25 @@ a goal that names no sub-map is rejected, and the robot says why."""
 
 from __future__ import annotations
 
-import asyncio
-import contextlib
-import io
 import json
-import math
 import time
 from pathlib import Path
 from typing import Any
 
 import pytest
 import websockets
-from django.core.management import call_command
 
 from tests.fixtures_live import LiveServer, agent_process, fleet_process, operator_handshake
+from tests.support.demo_operator import (
+    DEMO_ROBOTS,
+    LOCALISED_WITHIN,
+    Operator,
+    pose,
+    state_of,
+)
 
 pytestmark = [pytest.mark.django_db(transaction=True), pytest.mark.slow]
 
-DEMO_ROBOTS = 3  # scripts/demo.sh's default ROBOTS
-LOCALISED_WITHIN = 45.0  # wall seconds from the agent's start, for every demo robot
 CORRIDOR_A = "boccioni_1/CorridorA"
 AWAY_FROM_TAGS = (10.0, 23.2, 0.0)  # mid Corridor A: the nearest tag is 7.8 m ahead
 SUCCEEDED, ABORTED, REJECTED = 3, 4, 5
@@ -31,66 +31,8 @@ CAMERA_ONLY_GOAL = (9.0, 23.2, 0.0)  # 4 to 5 m along Corridor A from the demo's
 
 
 @pytest.fixture
-def tokens(tmp_path: Path) -> Path:
-    path = tmp_path / "tokens.json"
-    call_command(
-        "seed_demo", "--robots", str(DEMO_ROBOTS), "--tokens-file", str(path), stdout=io.StringIO()
-    )
-    return path
-
-
-@pytest.fixture
 def handshake(daphne_server: LiveServer, tokens: Path) -> dict[str, str]:
     return operator_handshake(daphne_server)
-
-
-class Operator:
-    """An operator's rosbridge session keeping the newest message of each topic."""
-
-    def __init__(self, ws: Any) -> None:
-        self.ws = ws
-        self.latest: dict[str, dict[str, Any]] = {}
-        self.heard: dict[str, list[dict[str, Any]]] = {}
-        self.statuses: list[dict[str, Any]] = []  # the server's ``status`` frames
-
-    async def subscribe(self, *topics: str) -> None:
-        for topic in topics:
-            await self.ws.send(json.dumps({"op": "subscribe", "topic": topic}))
-
-    async def publish(self, topic: str, msg: dict[str, Any]) -> None:
-        await self.ws.send(json.dumps({"op": "publish", "topic": topic, "msg": msg}))
-
-    async def until(self, done: Any, deadline: float, log: Path) -> None:
-        """Read frames until ``done()``; fail with the agent's log after ``deadline`` s."""
-        give_up = time.monotonic() + deadline
-        while not done():
-            assert time.monotonic() < give_up, tail(log)
-            with contextlib.suppress(TimeoutError):
-                frame = json.loads(await asyncio.wait_for(self.ws.recv(), 1.0))
-                if frame.get("op") == "publish":
-                    self.latest[frame["topic"]] = frame["msg"]
-                    self.heard.setdefault(frame["topic"], []).append(frame["msg"])
-                elif frame.get("op") == "status":
-                    self.statuses.append(frame)
-
-
-def state_of(status: dict[str, Any] | None) -> dict[str, str]:
-    """The ``values`` of a ``DiagnosticStatus`` as a dict."""
-    return {v["key"]: v["value"] for v in (status or {}).get("values", [])}
-
-
-def pose(map_id: str, x: float, y: float, yaw: float) -> dict[str, Any]:
-    return {
-        "header": {"frame_id": map_id},
-        "pose": {
-            "position": {"x": x, "y": y, "z": 0.0},
-            "orientation": {"x": 0.0, "y": 0.0, "z": math.sin(yaw / 2), "w": math.cos(yaw / 2)},
-        },
-    }
-
-
-def tail(log: Path, lines: int = 30) -> str:
-    return "\n".join(log.read_text(errors="replace").splitlines()[-lines:])
 
 
 async def test_every_demo_robot_localises_from_the_entrance_tag_soon_after_make_demo_starts(

@@ -12,18 +12,11 @@ from maps.domain.mapfile import load_map_upload
 from maps.domain.preview import PREVIEW_MAX_SIDE
 from maps.models import Building, SubMap
 from tests.conftest import client_for, make_submap, map_pgm, map_yaml
-from tests.test_api_submaps import BAD_UPLOADS, URL, pair, post, zipped
+from tests.support.submap_uploads import BAD_UPLOADS, URL, pair, post, unread, zipped
 
 
 def dry_run(user: User, data: dict[str, Any]) -> Any:
     return post(user, {**data, "dry_run": "true"})
-
-
-def fresh(upload: SimpleUploadedFile) -> SimpleUploadedFile:
-    """A copy of an unread upload, which is left unread."""
-    data = upload.read()
-    upload.seek(0)
-    return SimpleUploadedFile(upload.name or "", data)
 
 
 def test_it_answers_the_preview_and_stores_nothing(building: Building, admin: User) -> None:
@@ -91,9 +84,7 @@ def test_a_large_map_is_previewed_downsampled_and_counted_whole(
 def test_it_answers_the_field_errors_the_upload_would(
     building: Building, admin: User, what: str, change: dict[str, Any], field: str
 ) -> None:
-    # BAD_UPLOADS' files are shared with test_api_submaps: send copies, leave them unread.
-    copies = {k: fresh(v) if isinstance(v, SimpleUploadedFile) else v for k, v in change.items()}
-    response = dry_run(admin, pair(**copies))
+    response = dry_run(admin, pair(**unread(change)))
     assert response.status_code == 400
     assert field in response.json(), response.json()
     assert not SubMap.objects.exists()

@@ -16,27 +16,7 @@ from PIL import Image
 from maps.domain.mapfile import occupancy_from_image, parse_map_yaml
 from maps.models import Building, SubMap
 from tests.conftest import client_for, make_submap, map_pgm, map_yaml
-
-URL = "/api/buildings/boccioni_1/maps/"
-
-
-def pair(**kwargs: Any) -> dict[str, Any]:
-    kwargs.setdefault("code", "CorridorA")
-    kwargs.setdefault("image", SimpleUploadedFile("map.pgm", map_pgm()))
-    kwargs.setdefault("yaml", SimpleUploadedFile("map.yaml", map_yaml()))
-    return {k: v for k, v in kwargs.items() if v is not None}
-
-
-def zipped(members: dict[str, bytes]) -> SimpleUploadedFile:
-    out = io.BytesIO()
-    with zipfile.ZipFile(out, "w") as archive:
-        for name, data in members.items():
-            archive.writestr(name, data)
-    return SimpleUploadedFile("map.zip", out.getvalue())
-
-
-def post(user: User, data: dict[str, Any]) -> Any:
-    return client_for(user).post(URL, data, format="multipart")
+from tests.support.submap_uploads import BAD_UPLOADS, URL, pair, post, unread, zipped
 
 
 def test_it_stores_an_image_and_yaml_pair(building: Building, admin: User) -> None:
@@ -82,74 +62,11 @@ def test_uploading_an_existing_code_without_replace_is_refused_and_keeps_the_map
     assert post(admin, pair(replace="false")).status_code == 409
 
 
-BAD_UPLOADS: list[tuple[str, dict[str, Any], str]] = [
-    ("truncated image", {"image": SimpleUploadedFile("map.pgm", map_pgm()[:-100])}, "image"),
-    ("garbage image", {"image": SimpleUploadedFile("map.pgm", b"not an image at all")}, "image"),
-    ("yaml not a mapping", {"yaml": SimpleUploadedFile("m.yaml", b"- 1\n- 2\n")}, "yaml"),
-    ("yaml unparsable", {"yaml": SimpleUploadedFile("m.yaml", b"a: [1, \n")}, "yaml"),
-    (
-        "missing resolution",
-        {
-            "yaml": SimpleUploadedFile(
-                "m.yaml",
-                map_yaml().replace(b"resolution: 0.05\n", b""),
-            )
-        },
-        "resolution",
-    ),
-    (
-        "resolution as text",
-        {"yaml": SimpleUploadedFile("m.yaml", map_yaml(resolution="fine"))},
-        "resolution",
-    ),
-    (
-        "negative resolution",
-        {"yaml": SimpleUploadedFile("m.yaml", map_yaml(resolution=-0.05))},
-        "resolution",
-    ),
-    (
-        "zero resolution",
-        {"yaml": SimpleUploadedFile("m.yaml", map_yaml(resolution=0))},
-        "resolution",
-    ),
-    (
-        "origin of two numbers",
-        {"yaml": SimpleUploadedFile("m.yaml", map_yaml(origin=[0, 0]))},
-        "origin",
-    ),
-    ("origin of text", {"yaml": SimpleUploadedFile("m.yaml", map_yaml(origin="here"))}, "origin"),
-    (
-        "threshold above one",
-        {"yaml": SimpleUploadedFile("m.yaml", map_yaml(occupied_thresh=1.5))},
-        "occupied_thresh",
-    ),
-    (
-        "negative threshold",
-        {"yaml": SimpleUploadedFile("m.yaml", map_yaml(free_thresh=-0.1))},
-        "free_thresh",
-    ),
-    (
-        "free at occupied",
-        {"yaml": SimpleUploadedFile("m.yaml", map_yaml(free_thresh=0.65))},
-        "free_thresh",
-    ),
-    ("unknown mode", {"yaml": SimpleUploadedFile("m.yaml", map_yaml(mode="fancy"))}, "mode"),
-    (
-        "image not in upload",
-        {"yaml": SimpleUploadedFile("m.yaml", map_yaml(image="other.pgm"))},
-        "image",
-    ),
-    ("no yaml", {"yaml": None}, "yaml"),
-    ("no image", {"image": None}, "image"),
-    ("bad code", {"code": "1 bad/code"}, "code"),
-]
-
-
 @pytest.mark.parametrize(("what", "change", "field"), BAD_UPLOADS, ids=[c[0] for c in BAD_UPLOADS])
 def test_it_refuses_a_bad_upload_naming_the_field_and_stores_nothing(
     building: Building, admin: User, what: str, change: dict[str, Any], field: str
 ) -> None:
-    response = post(admin, pair(**change))
+    response = post(admin, pair(**unread(change)))
     assert response.status_code == 400
     assert field in response.json(), response.json()
     assert not SubMap.objects.exists()

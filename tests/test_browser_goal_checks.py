@@ -24,8 +24,8 @@ from tests.browser_support import (
     speaking_robot,
 )
 from tests.conftest import make_robot
-from tests.test_browser_building_map import open_plan, select_robot
-from tests.test_browser_building_map import press_and_drag as press_and_drag_on_plan
+from tests.support.plan_page import open_plan, select_robot
+from tests.support.plan_page import press_and_drag as press_and_drag_on_plan
 
 pytest_plugins = ["tests.browser_support"]
 pytestmark = [pytest.mark.browser, pytest.mark.django_db(transaction=True)]

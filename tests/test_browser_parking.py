@@ -9,7 +9,7 @@ from playwright.sync_api import BrowserContext, Page, expect
 
 from maps.domain.demo_building import demo_building
 from tests.browser_support import BUILDING, Demo, screenshot
-from tests.test_browser_building_map import open_plan, press_and_drag
+from tests.support.plan_page import open_plan, press_and_drag
 
 pytest_plugins = ["tests.browser_support"]
 pytestmark = [pytest.mark.browser, pytest.mark.django_db(transaction=True)]

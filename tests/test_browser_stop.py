@@ -12,7 +12,7 @@ import pytest
 from playwright.sync_api import Browser, BrowserContext, Page, expect
 
 from tests.browser_support import ACTION_TIMEOUT_MS, BUILDING, ROBOT, Demo, open_as, screenshot
-from tests.test_browser_building_map import open_plan, press_and_drag, select_robot
+from tests.support.plan_page import open_plan, press_and_drag, select_robot
 
 pytest_plugins = ["tests.browser_support"]
 pytestmark = [pytest.mark.browser, pytest.mark.django_db(transaction=True)]

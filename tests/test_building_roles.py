@@ -17,8 +17,8 @@ from django.contrib.auth.models import User
 from maps.access import Role, role_in
 from maps.models import Building, Membership
 from tests.conftest import client_for, make_building, make_robot, make_user
-from tests.test_hostile_tenants import closed_soon
-from tests.test_rosbridge_teleop import GO, ZERO
+from tests.support.teleop import GO, ZERO
+from tests.support.tenants import closed_soon
 
 MEMBERS = "/api/buildings/boccioni_1/members/"
 

@@ -16,7 +16,8 @@ import websockets
 from django.core.management import call_command
 
 from tests.fixtures_live import LiveServer, fleet_process, operator_handshake
-from tests.test_agent_whereabouts import LOCALISED_WITHIN, Operator, state_of, tail
+from tests.support.demo_operator import LOCALISED_WITHIN, Operator, state_of
+from tests.support.logs import tail
 
 pytestmark = [pytest.mark.django_db(transaction=True), pytest.mark.slow]
 

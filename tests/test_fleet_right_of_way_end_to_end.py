@@ -25,7 +25,7 @@ from cloudnav_core.messages import GoalStatus, WaitOrder
 from cloudnav_core.params import RobotConfig
 from robots.agent.fleet import FleetOptions, FleetRobot, build_fleet, run_fleet
 from tests.fixtures_live import LiveServer, operator_handshake
-from tests.test_agent_whereabouts import Operator, pose
+from tests.support.demo_operator import Operator, pose
 
 pytestmark = [pytest.mark.django_db(transaction=True), pytest.mark.slow]
 

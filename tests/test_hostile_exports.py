@@ -20,7 +20,7 @@ from telemetry.domain import ros1
 from telemetry.recording import export, files
 from tests.conftest import client_for, make_robot
 from tests.fixtures_live import LiveServers
-from tests.test_hostile_uploads import basic
+from tests.support.uploads import basic
 
 NS = 1_000_000_000
 IMAGE = "sensor_msgs/CompressedImage"

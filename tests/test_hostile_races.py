@@ -16,7 +16,7 @@ import pytest
 
 from tests.conftest import make_building, make_user
 from tests.fixtures_live import LiveServer, LiveServers, ScaledCluster, run_manage
-from tests.test_hostile_uploads import basic, request
+from tests.support.uploads import basic, request
 
 pytestmark = pytest.mark.django_db(transaction=True)
 

@@ -30,7 +30,7 @@ from tests.conftest import (
     map_yaml,
 )
 from tests.fixtures_live import ScaledCluster, run_manage
-from tests.test_hostile_uploads import basic, request
+from tests.support.uploads import basic, request
 
 WAYPOINTS = [{"map": "CorridorA", "x": 1.0, "y": 2.0}]
 

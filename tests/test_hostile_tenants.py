@@ -30,6 +30,7 @@ from robots.models import Robot, RobotState
 from robots.services import rotate_token
 from tests.conftest import client_for, make_building, make_robot, make_submap, make_user
 from tests.fixtures_live import RosClient, session_cookie
+from tests.support.tenants import CLOSE_WITHIN, closed_soon
 
 
 @pytest.fixture
@@ -177,7 +178,6 @@ def test_a_tag_in_another_tenants_building_is_refused_before_it_is_validated(
 # ---------------------------------------------------------------- rosbridge: squatting and realms
 
 POSE = {"header": {"frame_id": "boccioni_1/Hall"}, "pose": {"position": {"x": 1, "y": 2}}}
-CLOSE_WITHIN = 1.0
 
 
 @pytest.fixture
@@ -256,19 +256,6 @@ async def test_unlinking_a_robot_withdraws_the_subscriptions_it_granted(
 
 
 # ---------------------------------------------------------------- revocation
-
-
-async def closed_soon(client: Any, wait: float = CLOSE_WITHIN) -> bool:
-    """True if the server closes ``client`` within ``wait`` seconds (frames before are skipped)."""
-    loop = asyncio.get_running_loop()
-    deadline = loop.time() + wait
-    while True:
-        try:
-            message = await client.receive_raw(max(0.01, deadline - loop.time()))
-        except TimeoutError:
-            return False
-        if message["type"] == "websocket.close":
-            return True
 
 
 @pytest.mark.django_db(transaction=True)
@@ -379,7 +366,7 @@ async def test_a_deleted_robot_that_stays_connected_blocks_no_fleet_state(
 
 async def open_stream(query: dict[str, str], headers: dict[str, str]) -> ApplicationCommunicator:
     from cloudnav_web.asgi import application
-    from tests.test_video_access import http_scope
+    from tests.support.http_scopes import http_scope
 
     app = ApplicationCommunicator(application, http_scope("/stream", query, headers))
     await app.send_input({"type": "http.request", "body": b"", "more_body": False})

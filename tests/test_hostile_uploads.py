@@ -6,7 +6,6 @@ memory is sampled while they run.
 
 from __future__ import annotations
 
-import base64
 import http.client
 import socket
 import threading
@@ -23,29 +22,13 @@ from cloudnav_web.heavy import HeavyBudget, Overloaded
 from maps.domain.tagart import MAX_SIZE
 from tests.conftest import client_for, make_robot, make_submap, make_tag, map_pgm
 from tests.fixtures_live import LiveServer, session_cookie
-from tests.test_video_access import get, http_scope
+from tests.support.http_scopes import get, http_scope
+from tests.support.uploads import basic, request
 
 pytestmark = pytest.mark.django_db(transaction=True)
 
 MEMORY_BOUND = 64 * 2**20
 UPLOAD = "/api/buildings/boccioni_1/maps/"
-
-
-def basic(user: str) -> dict[str, str]:
-    pair = base64.b64encode(f"{user}:pw-{user}".encode()).decode()
-    return {"Authorization": f"Basic {pair}"}
-
-
-def request(
-    server: LiveServer, method: str, path: str, body: bytes = b"", headers: dict | None = None
-) -> tuple[int, dict[str, str], bytes]:
-    connection = http.client.HTTPConnection(server.host, server.port, timeout=30)
-    try:
-        connection.request(method, path, body=body, headers=headers or {})
-        answer = connection.getresponse()
-        return answer.status, dict(answer.getheaders()), answer.read()
-    finally:
-        connection.close()
 
 
 @contextmanager

@@ -16,7 +16,7 @@ from maps.domain.upkeep import Proposal
 from maps.mapping.upkeep import store_proposal
 from maps.models import Building, ChangeProposal, SubMap
 from tests.conftest import client_for
-from tests.test_upkeep import RES, STORED
+from tests.support.upkeep import RES, STORED
 
 CHANGES = "/api/buildings/boccioni_1/maps/Lab/changes/"
 CABINET = [[50 + r, 60 + c] for r in range(3) for c in range(3)]  # free in STORED

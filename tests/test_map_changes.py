@@ -22,7 +22,7 @@ from maps.models import Building, ChangeProposal, SubMap
 from robots.agent.sim.laser import Laser, LaserSpec
 from robots.agent.sim.world import world_from_grid
 from tests.conftest import FakeHub, client_for
-from tests.test_upkeep import RES, STORED, TRUTH
+from tests.support.upkeep import RES, STORED, TRUTH
 
 CHANGES = "/api/buildings/boccioni_1/maps/Lab/changes/"
 

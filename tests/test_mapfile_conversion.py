@@ -15,7 +15,7 @@ import pytest
 from PIL import Image
 
 from maps.domain.mapfile import occupancy_from_image
-from tests.test_mapfile_builders import (
+from tests.support.mapfiles import (
     cell_of,
     cells_of,
     float32_step,

@@ -21,7 +21,7 @@ from maps.domain.mapfile import (
     parse_map_yaml,
 )
 from maps.exceptions import MapFileError
-from tests.test_mapfile_builders import make_image, make_meta
+from tests.support.mapfiles import make_image, make_meta
 
 TRINARY_GRID = np.array([[100, 0, -1], [0, 0, 100]], dtype=np.int8)
 

@@ -11,7 +11,7 @@ from PIL import Image, ImageFile
 
 from maps.domain.mapfile import open_map_image
 from maps.exceptions import MapFileError
-from tests.test_mapfile_builders import cells_of, encode, make_image, make_pgm, png_claiming
+from tests.support.mapfiles import cells_of, encode, make_image, make_pgm, png_claiming
 
 LIMIT = 10**6
 

@@ -17,7 +17,7 @@ from maps.domain.mapfile import (
     validate_metadata,
 )
 from maps.exceptions import MapFileError
-from tests.test_mapfile_builders import MISSING, make_fields, make_meta, make_yaml
+from tests.support.mapfiles import MISSING, make_fields, make_meta, make_yaml
 
 
 def field_refused(**kwargs: Any) -> str:

@@ -6,7 +6,7 @@ import numpy as np
 
 from maps.domain.mapfile import load_map_upload
 from maps.domain.preview import cell_counts, downsampled, upload_preview
-from tests.test_mapfile_builders import make_pgm, make_yaml
+from tests.support.mapfiles import make_pgm, make_yaml
 
 
 def test_it_counts_the_cells_of_each_kind() -> None:

@@ -11,7 +11,7 @@ import pytest
 
 from maps.domain.mapfile import LoadedMap, load_map_archive, load_map_upload
 from maps.exceptions import MapFileError
-from tests.test_mapfile_builders import make_pgm, make_yaml, make_zip
+from tests.support.mapfiles import make_pgm, make_yaml, make_zip
 
 LIMIT = 10**6
 PGM = make_pgm([[0, 205, 254], [254, 254, 0]])

@@ -15,7 +15,7 @@ import pytest
 import websockets
 
 from tests.fixtures_live import run_manage
-from tests.test_mapping_sessions import tour_messages
+from tests.support.mapping_sessions import tour_messages
 
 pytestmark = [pytest.mark.scaled, pytest.mark.slow]
 

@@ -4,35 +4,25 @@ robot, a robot that disconnects mid-session, a publish on a version no longer cu
 
 from __future__ import annotations
 
-import asyncio
-import functools
 import json
 import math
-from datetime import UTC, datetime
 from typing import Any
 
 import pytest
 from asgiref.sync import sync_to_async
 from django.contrib.auth.models import User
 
-from benchmarks.mapping import TourScan, drive_tour
 from cloudnav_core.messages import pose_2d
 from maps.mapping import runner as mapping_runner
 from maps.mapping.runner import MappingRunner
 from maps.models import Building, MappingSession, SubMap
-from robots.agent.sim.changes import ChangeConfig, changed_demo_world, plan_changes
-from robots.models import Robot, RobotState
+from robots.models import Robot
 from tests.conftest import FakeHub, client_for, make_robot, make_submap
+from tests.support.mapping_sessions import _drained, _session, _until, online, tour_messages, toured
 
 SESSIONS = "/api/mapping/sessions/"
 UNMAPPED = "/r1/camera/depth/image/compressedDepth"
 """The one tap on a robot with no session: its first depth frame is answered (not_mapping)."""
-
-
-def online(robot: Robot) -> None:
-    RobotState.objects.update_or_create(
-        robot=robot, defaults={"online": True, "last_seen": datetime.now(UTC), "x": 13.5, "y": 23.2}
-    )
 
 
 @pytest.fixture
@@ -101,17 +91,6 @@ def test_scans_beyond_the_queue_drop_the_oldest() -> None:
     assert len(worker.queue) == mapping_runner.QUEUE_SCANS
     assert worker.dropped == 100 - mapping_runner.QUEUE_SCANS
     assert worker.queue[0][1] == {"index": 100 - mapping_runner.QUEUE_SCANS}
-
-
-@functools.cache
-def toured(seed: int = 0) -> list[TourScan]:
-    """The scans of the benchmark's tour of the seed's new room (driven once a run)."""
-    changes = plan_changes(seed, ChangeConfig(rooms=1))
-    return drive_tour(seed, changes.rooms[0], changed_demo_world(changes))
-
-
-def tour_messages(seed: int = 0) -> list[tuple[dict[str, Any], dict[str, Any]]]:
-    return [({"pose": {"pose": pose_2d(*s.odom)}}, s.message) for s in toured(seed)]
 
 
 @pytest.mark.django_db(transaction=True)
@@ -250,23 +229,6 @@ def _update_setup() -> tuple[MappingSession, User, Building]:
     )
     versions.rollback(corridor, 1)  # the sub-map moves on to version 2 meanwhile
     return MappingSession.objects.get(pk=session.pk), admin, building
-
-
-def _session(pk: int) -> MappingSession:
-    return MappingSession.objects.get(pk=pk)
-
-
-async def _drained(worker: Any) -> None:
-    """Let SLAM catch up with the scans given so far (a robot sends 10 a second)."""
-    while worker.queue:  # noqa: ASYNC110 (the worker has no event for an empty queue)
-        await asyncio.sleep(0.005)
-
-
-async def _until(check: Any, seconds: float = 60.0) -> None:
-    deadline = asyncio.get_running_loop().time() + seconds
-    while not await sync_to_async(check)():
-        assert asyncio.get_running_loop().time() < deadline, "never happened"
-        await asyncio.sleep(0.1)
 
 
 @pytest.mark.django_db(transaction=True)

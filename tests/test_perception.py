@@ -12,7 +12,7 @@ from cloudnav_core.camera import CameraModel
 from robots.agent.perception import TagDetector
 from robots.agent.sim.camera import Camera
 from robots.agent.sim.world import SimTag, demo_world
-from tests.test_sim_camera import ENTRANCE, facing, tag_of
+from tests.support.sim_camera import ENTRANCE, facing, tag_of
 
 
 def yaw_error(detected: float, truth: float) -> float:

@@ -18,28 +18,10 @@ from mcap_ros1.decoder import DecoderFactory
 from telemetry.recording import files
 from tests.conftest import client_for, make_robot
 from tests.fixtures_live import session_cookie
+from tests.support.robot_messages import pose, scan
 
 DEADLINE = 20.0
 NS = 1_000_000_000
-
-
-def pose(i: int) -> dict:
-    return {
-        "header": {"stamp": {"sec": 100 + i, "nanosec": i}, "frame_id": "boccioni_1/Hall"},
-        "pose": {"position": {"x": i * 0.5, "y": -i}, "orientation": {"z": 0.0, "w": 1.0}},
-    }
-
-
-def scan(i: int) -> dict:
-    return {
-        "header": {"stamp": {"sec": 100 + i, "nanosec": 0}, "frame_id": "laser"},
-        "angle_min": -1.0,
-        "angle_max": 1.0,
-        "angle_increment": 1.0,
-        "range_min": 0.1,
-        "range_max": 8.0,
-        "ranges": [float(i), 2.0, 3.0],
-    }
 
 
 async def publish_all(url: str) -> None:

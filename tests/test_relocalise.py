@@ -12,7 +12,7 @@ from robots.agent.perception import TagDetector
 from robots.agent.relocalise import PoseEstimate, TagNoiseModel, relocalise, robot_pose_from_tag
 from robots.agent.sim.camera import Camera
 from robots.agent.sim.world import demo_world
-from tests.test_sim_camera import facing, tag_of
+from tests.support.sim_camera import facing, tag_of
 
 
 @dataclass(frozen=True)

@@ -8,13 +8,14 @@ subscribe, connect and reconnect, and whichever process restarts.
 from __future__ import annotations
 
 import asyncio
-import json
 import time
-from contextlib import AsyncExitStack
 from typing import Any
 
 import pytest
 import websockets
+
+from tests.support.scaled_rosbridge import WAIT, Client
+from tests.support.teleop import ZERO
 
 pytestmark = pytest.mark.scaled
 
@@ -24,32 +25,6 @@ POSE: dict[str, Any] = {
     "pose": {"position": {"x": 1, "y": 0.75}},
 }
 GO = {"linear": {"x": 0.3, "y": 0.0, "z": 0.0}, "angular": {"x": 0.0, "y": 0.0, "z": 0.0}}
-ZERO = {"linear": {"x": 0.0, "y": 0.0, "z": 0.0}, "angular": {"x": 0.0, "y": 0.0, "z": 0.0}}
-WAIT = 5.0
-
-
-class Client:
-    def __init__(self, socket):
-        self.socket = socket
-
-    async def send(self, **frame):
-        await self.socket.send(json.dumps(frame))
-
-    async def receive(self, wait=WAIT):
-        return json.loads(await asyncio.wait_for(self.socket.recv(), wait))
-
-    async def call(self, service, args=None, id="call"):
-        await self.send(op="call_service", id=id, service=service, args=args or {})
-        while (frame := await self.receive()).get("id") != id:
-            pass
-        return frame
-
-    async def sync(self):
-        await self.call("/rosapi/get_time", id="sync")
-
-    async def poses(self, count, wait=WAIT):
-        """Return the sequence numbers of the next ``count`` poses."""
-        return [(await self.receive(wait))["msg"]["header"]["seq"] for _ in range(count)]
 
 
 def pose(seq):
@@ -61,32 +36,6 @@ async def publish_poses(robot, seqs, period=0.1):
     for seq in seqs:
         await robot.send(op="publish", topic="pose", msg=pose(seq))
         await asyncio.sleep(period)
-
-
-@pytest.fixture
-def cluster(scaled_servers):
-    return scaled_servers(2)
-
-
-@pytest.fixture
-async def connect(cluster):
-    async with AsyncExitStack() as stack:
-
-        async def open_as(who, server):
-            live = cluster.servers[server]  # looked up now: a replaced process's successor
-            if who in cluster.tokens:
-                url, headers = live.rosbridge_url(cluster.tokens[who]), {}
-            else:
-                url, headers = (
-                    live.rosbridge_url(),
-                    {"Cookie": cluster.cookies[who], "Origin": live.url},
-                )
-            socket = await stack.enter_async_context(
-                websockets.connect(url, additional_headers=headers)
-            )
-            return Client(socket)
-
-        yield open_as
 
 
 async def test_a_robot_on_one_process_reaches_an_operator_on_the_other(connect):

@@ -5,12 +5,12 @@ from __future__ import annotations
 
 import pytest
 
-from tests.test_rosbridge_scaled import ZERO, cluster, connect  # noqa: F401 (fixtures)
+from tests.support.teleop import ZERO
 
 pytestmark = pytest.mark.scaled
 
 
-async def test_an_operator_on_one_process_stops_a_robot_on_the_other(connect):  # noqa: F811
+async def test_an_operator_on_one_process_stops_a_robot_on_the_other(connect):
     robot, operator = await connect("r1", 0), await connect("operator", 1)
     await robot.send(op="advertise_service", service="cancel_goal", type="std_srvs/Trigger")
     await robot.send(op="subscribe", topic="cmd_vel")

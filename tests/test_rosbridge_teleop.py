@@ -8,11 +8,9 @@ import pytest
 
 from tests.conftest import make_building, make_user
 from tests.fixtures_live import robot_listening
+from tests.support.teleop import GO, ZERO
 
 pytestmark = pytest.mark.django_db(transaction=True)
-
-GO = {"linear": {"x": 0.3, "y": 0.0, "z": 0.0}, "angular": {"x": 0.0, "y": 0.0, "z": 0.1}}
-ZERO = {"linear": {"x": 0.0, "y": 0.0, "z": 0.0}, "angular": {"x": 0.0, "y": 0.0, "z": 0.0}}
 
 
 async def acquire(client, action="acquire"):

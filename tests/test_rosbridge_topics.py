@@ -232,16 +232,16 @@ async def test_header_stamps_reach_subscribers_in_both_spellings(rosbridge, toke
 async def test_the_publish_path_reads_the_database_once_per_connection_and_topic(
     rosbridge, token, operator, monkeypatch
 ):
-    from telemetry import services
+    from telemetry.access import decisions
 
     lookups = []
-    owner_named = services.owner_named
+    owner_named = decisions.owner_named
 
     def counted(seg: str) -> Any:
         lookups.append(seg)
         return owner_named(seg)
 
-    monkeypatch.setattr(services, "owner_named", counted)
+    monkeypatch.setattr(decisions, "owner_named", counted)
     robot, watcher = await rosbridge(token=token), await rosbridge(user=operator)
     await watcher.send(op="subscribe", topic="/r1/goal")
     await watcher.sync()

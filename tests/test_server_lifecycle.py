@@ -6,45 +6,17 @@ from __future__ import annotations
 import asyncio
 import signal
 
-import cv2
-import numpy as np
 import pytest
 
-from telemetry.domain.camera_feed import Camera
-from telemetry.domain.http_stream import open_stream
 from tests.conftest import make_building, make_robot
+from tests.support.camera_streams import jpeg, watch
 
 pytestmark = pytest.mark.django_db(transaction=True)
-
-TOPIC = "/r1/camera/image/compressed"
-
-
-def jpeg() -> bytes:
-    image = np.random.default_rng(1).integers(0, 256, (240, 320, 3), dtype=np.uint8)
-    return bytes(cv2.imencode(".jpg", image)[1].tobytes())
 
 
 @pytest.fixture
 def token() -> str:
     return make_robot(name="r1", buildings=[make_building()])[1]
-
-
-async def watch(server, token: str, kind: str):
-    """Open a ``kind`` stream of the camera, with the camera sending, until a byte came."""
-    camera = await Camera.connect(server.rosbridge_url(token))
-    stream = await open_stream(server.url, f"/stream?topic={TOPIC}&type={kind}", token=token)
-    async with asyncio.timeout(15):
-        while not await asyncio.wait_for(_sent_and_read(camera, stream), 1.0):
-            pass
-    return camera, stream
-
-
-async def _sent_and_read(camera, stream) -> bool:
-    await camera.send(jpeg())
-    try:
-        return bool(await asyncio.wait_for(stream.reader.read(4096), 0.3))
-    except TimeoutError:
-        return False
 
 
 @pytest.mark.parametrize("kind", ["mjpeg", "vp8"])

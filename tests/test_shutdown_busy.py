@@ -29,9 +29,9 @@ from robots.agent.sim.camera import Camera as SimCamera
 from robots.agent.sim.world import demo_world
 from telemetry.recording import files
 from tests.conftest import make_robot
-from tests.test_recording_live import pose, scan
-from tests.test_server_lifecycle import watch
-from tests.test_visual_server import SURVEY, WAKE_UP, keyframe_body
+from tests.support.camera_streams import watch
+from tests.support.keyframes import SURVEY, WAKE_UP, keyframe_body
+from tests.support.robot_messages import pose, scan
 
 pytestmark = pytest.mark.django_db(transaction=True)
 

@@ -15,23 +15,7 @@ from robots.agent.hardware import compressed_image_message, encode_jpeg
 from robots.agent.perception import TagDetector
 from robots.agent.sim.camera import Camera
 from robots.agent.sim.world import Box, SimTag, World, demo_world
-
-ENTRANCE = 0  # marker id of the tag beside the building's entrance, facing west
-
-
-def tag_of(world: World, marker_id: int) -> SimTag:
-    return next(tag for tag in world.tags if tag.marker_id == marker_id)
-
-
-def facing(tag: SimTag, distance: float, angle: float = 0.0) -> tuple[float, float, float]:
-    """Robot pose whose camera is ``distance`` m (on the floor plan) from the marker centre,
-    ``angle`` degrees off the tag's normal, looking at it."""
-    direction = tag.yaw + math.radians(angle)
-    yaw = direction + math.pi
-    mount = CameraModel().mount_x
-    x = tag.x + distance * math.cos(direction) - mount * math.cos(yaw)
-    y = tag.y + distance * math.sin(direction) - mount * math.sin(yaw)
-    return x, y, yaw
+from tests.support.sim_camera import ENTRANCE, facing, tag_of
 
 
 def test_a_tag_in_front_is_detected_with_its_id_and_payload_at_40_cm() -> None:

@@ -12,7 +12,7 @@ from typing import Any
 import pytest
 
 from robots.teleop import RedisLockStore, TeleopLocks
-from telemetry.relay import shared_redis
+from telemetry.rosbridge.relay import shared_redis
 from tests.fixtures_live import PrivateRedis, until
 
 pytestmark = [pytest.mark.scaled, pytest.mark.slow]

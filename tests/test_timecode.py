@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 
 from cloudnav_core import timecode
-from telemetry.domain.camera_feed import camera_frames
 from telemetry.domain.jpeg import decode as jpeg_decode
 from telemetry.domain.video import Frame
 from telemetry.domain.webrtc import new_encoder, parse_whep_request
+from tests.support.camera_feed import camera_frames
 
 NOW = 1_790_000_000_123
 

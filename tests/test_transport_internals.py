@@ -1,4 +1,4 @@
-"""The daphne, Autobahn and Twisted internals that ``telemetry/transport.py`` relies on.
+"""The daphne, Autobahn and Twisted internals that ``telemetry/rosbridge/transport.py`` relies on.
 
 ``daphne_protocol`` falls back to the generic ASGI sink, silently, when daphne or Autobahn
 change what it looks for; the server then still works but loses its back-pressure and
@@ -26,7 +26,7 @@ from daphne.ws_protocol import WebSocketProtocol
 from twisted.internet import tcp
 
 from telemetry.domain.encoding import Wire
-from telemetry.transport import DaphneSink, cap_incoming, daphne_protocol, next_turn
+from telemetry.rosbridge.transport import DaphneSink, cap_incoming, daphne_protocol, next_turn
 
 # The versions whose internals transport.py was read against. A new version in
 # requirements.txt fails here: read transport.py's assumptions against it, then update.
@@ -43,7 +43,7 @@ def pinned(name: str) -> str:
 @pytest.mark.parametrize("name", sorted(CHECKED))
 def test_it_runs_on_the_versions_transport_was_checked_against(name: str) -> None:
     assert pinned(name) == CHECKED[name], (
-        f"requirements.txt pins {name}=={pinned(name)} but telemetry/transport.py was "
+        f"requirements.txt pins {name}=={pinned(name)} but telemetry/rosbridge/transport.py was "
         f"checked against {CHECKED[name]}: re-check its internals, then update CHECKED"
     )
     assert version(name) == CHECKED[name]

@@ -14,10 +14,10 @@ import numpy as np
 import psutil
 import pytest
 
-from telemetry.domain.camera_feed import Camera
-from telemetry.domain.http_stream import Stream, open_stream
 from telemetry.domain.multipart import PartReader
 from tests.fixtures_live import video_stats
+from tests.support.camera_feed import Camera
+from tests.support.http_stream import Stream, open_stream
 
 pytestmark = pytest.mark.django_db(transaction=True)
 

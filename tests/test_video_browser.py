@@ -18,9 +18,9 @@ from playwright.sync_api import BrowserContext, Page, expect
 
 from cloudnav_core.messages import compressed_image
 from robots.agent.client import RosbridgeClient
-from telemetry.domain.camera_feed import camera_frames
 from tests.browser_support import ROBOT, Demo, open_as, screenshot
 from tests.fixtures_live import agent_process
+from tests.support.camera_feed import camera_frames
 
 pytest_plugins = ["tests.browser_support"]
 pytestmark = [pytest.mark.browser, pytest.mark.django_db(transaction=True)]

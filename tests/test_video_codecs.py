@@ -21,9 +21,9 @@ from telemetry.domain.webm import (
     EncodedFrame,
     FrameClock,
     LiveWebm,
-    WebmReader,
     size_vint,
 )
+from tests.support.webm_reader import WebmReader
 
 WIDTH, HEIGHT = 160, 96
 

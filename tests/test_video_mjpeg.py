@@ -13,12 +13,12 @@ from typing import Any
 
 import pytest
 
-from telemetry.domain.camera_feed import Camera, camera_frames
-from telemetry.domain.http_stream import Stream, open_stream
 from telemetry.domain.jpeg import decode
 from telemetry.domain.multipart import PartReader
 from tests.conftest import make_building, make_robot
 from tests.fixtures_live import until, video_stats
+from tests.support.camera_feed import Camera, camera_frames
+from tests.support.http_stream import Stream, open_stream
 
 pytestmark = pytest.mark.django_db(transaction=True)
 

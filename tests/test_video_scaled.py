@@ -12,12 +12,12 @@ import asyncio
 
 import pytest
 
-from telemetry.domain.camera_feed import Camera, camera_frames
-from telemetry.domain.http_stream import open_stream
 from telemetry.domain.multipart import PartReader
-from telemetry.domain.webm import WebmReader
-from telemetry.domain.whep_client import WhepRefused, WhepViewer
 from tests.fixtures_live import video_stats
+from tests.support.camera_feed import Camera, camera_frames
+from tests.support.http_stream import open_stream
+from tests.support.webm_reader import WebmReader
+from tests.support.whep_client import WhepRefused, WhepViewer
 
 pytestmark = pytest.mark.scaled
 

@@ -12,10 +12,10 @@ from typing import Any
 import av
 import pytest
 
-from telemetry.domain.camera_feed import Camera, camera_frames
-from telemetry.domain.http_stream import Stream, open_stream
-from telemetry.domain.webm import WebmReader
 from tests.fixtures_live import video_stats
+from tests.support.camera_feed import Camera, camera_frames
+from tests.support.http_stream import Stream, open_stream
+from tests.support.webm_reader import WebmReader
 
 pytestmark = pytest.mark.django_db(transaction=True)
 

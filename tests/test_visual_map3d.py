@@ -35,8 +35,8 @@ from maps.models import MappingSession
 from robots.agent.sim.camera import Camera
 from robots.agent.sim.world import world_from_grid
 from tests.conftest import client_for, make_building, make_robot, make_submap, make_user
-from tests.test_mapping_sessions import online
-from tests.test_visual_mapping import RESOLUTION, frames, image_message, known_room
+from tests.support.mapping_sessions import online
+from tests.support.visual_room import RESOLUTION, frames, image_message, known_room
 
 SESSIONS = "/api/mapping/sessions/"
 WALL_HEIGHT = 2.43  # metres: the simulated world's ceiling, as the camera renders it

@@ -8,7 +8,6 @@ import base64
 import math
 from typing import Any
 
-import cv2
 import numpy as np
 import pytest
 from asgiref.sync import sync_to_async
@@ -32,17 +31,10 @@ from robots.agent.sim.camera import Camera
 from robots.agent.sim.world import world_from_grid
 from robots.models import Robot
 from tests.conftest import FakeHub, client_for, make_robot
-from tests.test_mapping_sessions import _drained, _session, _until, online
+from tests.support.mapping_sessions import _drained, _session, _until, online
+from tests.support.visual_room import RESOLUTION, frames, image_message, known_room
 
 SESSIONS = "/api/mapping/sessions/"
-RESOLUTION = 0.05
-
-
-def known_room() -> np.ndarray:
-    """A 6 m x 4 m room, walls one cell thick, cell (0, 0) at the origin."""
-    grid = np.zeros((80, 120), np.int8)
-    grid[0, :] = grid[-1, :] = grid[:, 0] = grid[:, -1] = 100
-    return grid
 
 
 def test_the_grid_from_a_known_rooms_depth_has_its_walls_and_its_free_floor() -> None:
@@ -89,13 +81,6 @@ def test_what_hangs_above_the_robot_or_lies_on_the_floor_is_no_obstacle() -> Non
 # --- bad input ------------------------------------------------------------------------
 
 
-def frames(poses: list[Pose], first_stamp: float = 100.0) -> list[Frame]:
-    return [
-        Frame(first_stamp + 0.2 * index, image, depth, Intrinsics())
-        for index, (image, depth) in enumerate(rendered(poses, 1))
-    ]
-
-
 def test_bad_frames_are_refused_and_change_nothing() -> None:
     poses = [compose(START, (0.1 * i, 0.0, 0.0)) for i in range(4)]
     good = frames(poses)
@@ -126,12 +111,6 @@ def raw_32fc1(depth: np.ndarray, stamp: float) -> dict[str, Any]:
         data=base64.b64encode(depth.astype("<f4").tobytes()).decode(),
     )
     return message
-
-
-def image_message(image: np.ndarray, stamp: float) -> dict[str, Any]:
-    ok, jpeg = cv2.imencode(".jpg", image)
-    assert ok
-    return dict(messages.compressed_image("camera_optical_frame", jpeg.tobytes(), stamp))
 
 
 def test_depth_that_is_not_finite_or_does_not_match_the_image_is_refused() -> None:

@@ -23,9 +23,8 @@ from asgiref.sync import sync_to_async
 from maps.models import Building, Keyframe, MappingSession, SubMap
 from robots.models import Robot
 from tests.fixtures_live import LiveServer, agent_process, operator_handshake, until
-from tests.test_agent_live import Operator
-from tests.test_agent_whereabouts import tokens  # noqa: F401 (the demo's robots, seeded)
-from tests.test_mapping_sessions import _session
+from tests.support.agent_operator import Operator
+from tests.support.mapping_sessions import _session
 
 pytestmark = [pytest.mark.django_db(transaction=True), pytest.mark.slow]
 
@@ -67,7 +66,7 @@ async def _online() -> bool:
 
 
 @pytest.fixture
-def camera_only_agent(daphne_server: LiveServer, tokens: Path, tmp_path: Path) -> Any:  # noqa: F811
+def camera_only_agent(daphne_server: LiveServer, tokens: Path, tmp_path: Path) -> Any:
     """``robot_0`` with an RGB-D camera and no laser, depth with every frame, in Corridor A
     facing its textured length (the demo's start faces a plain wall at 0.45 m, which
     tracking cannot place: see docs/design.md, "Visual SLAM sessions")."""

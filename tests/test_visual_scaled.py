@@ -24,7 +24,7 @@ from robots.agent.sim.camera import Camera
 from robots.agent.sim.world import demo_world
 from robots.agent.visual import keyframe_document
 from tests.fixtures_live import run_manage
-from tests.test_visual_server import SURVEY, WAKE_UP
+from tests.support.keyframes import SURVEY, WAKE_UP
 
 pytestmark = [pytest.mark.scaled, pytest.mark.slow]
 

@@ -27,15 +27,12 @@ from robots.agent.hardware import encode_jpeg
 from robots.agent.sim.camera import Camera
 from robots.agent.sim.world import demo_world
 from tests.conftest import client_for, make_building, make_robot, make_user
-from tests.test_visual_input import progressive_jpeg
+from tests.support.keyframe_images import progressive_jpeg
+from tests.support.keyframes import SURVEY, WAKE_UP, keyframe_body
 
 pytestmark = pytest.mark.django_db(transaction=True)
 
 URL = "/api/buildings/boccioni_1/maps/CorridorA/keyframes"
-SURVEY = [
-    (x, y, yaw) for x in np.arange(4.0, 12.0, 0.5) for y in (22.6, 23.8) for yaw in (0.0, math.pi)
-]
-WAKE_UP = (7.3, 23.1, 0.15)
 
 
 @pytest.fixture(autouse=True)
@@ -61,17 +58,6 @@ def admin(token: str) -> Any:
 @pytest.fixture(scope="module")
 def camera() -> Camera:
     return Camera(demo_world(seed=0))
-
-
-def keyframe_body(camera: Camera, pose: tuple[float, float, float]) -> dict[str, Any]:
-    """A keyframe as robots send it: JPEG, depth as ROS's compressedDepth, pose."""
-    image, depth = camera.capture(pose)
-    assert depth is not None
-    return {
-        "image": compressed_image("camera", encode_jpeg(image, 90), 1.0),
-        "depth": compressed_depth("camera", depth, 1.0),
-        "pose": {"x": pose[0], "y": pose[1], "yaw": pose[2]},
-    }
 
 
 def send_survey(token: str, camera: Camera) -> None:

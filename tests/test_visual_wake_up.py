@@ -23,7 +23,8 @@ from robots.agent.sim.camera import Camera
 from robots.agent.sim.world import demo_world
 from robots.agent.visual import keyframe_document
 from tests.fixtures_live import LiveServer, agent_process
-from tests.test_end_to_end import Operator, position_error, tail
+from tests.support.end_to_end import Operator, position_error
+from tests.support.logs import tail
 
 pytestmark = [pytest.mark.django_db(transaction=True), pytest.mark.slow]
 

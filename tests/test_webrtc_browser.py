@@ -16,9 +16,9 @@ from pathlib import Path
 import pytest
 from playwright.sync_api import BrowserContext, Page, Route, expect
 
-from telemetry.domain.camera_feed import Camera, camera_frames
 from tests.browser_support import ROBOT, TIME_SCALE, Demo, open_as, screenshot
 from tests.fixtures_live import agent_process, video_stats
+from tests.support.camera_feed import Camera, camera_frames
 
 pytest_plugins = ["tests.browser_support"]
 pytestmark = [pytest.mark.browser, pytest.mark.django_db(transaction=True)]

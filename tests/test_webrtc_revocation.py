@@ -15,7 +15,7 @@ from telemetry.video.relay import get_video_relay
 from telemetry.video.webrtc import sessions_of
 from tests.conftest import make_building, make_robot
 from tests.fixtures_live import until
-from tests.test_video_access import http_scope
+from tests.support.http_scopes import http_scope
 
 pytestmark = pytest.mark.django_db(transaction=True)
 

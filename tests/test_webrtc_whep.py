@@ -23,12 +23,12 @@ import pytest
 import websockets
 from aiortc import RTCPeerConnection
 
-from telemetry.domain.camera_feed import Camera, camera_frames
 from telemetry.domain.video import Frame
 from telemetry.domain.webrtc import new_encoder, parse_whep_request
-from telemetry.domain.whep_client import SDP, WhepRefused, WhepViewer
 from tests.conftest import make_building, make_robot
 from tests.fixtures_live import until, video_stats
+from tests.support.camera_feed import Camera, camera_frames
+from tests.support.whep_client import SDP, WhepRefused, WhepViewer
 
 pytestmark = pytest.mark.django_db(transaction=True)
 
@@ -233,7 +233,7 @@ async def test_a_viewer_of_a_slow_camera_sees_a_picture_within_seconds(
 
 VANISHING_VIEWER = """
 import asyncio, json, os, sys
-from telemetry.domain.whep_client import WhepViewer
+from tests.support.whep_client import WhepViewer
 async def main():
     viewer = await WhepViewer.open(sys.argv[1], sys.argv[2], json.loads(sys.argv[3]))
     async for _ in viewer.frames(20):

@@ -6,7 +6,7 @@ to *this* process (in the scaled mode, the robot's process does its mapping, whe
 the session was started) and starts a ``SessionWorker`` for each new one.
 
 A worker taps its robot's topics on the hub (``hub.tap``, the one way to tap the topic
-bus, ``telemetry.hub``): a laser session's ``scan`` and ``odom`` (``LaserWorker``), a
+bus, ``telemetry.rosbridge.hub``): a laser session's ``scan`` and ``odom`` (``LaserWorker``), a
 visual session's camera image, compressedDepth, camera_info and ``odom``
 (``VisualWorker``, which pairs an image and a depth image of one stamp into a frame).
 The tap only appends to a bounded queue (``QUEUE_SCANS`` scans, ``QUEUE_FRAMES``

@@ -30,11 +30,11 @@ from django.conf import settings
 
 from cloudnav_core import topics
 from cloudnav_core.workers import Inbox, Policy, Worker
-from telemetry.config import setting
 from telemetry.domain import names, ros1
 from telemetry.domain.bus import Topic
 from telemetry.domain.events import EVENT_TYPE, EVENTS_TOPIC, EventDraft, as_log
 from telemetry.models import CAMERA_TOPIC
+from telemetry.rosbridge.config import setting
 
 from . import files
 from .plans import Plan, Retention

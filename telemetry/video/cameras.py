@@ -22,8 +22,13 @@ from channels.db import database_sync_to_async
 from django.http import HttpRequest
 
 from robots.models import Robot
-from telemetry.domain import names, rules
-from telemetry.domain.rules import Owner, Principal
+from telemetry.access import rules
+
+# The rosbridge server's own identity rules, so a robot or a person is the same principal
+# over HTTP as over its WebSocket (their scope-based entry point checks a WebSocket origin).
+from telemetry.access.decisions import Identity, owner_named, person_identity, robot_identity
+from telemetry.access.rules import Owner, Principal
+from telemetry.domain import names
 from telemetry.domain.video import (
     NotAuthenticated,
     NotWatchable,
@@ -32,12 +37,8 @@ from telemetry.domain.video import (
     is_camera,
 )
 from telemetry.exceptions import InvalidName
-from telemetry.fleet_feed import fleet_type
-from telemetry.hub import Hub
-
-# The rosbridge server's own identity rules, so a robot or a person is the same principal
-# over HTTP as over its WebSocket (their scope-based entry point checks a WebSocket origin).
-from telemetry.services import Identity, owner_named, person_identity, robot_identity
+from telemetry.rosbridge.fleet_feed import fleet_type
+from telemetry.rosbridge.hub import Hub
 
 CAMERA = "camera/image/compressed"
 

@@ -24,7 +24,7 @@ from cloudnav_core.workers import Pool
 from cloudnav_web.heavy import Ticket, video_budget
 from telemetry.domain.video import SOURCE, VP8, StreamParams, encoder_memory
 from telemetry.domain.webrtc import MIME_TYPES
-from telemetry.hub import Hub, get_hub
+from telemetry.rosbridge.hub import Hub, get_hub
 from telemetry.video.feeds import CameraFeed
 from telemetry.video.pipelines import ImagePipeline, Pipeline, RtcPipeline, Vp8Pipeline
 

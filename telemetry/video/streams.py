@@ -18,9 +18,9 @@ from collections.abc import AsyncIterator, Mapping
 from typing import Any, TypeVar
 
 from cloudnav_web.heavy import Ticket
+from telemetry.access.rules import Principal
 from telemetry.domain import multipart
 from telemetry.domain.newest import Closed, Newest
-from telemetry.domain.rules import Principal
 from telemetry.domain.video import MJPEG, NoFrame, StreamParams
 from telemetry.video.cameras import Camera
 from telemetry.video.pipelines import FRESH_FOR, ImagePipeline, Part, Vp8Pipeline

@@ -43,8 +43,9 @@ from django.views.decorators.http import require_GET
 from cloudnav_web.heavy import Overloaded, release_with
 from cloudnav_web.pages import page_context
 from maps.access import global_role
+from telemetry.access.decisions import owner_named
+from telemetry.access.rules import Principal
 from telemetry.domain import multipart, names
-from telemetry.domain.rules import Principal
 from telemetry.domain.video import (
     MJPEG,
     SOURCE,
@@ -62,7 +63,6 @@ from telemetry.domain.video import (
     parse_stream_request,
 )
 from telemetry.domain.webrtc import MIME_TYPES, parse_whep_request
-from telemetry.services import owner_named
 from telemetry.video.cameras import (
     Camera,
     CameraListing,

@@ -49,7 +49,7 @@ from telemetry.video.pipelines import RtcPipeline
 
 if TYPE_CHECKING:
     from cloudnav_web.heavy import Ticket
-    from telemetry.domain.rules import Principal
+    from telemetry.access.rules import Principal
     from telemetry.video.cameras import Camera
 from telemetry.video.relay import VideoRelay
 

@@ -29,7 +29,7 @@ from django.db.models.signals import m2m_changed, post_delete, post_save, pre_de
 
 from maps.models import Building, Membership
 from robots.models import Robot
-from telemetry.domain.rules import Owner, Principal
+from telemetry.access.rules import Owner, Principal
 
 logger = logging.getLogger(__name__)
 
@@ -126,7 +126,7 @@ def announce(change: AccessChange) -> None:
             finally:
                 client.close()
             return
-        from telemetry.hub import running_hubs
+        from telemetry.rosbridge.hub import running_hubs
 
         for loop, hub in running_hubs():
             # a fresh context: not this thread's (asgiref's executor state stays here)

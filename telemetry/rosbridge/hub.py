@@ -4,17 +4,17 @@ they share, each named by what it does.
 - the topic bus (``telemetry.domain.bus``): topics, subscriptions and fan-out; the hub's
   topic methods add what the server reads of a publication and, in scaled mode, the
   topics of other processes;
-- service and action calls (``telemetry.service_calls``);
-- the teleop gate (``telemetry.teleop_gate``): who may send ``cmd_vel`` now;
+- service and action calls (``telemetry.rosbridge.service_calls``);
+- the teleop gate (``telemetry.rosbridge.teleop_gate``): who may send ``cmd_vel`` now;
 - STOP (``telemetry.stop``): halt a robot whatever moves it;
 - pose checks (``telemetry.pose_checks``): goals and initial poses no robot could stand
   at are refused where they are sent, and goals another robot's spot holds are refused or
   moved by the building's fleet rule (``maps.domain.reservations``, fed by the fleet feed);
-- the fleet feed (``telemetry.fleet_feed``): robots' pose, Map ID, events and missions;
-- the access review (``telemetry.access_review``): what an access change withdraws;
-- parameters (``telemetry.params``) and the event log (``telemetry.events``);
-- the relay to the other server processes (``telemetry.relay``), or in single-process
-  mode a ``NullRelay`` that does nothing and finds nothing (``telemetry.cross_process``),
+- the fleet feed (``telemetry.rosbridge.fleet_feed``): robots' pose, Map ID, events and missions;
+- the access review (``telemetry.access.review``): what an access change withdraws;
+- parameters (``telemetry.rosbridge.params``) and the event log (``telemetry.events``);
+- the relay to the other server processes (``telemetry.rosbridge.relay``), or in single-process
+  mode a ``NullRelay`` that does nothing and finds nothing (``telemetry.rosbridge.cross_process``),
   so no part asks which mode it runs in.
 
 The consumer authorises a frame, then calls one function of the hub or of one of its
@@ -47,11 +47,8 @@ from maps.services import GOAL_CHECK_RADIUS
 from robots.fleet import FleetTracker
 from robots.missions import Goal
 from robots.teleop import RedisLockStore
-from telemetry.access_review import AccessReview
-from telemetry.config import RosbridgeConfig
-from telemetry.connection import Connection
-from telemetry.cross_process import CrossProcess, NullRelay
-from telemetry.directory import Directory
+from telemetry.access.decisions import Access, Registry
+from telemetry.access.review import AccessReview
 from telemetry.domain import names, protocol
 from telemetry.domain.bus import EVERY_TOPIC, OnMessage, SubscribeParams, TopicBus, TopicTap
 from telemetry.domain.encoding import Outgoing
@@ -60,21 +57,24 @@ from telemetry.domain.limits import ByteBudget, Holdings
 from telemetry.domain.protocol import Json
 from telemetry.events import EventLog
 from telemetry.exceptions import PoseRefused
-from telemetry.fleet_feed import FleetFeed, fleet_latched, fleet_type
 from telemetry.missions import MissionRunner
-from telemetry.params import Parameters, RedisParams
 from telemetry.parking import Parking
 from telemetry.pose_checks import PoseChecks
 from telemetry.recording.recorder import Recorder
-from telemetry.relay import Relay, shared_redis
 from telemetry.right_of_way import RightOfWay
-from telemetry.server_services import ServerParts, ServerService
-from telemetry.service_calls import ServiceCalls
-from telemetry.service_registry import server_services
-from telemetry.services import Access, Registry
+from telemetry.rosbridge.config import RosbridgeConfig
+from telemetry.rosbridge.connection import Connection
+from telemetry.rosbridge.cross_process import CrossProcess, NullRelay
+from telemetry.rosbridge.directory import Directory
+from telemetry.rosbridge.fleet_feed import FleetFeed, fleet_latched, fleet_type
+from telemetry.rosbridge.params import Parameters, RedisParams
+from telemetry.rosbridge.relay import Relay, shared_redis
+from telemetry.rosbridge.server_services import ServerParts, ServerService
+from telemetry.rosbridge.service_calls import ServiceCalls
+from telemetry.rosbridge.service_registry import server_services
+from telemetry.rosbridge.teleop_gate import TeleopGate
 from telemetry.stop import RobotStop
 from telemetry.stuck_rule import StuckRule
-from telemetry.teleop_gate import TeleopGate
 
 
 @dataclass

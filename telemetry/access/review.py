@@ -1,4 +1,4 @@
-"""The access review: what an access change (``telemetry.revocation``) does to this
+"""The access review: what an access change (``telemetry.access.revocation``) does to this
 process's connections and video watchers. Those whose credentials were revoked are
 closed; every other connection's decisions are taken again, and what it may no longer
 hold is withdrawn."""
@@ -15,16 +15,16 @@ from typing import TYPE_CHECKING
 from channels.db import database_sync_to_async
 
 from robots.fleet import FleetTracker
-from telemetry.connection import Connection
+from telemetry.access.decisions import Access, Registry
+from telemetry.access.revocation import AccessChange, RobotRecord, revoked, robot_records
+from telemetry.access.rules import Principal
 from telemetry.domain import names
 from telemetry.domain.bus import TopicBus
-from telemetry.domain.rules import Principal
-from telemetry.revocation import AccessChange, RobotRecord, revoked, robot_records
-from telemetry.service_calls import ServiceCalls
-from telemetry.services import Access, Registry
+from telemetry.rosbridge.connection import Connection
+from telemetry.rosbridge.service_calls import ServiceCalls
 
 if TYPE_CHECKING:
-    from telemetry.hub import Client
+    from telemetry.rosbridge.hub import Client
 
 logger = logging.getLogger(__name__)
 

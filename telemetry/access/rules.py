@@ -18,8 +18,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from cloudnav_core.topics import COMMAND_TOPICS, SERVER_TOPICS
-
-from .names import first_segment, is_reserved, suffix_in
+from telemetry.domain.names import first_segment, is_reserved, suffix_in
 
 
 @dataclass(frozen=True, slots=True)

@@ -13,13 +13,13 @@ from collections.abc import Callable
 from cloudnav_core import topics
 from cloudnav_core.messages import twist_2d
 from robots.teleop import MemoryLockStore, TeleopLocks
-from telemetry.config import RosbridgeConfig
-from telemetry.connection import Connection
 from telemetry.domain import names
 from telemetry.domain.bus import TopicBus
 from telemetry.domain.protocol import Json
 from telemetry.events import EventLog
 from telemetry.exceptions import NotAllowed
+from telemetry.rosbridge.config import RosbridgeConfig
+from telemetry.rosbridge.connection import Connection
 
 # How much later than the holder's own process the robot's steps in: the relay's delay on a
 # loaded machine, so that a holder driving steadily is never stopped by it.

@@ -1,5 +1,5 @@
 """What the hub asks of the other server processes: the Redis relay in scaled mode
-(``telemetry.relay.Relay``), or ``NullRelay`` in single-process mode, which does nothing
+(``telemetry.rosbridge.relay.Relay``), or ``NullRelay`` in single-process mode, which does nothing
 and finds nothing, so no caller asks which mode it runs in."""
 
 from __future__ import annotations

@@ -14,13 +14,13 @@ from cloudnav_core import topics
 from cloudnav_core.messages import goal_live, published_pose_of, string_of
 from maps.domain.reservations import Reservations
 from robots.fleet import FleetTracker
-from telemetry.cross_process import CrossProcess
 from telemetry.domain import names
 from telemetry.domain.protocol import Json
 from telemetry.events import OBSERVED, EventLog
 from telemetry.missions import MissionRunner
 from telemetry.parking import Parking
 from telemetry.right_of_way import RightOfWay
+from telemetry.rosbridge.cross_process import CrossProcess
 
 
 def fleet_type(name: str) -> str | None:

@@ -19,18 +19,18 @@ from typing_extensions import override
 from cloudnav_core import topics
 from cloudnav_web.batches import UNREACHABLE
 from cloudnav_web.outage import REPORT
-from telemetry import replies
-from telemetry.connection import Connection
+from telemetry.access.decisions import Access, authenticate
 from telemetry.domain import protocol
 from telemetry.domain.bus import SubscribeParams
 from telemetry.domain.decoding import decode_frame
 from telemetry.domain.fragments import Reassembler
 from telemetry.domain.protocol import SUPPORTED_COMPRESSIONS, parse_op
 from telemetry.exceptions import BadFrame, RosbridgeError, ServerFault
-from telemetry.hub import Client, Hub, get_hub
-from telemetry.server_services import ServiceCall
-from telemetry.services import Access, authenticate
-from telemetry.transport import SCOPE_KEY
+from telemetry.rosbridge import replies
+from telemetry.rosbridge.connection import Connection
+from telemetry.rosbridge.hub import Client, Hub, get_hub
+from telemetry.rosbridge.server_services import ServiceCall
+from telemetry.rosbridge.transport import SCOPE_KEY
 
 logger = logging.getLogger(__name__)
 
@@ -39,7 +39,7 @@ class RosbridgeConsumer(AsyncWebsocketConsumer):  # type: ignore[misc]  # Channe
     """One rosbridge v2 client: robot (by token) or person (by session, from our origin)."""
 
     # Connections need no channel of their own: fan-out is in-process, and scaled mode has
-    # one channel per server process (see ``telemetry.relay``). An alias that names no
+    # one channel per server process (see ``telemetry.rosbridge.relay``). An alias that names no
     # layer makes Channels skip the per-connection channel.
     channel_layer_alias = "rosbridge-connections-have-no-channel"
 

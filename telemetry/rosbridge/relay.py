@@ -20,7 +20,7 @@ What every process must see lives in Redis under ``names.redis_key``: which proc
 advertises which topic, service and action, which robots it serves, latched messages and
 parameters. A process counts as alive while its heartbeat key exists.
 
-Single-process mode has a ``NullRelay`` (``telemetry.cross_process``): the same methods,
+Single-process mode has a ``NullRelay`` (``telemetry.rosbridge.cross_process``): the same methods,
 doing nothing and finding nothing, so the hub and its parts never ask which mode they run
 in. Only ``Hub.start`` chooses.
 """
@@ -39,16 +39,16 @@ from redis.exceptions import ConnectionError as RedisDown
 from redis.exceptions import TimeoutError as RedisTimeout
 
 from cloudnav_web.outage import REDIS_REPORT
+from telemetry.access.revocation import AccessChange, access_channel
 from telemetry.domain import names
 from telemetry.domain.bus import Topic
 from telemetry.domain.encoding import Wire
 from telemetry.domain.protocol import Json
 from telemetry.recording.elsewhere import FLUSH_REQUEST, FLUSHED
-from telemetry.revocation import AccessChange, access_channel
 from telemetry.stop import STOP_REQUEST
 
 if TYPE_CHECKING:
-    from telemetry.hub import Hub
+    from telemetry.rosbridge.hub import Hub
 
 logger = logging.getLogger(__name__)
 
@@ -288,7 +288,7 @@ class Relay:
     # ------------------------------------------------------------ access changes
 
     async def _access_loop(self) -> None:
-        """Apply each access change announced by any process (``telemetry.revocation``);
+        """Apply each access change announced by any process (``telemetry.access.revocation``);
         a new subscription each time it (re)starts."""
         access = self.redis.pubsub()
         try:

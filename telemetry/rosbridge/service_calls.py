@@ -7,8 +7,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
-from telemetry.connection import Connection
-from telemetry.cross_process import CrossProcess
+from telemetry.access.decisions import Access
 from telemetry.domain import protocol
 from telemetry.domain.bus import Peer
 from telemetry.domain.calls import CallTable, PendingCall
@@ -16,8 +15,9 @@ from telemetry.domain.encoding import Outgoing
 from telemetry.domain.limits import ConnectionLimits
 from telemetry.domain.protocol import Json
 from telemetry.exceptions import ActionFailed, NotAllowed, RosbridgeError, ServiceFailed
-from telemetry.server_services import ServerService, ServiceCall
-from telemetry.services import Access
+from telemetry.rosbridge.connection import Connection
+from telemetry.rosbridge.cross_process import CrossProcess
+from telemetry.rosbridge.server_services import ServerService, ServiceCall
 
 
 class ServiceCalls:

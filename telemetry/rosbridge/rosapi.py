@@ -10,12 +10,12 @@ import json
 from collections.abc import Iterable
 
 from cloudnav_core.times import now_stamp
+from telemetry.access.decisions import Access
 from telemetry.domain import names
 from telemetry.domain.names import canonical_type
 from telemetry.domain.protocol import Json
 from telemetry.exceptions import NotAllowed, ServiceFailed
-from telemetry.server_services import ServerService, ServiceCall
-from telemetry.services import Access
+from telemetry.rosbridge.server_services import ServerService, ServiceCall
 
 SERVER_NODE = "/cloudnav"
 
@@ -105,7 +105,7 @@ async def get_param(call: ServiceCall) -> Json:
 
 async def set_param(call: ServiceCall) -> Json:
     """Set a parameter; it lives with the caller's connection unless an admin set it (see
-    ``telemetry.params``). Raises LimitReached past the connection's parameter budget."""
+    ``telemetry.rosbridge.params``). Raises LimitReached past the connection's parameter budget."""
     name = await _param(call, "set_param")
     value = call.arg("value", "null")
     if not isinstance(value, str):

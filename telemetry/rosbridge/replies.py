@@ -12,10 +12,10 @@ import logging
 from collections.abc import Mapping
 from typing import Any
 
-from telemetry.connection import Connection
 from telemetry.domain import names, protocol
 from telemetry.domain.names import MAX_NAME_LENGTH
 from telemetry.exceptions import RosbridgeError
+from telemetry.rosbridge.connection import Connection
 
 logger = logging.getLogger("telemetry.rosbridge")
 MAX_REASON_LENGTH = 500

@@ -18,7 +18,7 @@ from telemetry.domain.limits import Holdings
 from telemetry.domain.names import redis_key
 
 if TYPE_CHECKING:
-    from telemetry.connection import Connection
+    from telemetry.rosbridge.connection import Connection
 
 
 class ParamStore(Protocol):

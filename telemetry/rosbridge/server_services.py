@@ -1,6 +1,6 @@
 """The server's own services (``/rosapi/...`` and ``/cloudnav/...``): what a handler gets.
 
-This is the protocol only; which services exist is ``telemetry.service_registry``'s
+This is the protocol only; which services exist is ``telemetry.rosbridge.service_registry``'s
 business, so the modules of services (``rosapi``, ``cloud``) import this one and nothing
 imports them back but the registry. A handler gets the narrow parts of the process's
 state it may use (``ServerParts``), never the hub.
@@ -16,11 +16,11 @@ from telemetry.domain.protocol import Json
 
 if TYPE_CHECKING:
     from robots.teleop import TeleopLocks
-    from telemetry.connection import Connection
-    from telemetry.directory import Directory
-    from telemetry.params import Parameters
+    from telemetry.access.decisions import Access
     from telemetry.pose_checks import PoseChecks
-    from telemetry.services import Access
+    from telemetry.rosbridge.connection import Connection
+    from telemetry.rosbridge.directory import Directory
+    from telemetry.rosbridge.params import Parameters
 
 
 @dataclass(frozen=True)

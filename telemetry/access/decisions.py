@@ -3,7 +3,7 @@
 ``authenticate`` runs once per connection. The process's ``Registry`` knows which robot
 owns which name; ``Access`` keeps one connection's decisions, so after the first frame on
 a name no frame on it touches the database again. When access changes (a robot appears,
-is renamed, relinked or deleted: ``telemetry.revocation``) the registry is updated and
+is renamed, relinked or deleted: ``telemetry.access.revocation``) the registry is updated and
 every connection's decisions are taken again.
 
 A name no robot owns lives in the connection's realm (``names.in_realm``): one building,
@@ -26,8 +26,9 @@ from maps.access import Role, buildings_for, global_role, role_in
 from robots.models import Robot
 from robots.principal import RobotPrincipal
 from robots.services import robot_for_token
-from telemetry.domain import names, rules
-from telemetry.domain.rules import Owner, Principal
+from telemetry.access import rules
+from telemetry.access.rules import Owner, Principal
+from telemetry.domain import names
 from telemetry.exceptions import NotAllowed
 
 

@@ -14,11 +14,17 @@ import itertools
 import logging
 from typing import Any
 
+from telemetry.access.rules import Principal
 from telemetry.domain.encoding import Outgoing, Wire
 from telemetry.domain.outbox import Outbox
 from telemetry.domain.protocol import Json, level_shows, status
-from telemetry.domain.rules import Principal
-from telemetry.transport import AsgiSend, DaphneSink, cap_incoming, daphne_protocol, send_via_asgi
+from telemetry.rosbridge.transport import (
+    AsgiSend,
+    DaphneSink,
+    cap_incoming,
+    daphne_protocol,
+    send_via_asgi,
+)
 
 _keys = itertools.count(1)
 logger = logging.getLogger(__name__)

@@ -2,7 +2,7 @@
 
 It speaks HTTP/1.0 over a plain socket, as web_video_server's viewers do, so a test or a
 benchmark sees the bytes exactly as the server sends them; read the body with
-``multipart.PartReader`` (MJPEG) or ``webm.WebmReader`` (VP8).
+``multipart.PartReader`` (MJPEG) or ``tests.support.webm_reader.WebmReader`` (VP8).
 """
 
 from __future__ import annotations

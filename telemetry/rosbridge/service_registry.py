@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-from telemetry import cloud, rosapi
-from telemetry.server_services import ServerService
+from telemetry.rosbridge import cloud, rosapi
+from telemetry.rosbridge.server_services import ServerService
 
 
 def server_services() -> dict[str, ServerService]:

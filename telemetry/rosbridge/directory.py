@@ -5,10 +5,10 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterable
 
-from telemetry.cross_process import CrossProcess
 from telemetry.domain import names
 from telemetry.domain.bus import TopicBus
 from telemetry.domain.calls import CallTable
+from telemetry.rosbridge.cross_process import CrossProcess
 
 
 class Directory:

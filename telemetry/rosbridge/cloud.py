@@ -24,7 +24,7 @@ from maps.visual.service import buildings_to_search, relocalise_queued
 from telemetry.domain import names
 from telemetry.domain.protocol import Json
 from telemetry.exceptions import NotAllowed, PoseRefused, ServiceFailed
-from telemetry.server_services import ServerService, ServiceCall
+from telemetry.rosbridge.server_services import ServerService, ServiceCall
 
 if TYPE_CHECKING:
     from robots.teleop import TeleopLocks

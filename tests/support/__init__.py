@@ -1,0 +1,1 @@
+"""What tests and benchmarks share: clients of the server and helpers of several test files."""
