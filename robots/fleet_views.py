@@ -16,8 +16,7 @@ from typing_extensions import override
 from maps.access import Role, buildings_for, global_role, robot_of
 from maps.models import Building
 
-from .fleet import is_online
-from .models import Robot, RobotState
+from .models import Robot, RobotState, is_online
 
 
 class FleetEntrySerializer(serializers.Serializer[Any]):

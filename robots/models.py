@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from datetime import UTC, datetime, timedelta
+
 from django.core.validators import MinValueValidator, RegexValidator
 from django.db import models
 
@@ -97,3 +99,15 @@ class Mission(models.Model):
 
     def __str__(self) -> str:
         return f"{self.robot}: {self.name or 'mission'} ({self.state})"
+
+
+# A robot whose row is older than this is shown offline whatever the row says: the process
+# that served it stopped without saying goodbye (the rosbridge server writes connected
+# robots every ``telemetry.rosbridge.fleet_state.HEARTBEAT``).
+STALE_AFTER = timedelta(seconds=30)
+
+
+def is_online(state: RobotState, now: datetime | None = None) -> bool:
+    """True if the robot is connected to a live server process."""
+    now = now or datetime.now(UTC)
+    return bool(state.online and state.last_seen and now - state.last_seen < STALE_AFTER)

@@ -22,7 +22,8 @@ pytest_plugins = ["tests.browser_support"]
 pytestmark = [pytest.mark.browser, pytest.mark.django_db(transaction=True)]
 
 DESKTOP: Any = SIZES[0]
-# The teleop lock's time to live after the last command (robots.teleop.TeleopLocks).
+# The teleop lock's time to live after the last command
+# (telemetry.rosbridge.teleop_locks.TeleopLocks).
 LOCK_TTL_S = 5.0
 
 

@@ -19,8 +19,8 @@ import websockets
 from channels.db import database_sync_to_async
 from rest_framework.test import APIClient
 
-from robots import fleet
 from robots.models import Robot, RobotState
+from telemetry.rosbridge import fleet_state as fleet
 from tests.conftest import make_robot
 
 pytestmark = pytest.mark.django_db(transaction=True)

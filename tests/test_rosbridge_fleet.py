@@ -75,7 +75,7 @@ async def test_the_version_a_robot_holds_is_kept_apart_from_its_map_id(rosbridge
 
 
 async def test_state_is_not_written_once_per_message(rosbridge, robot, settings, monkeypatch):
-    from robots import fleet
+    from telemetry.rosbridge import fleet_state as fleet
 
     settings.CLOUDNAV_FLEET_FLUSH_INTERVAL = 0.3
     writes = []

@@ -11,8 +11,8 @@ from typing import Any
 
 import pytest
 
-from robots.teleop import RedisLockStore, TeleopLocks
 from telemetry.rosbridge.relay import shared_redis
+from telemetry.rosbridge.teleop_locks import RedisLockStore, TeleopLocks
 from tests.fixtures_live import PrivateRedis, until
 
 pytestmark = [pytest.mark.scaled, pytest.mark.slow]

@@ -58,8 +58,7 @@ def _candidate(session: MappingSession) -> Any:
 
 
 async def _online() -> bool:
-    from robots.fleet import is_online
-    from robots.models import RobotState
+    from robots.models import RobotState, is_online
 
     state = await RobotState.objects.filter(robot__name=ROBOT).afirst()
     return state is not None and is_online(state)

@@ -18,8 +18,7 @@ from django.db import IntegrityError, transaction
 from django.db.models import QuerySet
 
 from cloudnav_core.grid import FREE_THRESH, OCCUPIED_THRESH
-from robots.fleet import is_online
-from robots.models import Robot, RobotState
+from robots.models import Robot, RobotState, is_online
 
 from .. import services, versions
 from ..domain.mapfile import (

@@ -14,13 +14,13 @@ from typing import TYPE_CHECKING
 
 from channels.db import database_sync_to_async
 
-from robots.fleet import FleetTracker
 from telemetry.access.decisions import Access, Registry
 from telemetry.access.revocation import AccessChange, RobotRecord, revoked, robot_records
 from telemetry.access.rules import Principal
 from telemetry.domain import names
 from telemetry.domain.bus import TopicBus
 from telemetry.rosbridge.connection import Connection
+from telemetry.rosbridge.fleet_state import FleetTracker
 from telemetry.rosbridge.service_calls import ServiceCalls
 
 if TYPE_CHECKING:

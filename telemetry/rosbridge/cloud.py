@@ -27,7 +27,7 @@ from telemetry.exceptions import NotAllowed, PoseRefused, ServiceFailed
 from telemetry.rosbridge.server_services import ServerService, ServiceCall
 
 if TYPE_CHECKING:
-    from robots.teleop import TeleopLocks
+    from telemetry.rosbridge.teleop_locks import TeleopLocks
 
 TELEOP_LOCK = f"{names.CLOUDNAV}/teleop_lock"
 ROUTE = f"{names.CLOUDNAV}/route"

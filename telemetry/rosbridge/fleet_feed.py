@@ -1,10 +1,11 @@
 """The fleet feed: what the robots connected to this process publish about themselves,
-taken in as fleet state (pose and Map ID, ``robots.fleet``), the spots they hold (where
-they stand, and whether their goal is still active: ``maps.domain.reservations``; a goal
-that ended may send its robot to a parking spot: ``telemetry.parking``), their
-routes and poses for right of way in narrow places (``telemetry.right_of_way``),
-events (what the event log observes) and mission progress (navigation status); and which
-robots this process serves, told to the other processes."""
+taken in as fleet state (pose and Map ID, ``telemetry.rosbridge.fleet_state``), the
+spots they hold (where they stand, and whether their goal is still active:
+``maps.domain.reservations``; a goal that ended may send its robot to a parking spot:
+``telemetry.parking``), their routes and poses for right of way in narrow places
+(``telemetry.right_of_way``), events (what the event log observes) and mission progress
+(navigation status); and which robots this process serves, told to the other
+processes."""
 
 from __future__ import annotations
 
@@ -13,7 +14,6 @@ from collections.abc import Callable
 from cloudnav_core import topics
 from cloudnav_core.messages import goal_live, published_pose_of, string_of
 from maps.domain.reservations import Reservations
-from robots.fleet import FleetTracker
 from telemetry.domain import names
 from telemetry.domain.protocol import Json
 from telemetry.events import OBSERVED, EventLog
@@ -21,6 +21,7 @@ from telemetry.missions import MissionRunner
 from telemetry.parking import Parking
 from telemetry.right_of_way import RightOfWay
 from telemetry.rosbridge.cross_process import CrossProcess
+from telemetry.rosbridge.fleet_state import FleetTracker
 
 
 def fleet_type(name: str) -> str | None:

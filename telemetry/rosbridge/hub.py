@@ -44,9 +44,7 @@ from cloudnav_core.se2 import Pose
 from cloudnav_core.times import complete_header_stamp
 from maps.domain.reservations import ParkingPlace, Reservations
 from maps.services import GOAL_CHECK_RADIUS
-from robots.fleet import FleetTracker
 from robots.missions import Goal
-from robots.teleop import RedisLockStore
 from telemetry.access.decisions import Access, Registry
 from telemetry.access.review import AccessReview
 from telemetry.domain import names, protocol
@@ -67,12 +65,14 @@ from telemetry.rosbridge.connection import Connection
 from telemetry.rosbridge.cross_process import CrossProcess, NullRelay
 from telemetry.rosbridge.directory import Directory
 from telemetry.rosbridge.fleet_feed import FleetFeed, fleet_latched, fleet_type
+from telemetry.rosbridge.fleet_state import FleetTracker
 from telemetry.rosbridge.params import Parameters, RedisParams
 from telemetry.rosbridge.relay import Relay, shared_redis
 from telemetry.rosbridge.server_services import ServerParts, ServerService
 from telemetry.rosbridge.service_calls import ServiceCalls
 from telemetry.rosbridge.service_registry import server_services
 from telemetry.rosbridge.teleop_gate import TeleopGate
+from telemetry.rosbridge.teleop_locks import RedisLockStore
 from telemetry.stop import RobotStop
 from telemetry.stuck_rule import StuckRule
 

@@ -15,12 +15,12 @@ from typing import TYPE_CHECKING, Protocol
 from telemetry.domain.protocol import Json
 
 if TYPE_CHECKING:
-    from robots.teleop import TeleopLocks
     from telemetry.access.decisions import Access
     from telemetry.pose_checks import PoseChecks
     from telemetry.rosbridge.connection import Connection
     from telemetry.rosbridge.directory import Directory
     from telemetry.rosbridge.params import Parameters
+    from telemetry.rosbridge.teleop_locks import TeleopLocks
 
 
 @dataclass(frozen=True)

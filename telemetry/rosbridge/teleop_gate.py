@@ -1,6 +1,7 @@
 """The teleop gate: who may drive a robot now. A ``cmd_vel`` passes only from the holder
 of the robot's teleop lock, or from the robot itself while nobody holds it; a holder who
-falls silent or lets go has the robot stopped (``robots.teleop``) by the holder's process.
+falls silent or lets go has the robot stopped (``telemetry.rosbridge.teleop_locks``) by the
+holder's process.
 When that process dies (scaled mode) it stops nothing: the process the robot is connected
 to watches the commands that reach it from elsewhere and stops the robot itself once they
 fall silent while it moves (``ElsewhereWatch``)."""
@@ -12,7 +13,6 @@ from collections.abc import Callable
 
 from cloudnav_core import topics
 from cloudnav_core.messages import twist_2d
-from robots.teleop import MemoryLockStore, TeleopLocks
 from telemetry.domain import names
 from telemetry.domain.bus import TopicBus
 from telemetry.domain.protocol import Json
@@ -20,6 +20,7 @@ from telemetry.events import EventLog
 from telemetry.exceptions import NotAllowed
 from telemetry.rosbridge.config import RosbridgeConfig
 from telemetry.rosbridge.connection import Connection
+from telemetry.rosbridge.teleop_locks import MemoryLockStore, TeleopLocks
 
 # How much later than the holder's own process the robot's steps in: the relay's delay on a
 # loaded machine, so that a holder driving steadily is never stopped by it.

@@ -25,8 +25,7 @@ from cloudnav_core.messages import Pose2D
 from cloudnav_web.batches import UNREACHABLE, BatchInterrupted, write_batch
 from cloudnav_web.outage import REPORT
 from maps.domain.versions import split_map_ref
-
-from .models import RobotState
+from robots.models import RobotState
 
 logger = logging.getLogger(__name__)
 
@@ -200,14 +199,6 @@ def _groups(batch: dict[int, _Entry]) -> list[tuple[list[RobotState], tuple[str,
     return [(rows, known) for known, rows in groups.items()]
 
 
-# Connected robots are written at least this often, even when nothing changed...
+# Connected robots are written at least this often, even when nothing changed, so a
+# robot whose row is older than ``robots.models.STALE_AFTER`` is shown offline.
 HEARTBEAT = timedelta(seconds=10)
-# ...so a robot whose row is older than this is shown offline whatever the row says: the
-# process that served it stopped without saying goodbye.
-STALE_AFTER = timedelta(seconds=30)
-
-
-def is_online(state: RobotState, now: datetime | None = None) -> bool:
-    """True if the robot is connected to a live server process."""
-    now = now or datetime.now(UTC)
-    return bool(state.online and state.last_seen and now - state.last_seen < STALE_AFTER)
