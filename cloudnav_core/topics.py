@@ -3,6 +3,12 @@ types. The robot side and the server both read them here (docs/design.md lists t
 
 from __future__ import annotations
 
+# The server's own service namespaces: called by relative name from any connection and
+# advertised by none, so no robot may be named after one.
+ROSAPI = "/rosapi"
+CLOUDNAV = "/cloudnav"
+GLOBAL_NAMESPACES = frozenset({ROSAPI.strip("/"), CLOUDNAV.strip("/")})
+
 # Topics of each robot, relative to its namespace, with their message types (docs/design.md).
 ROBOT_TOPIC_TYPES = {
     "pose": "geometry_msgs/PoseStamped",

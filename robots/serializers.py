@@ -12,9 +12,9 @@ from typing import Any
 from django.db.models import QuerySet
 from rest_framework import serializers
 
+from cloudnav_core.topics import GLOBAL_NAMESPACES
 from maps.access import Role, buildings_for, buildings_where, global_role
 from maps.models import Building
-from telemetry.domain.names import GLOBAL_NAMESPACES
 
 from .models import Robot, ros_name_validator
 

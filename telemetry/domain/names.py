@@ -11,6 +11,7 @@ from __future__ import annotations
 import re
 from typing import TypeGuard
 
+from cloudnav_core.topics import GLOBAL_NAMESPACES
 from telemetry.exceptions import InvalidName
 
 # One token of a ROS 2 name: a letter or underscore, then letters, digits, underscores.
@@ -18,11 +19,6 @@ _NAME = re.compile(r"/?[A-Za-z_][A-Za-z0-9_]*(/[A-Za-z_][A-Za-z0-9_]*)*/?")
 MAX_NAME_LENGTH = 256
 # A robot's name: one such token (as ``robots.models.Robot.name`` holds it).
 _SEGMENT = re.compile(r"[A-Za-z_][A-Za-z0-9_]{0,63}")
-
-ROSAPI = "/rosapi"
-CLOUDNAV = "/cloudnav"
-# Called by relative name from any connection, and advertised by none: the server's own.
-GLOBAL_NAMESPACES = frozenset({ROSAPI.strip("/"), CLOUDNAV.strip("/")})
 
 
 def absolute(name: str, namespace: str = "") -> str:

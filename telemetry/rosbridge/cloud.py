@@ -29,13 +29,13 @@ from telemetry.rosbridge.server_services import ServerService, ServiceCall
 if TYPE_CHECKING:
     from telemetry.rosbridge.teleop_locks import TeleopLocks
 
-TELEOP_LOCK = f"{names.CLOUDNAV}/teleop_lock"
-ROUTE = f"{names.CLOUDNAV}/route"
-RESOLVE_TAG = f"{names.CLOUDNAV}/resolve_tag"
-PLAN_PATH = f"{names.CLOUDNAV}/plan_path"
-RELOCALISE = f"{names.CLOUDNAV}/relocalise"
-STOP = f"{names.CLOUDNAV}/stop"
-CHECK_POSE = f"{names.CLOUDNAV}/check_pose"
+TELEOP_LOCK = f"{topics.CLOUDNAV}/teleop_lock"
+ROUTE = f"{topics.CLOUDNAV}/route"
+RESOLVE_TAG = f"{topics.CLOUDNAV}/resolve_tag"
+PLAN_PATH = f"{topics.CLOUDNAV}/plan_path"
+RELOCALISE = f"{topics.CLOUDNAV}/relocalise"
+STOP = f"{topics.CLOUDNAV}/stop"
+CHECK_POSE = f"{topics.CLOUDNAV}/check_pose"
 
 
 def _text(call: ServiceCall, key: str) -> str:

@@ -10,6 +10,7 @@ import json
 from collections.abc import Iterable
 
 from cloudnav_core.times import now_stamp
+from cloudnav_core.topics import ROSAPI
 from telemetry.access.decisions import Access
 from telemetry.domain import names
 from telemetry.domain.names import canonical_type
@@ -156,6 +157,6 @@ def services() -> dict[str, ServerService]:
         "get_time": (get_time, "rosapi/GetTime"),
     }
     return {
-        f"{names.ROSAPI}/{name}": ServerService(type_name, handler)
+        f"{ROSAPI}/{name}": ServerService(type_name, handler)
         for name, (handler, type_name) in handlers.items()
     }

@@ -7,10 +7,10 @@ from typing import Any
 from django.core.exceptions import ValidationError
 from django.core.management.base import BaseCommand, CommandError, CommandParser
 
+from cloudnav_core.topics import GLOBAL_NAMESPACES
 from maps.models import Building
 from robots.models import Robot, ros_name_validator
 from robots.services import register_robot
-from telemetry.domain.names import GLOBAL_NAMESPACES
 
 
 class Command(BaseCommand):
