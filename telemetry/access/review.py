@@ -10,23 +10,30 @@ import logging
 from collections.abc import Awaitable, Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
 
 from channels.db import database_sync_to_async
 
 from telemetry.access.decisions import Access, Registry
 from telemetry.access.revocation import AccessChange, RobotRecord, revoked, robot_records
-from telemetry.access.rules import Principal
+from telemetry.access.rules import Principal, may_watch
 from telemetry.domain import names
 from telemetry.domain.bus import TopicBus
 from telemetry.rosbridge.connection import Connection
 from telemetry.rosbridge.fleet_state import FleetTracker
 from telemetry.rosbridge.service_calls import ServiceCalls
 
-if TYPE_CHECKING:
-    from telemetry.rosbridge.hub import Client
-
 logger = logging.getLogger(__name__)
+
+
+@dataclass
+class Client:
+    """What the hub keeps of a connection besides the connection itself: its decisions,
+    and how to close it when what it was admitted with is revoked."""
+
+    conn: Connection
+    robot_pk: int | None = None
+    access: Access | None = None
+    revoke: Callable[[str], Awaitable[None]] | None = None
 
 
 @dataclass(eq=False)
@@ -135,8 +142,6 @@ async def _still(access: Access, what: str, name: str, written: str | None) -> b
 def _may_watch(watcher: Watcher, robots: dict[int, RobotRecord | None]) -> bool:
     """True if the watcher may still watch its camera: its robot was not deleted or
     renamed, and still shares a building the watcher sees."""
-    from telemetry.video.cameras import may_watch
-
     if watcher.robot_pk not in robots:
         return True
     now = robots[watcher.robot_pk]

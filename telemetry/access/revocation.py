@@ -14,10 +14,12 @@ was revoked (``revoked``), and takes every other connection's decisions again
 
 from __future__ import annotations
 
+import asyncio
 import contextvars
 import json
 import logging
-from collections.abc import Iterable
+import weakref
+from collections.abc import Callable, Coroutine, Iterable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -107,6 +109,17 @@ def revoked(
 
 # ------------------------------------------------------------------ announcing
 
+Review = Callable[[AccessChange], Coroutine[Any, Any, None]]
+
+# In embedded mode, the access review of each started hub of this process, by its event
+# loop (``listen``); in scaled mode every process's relay applies the changes instead.
+_reviews: weakref.WeakKeyDictionary[asyncio.AbstractEventLoop, Review] = weakref.WeakKeyDictionary()
+
+
+def listen(loop: asyncio.AbstractEventLoop, review: Review) -> None:
+    """Have ``review(change)`` run on ``loop`` for each change announced in this process."""
+    _reviews[loop] = review
+
 
 def announce_on_commit(change: AccessChange) -> None:
     """Announce ``change`` once the current transaction commits (at once outside one)."""
@@ -126,17 +139,17 @@ def announce(change: AccessChange) -> None:
             finally:
                 client.close()
             return
-        from telemetry.rosbridge.hub import running_hubs
-
-        for loop, hub in running_hubs():
-            # a fresh context: not this thread's (asgiref's executor state stays here)
-            loop.call_soon_threadsafe(_apply, loop, hub, change, context=contextvars.Context())
+        for loop, review in list(_reviews.items()):
+            if not loop.is_closed():
+                # a fresh context: not this thread's (asgiref's executor state stays here)
+                context = contextvars.Context()
+                loop.call_soon_threadsafe(_apply, loop, review, change, context=context)
     except Exception:
         logger.exception("could not announce an access change")
 
 
-def _apply(loop: Any, hub: Any, change: AccessChange) -> None:
-    loop.create_task(hub.review.access_changed(change))
+def _apply(loop: asyncio.AbstractEventLoop, review: Review, change: AccessChange) -> None:
+    loop.create_task(review(change))
 
 
 # ------------------------------------------------------------------ signals

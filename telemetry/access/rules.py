@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 from cloudnav_core.topics import COMMAND_TOPICS, SERVER_TOPICS
 from telemetry.domain.names import first_segment, is_reserved, suffix_in
+from telemetry.domain.video import NotWatchable, UnknownStream
 
 
 @dataclass(frozen=True, slots=True)
@@ -110,3 +111,26 @@ def may_call(principal: Principal, owner: Owner | None) -> bool:
     if principal.robot is not None:
         return owner.robot == principal.robot
     return may_drive(principal, owner)
+
+
+# ------------------------------------------------------------ cameras
+
+
+def check_watch(principal: Principal, owner: Owner) -> None:
+    """Raise unless ``principal`` may watch the cameras of robot ``owner`` (a robot only its
+    own; a person those of robots it may see)."""
+    if principal.robot is not None:
+        if principal.robot != owner.robot:
+            raise NotWatchable(f"robot {principal.robot} may only watch its own camera")
+    elif not may_see(principal, owner):
+        raise UnknownStream(f"no camera of {owner.robot} is visible to {principal.label}")
+
+
+def may_watch(principal: Principal, owner: Owner | None) -> bool:
+    if owner is None:
+        return False
+    try:
+        check_watch(principal, owner)
+    except (UnknownStream, NotWatchable):
+        return False
+    return True

@@ -20,6 +20,7 @@ from cloudnav_core import topics
 from cloudnav_web.batches import UNREACHABLE
 from cloudnav_web.outage import REPORT
 from telemetry.access.decisions import Access, authenticate
+from telemetry.access.review import Client
 from telemetry.domain import protocol
 from telemetry.domain.bus import SubscribeParams
 from telemetry.domain.decoding import decode_frame
@@ -28,7 +29,7 @@ from telemetry.domain.protocol import SUPPORTED_COMPRESSIONS, parse_op
 from telemetry.exceptions import BadFrame, RosbridgeError, ServerFault
 from telemetry.rosbridge import replies
 from telemetry.rosbridge.connection import Connection
-from telemetry.rosbridge.hub import Client, Hub, get_hub
+from telemetry.rosbridge.hub import Hub, get_hub
 from telemetry.rosbridge.server_services import ServiceCall
 from telemetry.rosbridge.transport import SCOPE_KEY
 

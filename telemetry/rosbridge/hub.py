@@ -35,8 +35,8 @@ import asyncio
 import contextvars
 import time
 import weakref
-from collections.abc import Awaitable, Callable
-from dataclasses import dataclass, replace
+from collections.abc import Callable
+from dataclasses import replace
 
 from cloudnav_core import topics
 from cloudnav_core.messages import goal_of, pose_stamped
@@ -45,8 +45,9 @@ from cloudnav_core.times import complete_header_stamp
 from maps.domain.reservations import ParkingPlace, Reservations
 from maps.services import GOAL_CHECK_RADIUS
 from robots.missions import Goal
-from telemetry.access.decisions import Access, Registry
-from telemetry.access.review import AccessReview
+from telemetry.access.decisions import Registry
+from telemetry.access.review import AccessReview, Client
+from telemetry.access.revocation import listen
 from telemetry.domain import names, protocol
 from telemetry.domain.bus import EVERY_TOPIC, OnMessage, SubscribeParams, TopicBus, TopicTap
 from telemetry.domain.encoding import Outgoing
@@ -75,17 +76,6 @@ from telemetry.rosbridge.teleop_gate import TeleopGate
 from telemetry.rosbridge.teleop_locks import RedisLockStore
 from telemetry.stop import RobotStop
 from telemetry.stuck_rule import StuckRule
-
-
-@dataclass
-class Client:
-    """What the hub keeps of a connection besides the connection itself: its decisions,
-    and how to close it when what it was admitted with is revoked."""
-
-    conn: Connection
-    robot_pk: int | None = None
-    access: Access | None = None
-    revoke: Callable[[str], Awaitable[None]] | None = None
 
 
 class Hub:
@@ -370,20 +360,6 @@ _hubs: weakref.WeakKeyDictionary[asyncio.AbstractEventLoop, asyncio.Task[Hub]] =
 )
 
 
-def running_hubs() -> list[tuple[asyncio.AbstractEventLoop, Hub]]:
-    """Return the hubs of this process that have started, with their event loops."""
-    found = []
-    for loop, task in list(_hubs.items()):
-        if (
-            task.done()
-            and not task.cancelled()
-            and task.exception() is None
-            and not loop.is_closed()
-        ):
-            found.append((loop, task.result()))
-    return found
-
-
 async def get_hub() -> Hub:
     """Return this process's hub (one per event loop), creating and starting it on first use."""
     loop = asyncio.get_running_loop()
@@ -412,6 +388,7 @@ def on_hub_start(start: HubStart) -> None:
 async def _new_hub() -> Hub:
     hub = Hub(RosbridgeConfig.load(), server_services())
     await hub.start()
+    listen(asyncio.get_running_loop(), hub.review.access_changed)  # embedded mode's changes
     for start in _hub_starts:
         start(hub)
     return hub

@@ -33,22 +33,22 @@ import logging
 import uuid
 from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 from redis.exceptions import ConnectionError as RedisDown
 from redis.exceptions import TimeoutError as RedisTimeout
 
 from cloudnav_web.outage import REDIS_REPORT
+from telemetry.access.review import AccessReview, Client
 from telemetry.access.revocation import AccessChange, access_channel
 from telemetry.domain import names
 from telemetry.domain.bus import Topic
 from telemetry.domain.encoding import Wire
 from telemetry.domain.protocol import Json
 from telemetry.recording.elsewhere import FLUSH_REQUEST, FLUSHED
-from telemetry.stop import STOP_REQUEST
-
-if TYPE_CHECKING:
-    from telemetry.rosbridge.hub import Hub
+from telemetry.rosbridge.params import Parameters
+from telemetry.rosbridge.service_calls import ServiceCalls
+from telemetry.stop import STOP_REQUEST, RobotStop
 
 logger = logging.getLogger(__name__)
 
@@ -85,10 +85,27 @@ class RemotePeer:
         self.relay.deliver_to(self.channel, self.conn_key, wire)
 
 
+class RelayHost(Protocol):
+    """What the relay asks of its process's hub (``telemetry.rosbridge.hub.Hub``): where
+    messages, requests and access changes from other processes go."""
+
+    clients: dict[str, Client]
+    params: Parameters
+    stop: RobotStop
+    calls: ServiceCalls
+    review: AccessReview
+
+    def received_from_elsewhere(
+        self, name: str, type_name: str | None, msg: dict[str, Json], latched: bool
+    ) -> None: ...
+
+    async def flush_recording(self, robots: list[str]) -> None: ...
+
+
 class Relay:
     """This process's link to the others: a channel, a send queue and the shared directory."""
 
-    def __init__(self, hub: Hub, layer: Any, redis: Any) -> None:
+    def __init__(self, hub: RelayHost, layer: Any, redis: Any) -> None:
         self.hub = hub
         self.layer = layer
         self.redis = redis

@@ -22,16 +22,14 @@ from channels.db import database_sync_to_async
 from django.http import HttpRequest
 
 from robots.models import Robot
-from telemetry.access import rules
 
 # The rosbridge server's own identity rules, so a robot or a person is the same principal
 # over HTTP as over its WebSocket (their scope-based entry point checks a WebSocket origin).
 from telemetry.access.decisions import Identity, owner_named, person_identity, robot_identity
-from telemetry.access.rules import Owner, Principal
+from telemetry.access.rules import Owner, Principal, check_watch, may_watch
 from telemetry.domain import names
 from telemetry.domain.video import (
     NotAuthenticated,
-    NotWatchable,
     UnknownStream,
     camera_topic_candidates,
     is_camera,
@@ -99,25 +97,6 @@ async def find_camera(hub: Hub, asked: str, principal: Principal) -> Camera:
                 check_watch(principal, owner)
                 return Camera(topic, owner.robot, owner.pk)
     raise UnknownStream(f"{asked} is not a camera topic")
-
-
-def check_watch(principal: Principal, owner: Owner) -> None:
-    """Raise unless ``principal`` may watch the cameras of robot ``owner`` (see module)."""
-    if principal.robot is not None:
-        if principal.robot != owner.robot:
-            raise NotWatchable(f"robot {principal.robot} may only watch its own camera")
-    elif not rules.may_see(principal, owner):
-        raise UnknownStream(f"no camera of {owner.robot} is visible to {principal.label}")
-
-
-def may_watch(principal: Principal, owner: Owner | None) -> bool:
-    if owner is None:
-        return False
-    try:
-        check_watch(principal, owner)
-    except (UnknownStream, NotWatchable):
-        return False
-    return True
 
 
 async def carries_images(hub: Hub, topic: str) -> bool:

@@ -44,7 +44,7 @@ from cloudnav_web.heavy import Overloaded, release_with
 from cloudnav_web.pages import page_context
 from maps.access import global_role
 from telemetry.access.decisions import owner_named
-from telemetry.access.rules import Principal
+from telemetry.access.rules import Principal, may_watch
 from telemetry.domain import multipart, names
 from telemetry.domain.video import (
     MJPEG,
@@ -67,7 +67,6 @@ from telemetry.video.cameras import (
     Camera,
     CameraListing,
     find_camera,
-    may_watch,
     principal_of,
     token_of,
     watchable_cameras,
