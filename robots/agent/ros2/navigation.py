@@ -239,12 +239,9 @@ class Nav2Stack:
         goal = navigate_goal(self.frame, pose, self._now())
         with self._lock:
             self._goal += 1
-            number, self._state, self._handle, self._cancel_asked = (
-                self._goal,
-                StackGoal.ACTIVE,
-                None,
-                False,
-            )
+            # the goal before stays the one a cancel reaches until Nav2 accepts this one:
+            # it drives until then, and a cancel meanwhile must stop it too
+            number, self._state, self._cancel_asked = self._goal, StackGoal.ACTIVE, False
         self.readings.on_progress("")
         threading.Thread(target=self._send, args=(number, goal), daemon=True).start()
 
