@@ -4,12 +4,12 @@ What a connection was admitted with can change while it is open: a robot's token
 rotated, a robot is renamed, relinked or deleted, a person loses a membership or a group,
 has their role in a building changed, is deleted or signs out. Django signals turn each
 into an ``AccessChange``, announced once the transaction commits
-(``transaction.on_commit``): in scaled mode to every server process over the channel
-layer (group ``ACCESS_GROUP``), else to the hubs of this process.
-Each process then re-reads the robots named (one query, never per message), updates its
-``Registry``, closes the rosbridge connections and video streams that depended on what
-was revoked (``revoked``), and takes every other connection's decisions again
-(``Hub.access_changed``).
+(``transaction.on_commit``): in scaled mode to every server process over Redis
+(``access_channel``, which each relay listens to), else to the access review of each hub
+of this process (``listen``). Each process then re-reads the robots named (one query,
+never per message), updates its ``Registry``, closes the rosbridge connections and video
+streams that depended on what was revoked (``revoked``), and takes every other
+connection's decisions again (``AccessReview.access_changed``).
 """
 
 from __future__ import annotations
