@@ -207,10 +207,12 @@ async def test_a_ros2_robot_crosses_sub_maps_through_nav2_and_stops_when_the_clo
 
         # The dead-man rule on the robot itself: its last teleop command is followed by a
         # stop within TELEOP_HOLD (and control periods that a loaded machine stretches),
-        # though no cloud can send one.
+        # though no cloud can send one. The last command left the server before its end
+        # (one in flight as the operator stopped may land just before it), so the stop
+        # follows the end within the same hold and control periods.
         stop = wait_for(lambda: stopped_after(ros.bridge_commands(), turning()[-1]), 30, "stop")
         assert stop - turning()[-1] <= TELEOP_HOLD + 0.5
-        assert stop <= cut + TELEOP_HOLD  # stopped within 0.5 s of the server's end
+        assert stop <= cut + TELEOP_HOLD + 0.5
         # Then it drives on with its held maps: tag 2 read, Corridor A on /map again, and
         # Nav2 takes it to the goal with no cloud at all.
         wait_for(
