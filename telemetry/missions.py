@@ -2,6 +2,12 @@
 the robot reports it reached it, or when the goal's time limit passes (``late``: the
 waypoint is skipped or the mission paused, as the mission says).
 
+A time limit runs on the robot's own clock, read from the stamps of its goal statuses, as
+a ROS node's timers run on ``/clock`` under ``use_sim_time``: a simulated robot running
+at a quarter of real time gets its waypoint's whole limit in its own seconds. A robot
+whose statuses carry no stamp is timed on the server's clock; one that says nothing for
+``SILENT_S`` seconds has its clock taken to run on at the server's pace meanwhile.
+
 What robots report is read on the relay's path in memory (``status``); once a tick the
 runner records the outcomes and collects the goals due in one database call, off the loop.
 """
@@ -12,10 +18,13 @@ import asyncio
 import logging
 import time
 from collections.abc import Awaitable, Callable, Mapping
+from dataclasses import dataclass
 from typing import Any
 
 from channels.db import database_sync_to_async
 
+from cloudnav_core.messages import NANOS
+from cloudnav_core.times import parse_stamp
 from cloudnav_web.batches import BatchInterrupted
 from cloudnav_web.outage import REPORT
 from robots import missions
@@ -29,6 +38,46 @@ GRACE_S = 1.5
 # actionlib_msgs/GoalStatus codes.
 SUCCEEDED = 3
 FAILED = {4: "aborted", 5: "rejected", 9: "lost"}
+# Seconds of the server's clock a robot may stay silent before its clock is taken to run on.
+SILENT_S = 30.0
+
+
+@dataclass(frozen=True)
+class Sent:
+    """A mission goal sent: when, on the server's clock and on the robot's (None: its
+    statuses carried no stamp yet)."""
+
+    goal: Goal
+    at: float
+    robot_at: float | None = None
+
+
+class RobotClocks:
+    """Each robot's own time, as the stamps of its statuses tell it (see the module)."""
+
+    def __init__(self, clock: Callable[[], float]) -> None:
+        self._clock = clock
+        self._read: dict[str, tuple[float, float]] = {}  # robot -> (its time, ours then)
+
+    def heard(self, robot: str, msg: Mapping[str, Any]) -> None:
+        """``robot`` published ``msg``: its header's stamp, if it has one, is its time now."""
+        header = msg.get("header")
+        stamp = header.get("stamp") if isinstance(header, Mapping) else None
+        if not isinstance(stamp, Mapping):
+            return
+        try:
+            sec, nanosec = parse_stamp(stamp)
+        except ValueError:
+            return
+        self._read[robot] = (sec + nanosec / NANOS, self._clock())
+
+    def now(self, robot: str) -> float | None:
+        """``robot``'s time now, None if it never said."""
+        read = self._read.get(robot)
+        if read is None:
+            return None
+        said, heard_at = read
+        return said + max(0.0, self._clock() - heard_at - SILENT_S)
 
 
 class MissionRunner:
@@ -51,23 +100,26 @@ class MissionRunner:
         self.late = late
         self.interval = interval
         self.clock = clock
-        self._sent: dict[str, tuple[Goal, float]] = {}  # robot -> (goal, when sent)
+        self.robot_clocks = RobotClocks(clock)
+        self._sent: dict[str, Sent] = {}  # robot -> its mission goal sent
         self._outcomes: dict[int, str] = {}
         self._task: asyncio.Task[None] | None = None
 
     def status(self, robot: str, msg: Mapping[str, Any]) -> None:
-        """A robot's GoalStatusArray: the outcome of the mission goal it was sent, if over."""
+        """A robot's GoalStatusArray: its time now, and the outcome of the mission goal it
+        was sent, if over."""
+        self.robot_clocks.heard(robot, msg)
         sent = self._sent.get(robot)
         statuses = msg.get("status_list") or []
-        if sent is None or not statuses or self.clock() - sent[1] < GRACE_S:
+        if sent is None or not statuses or self.clock() - sent.at < GRACE_S:
             return
         latest = statuses[-1]
         code = latest.get("status") if isinstance(latest, Mapping) else None
         if code == SUCCEEDED:
-            self._outcomes[sent[0].mission] = missions.REACHED
+            self._outcomes[sent.goal.mission] = missions.REACHED
         elif code in FAILED:
             reason = storable_text(str(latest.get("text") or "no reason"))
-            self._outcomes[sent[0].mission] = f"goal {FAILED[code]}: {reason}"
+            self._outcomes[sent.goal.mission] = f"goal {FAILED[code]}: {reason}"
         else:
             return
         del self._sent[robot]
@@ -100,21 +152,29 @@ class MissionRunner:
                 if isinstance(placed, str):
                     self._outcomes[goal.mission] = placed
                     continue
-                self._sent[goal.robot] = (placed, self.clock())
+                robot_at = self.robot_clocks.now(goal.robot)
+                self._sent[goal.robot] = Sent(placed, self.clock(), robot_at)
                 self.send(placed)
 
     def _late(self) -> list[Goal]:
         """The goals sent whose time limit passed: their outcome is TIMED_OUT."""
-        now = self.clock()
         late = [
-            goal
-            for goal, sent_at in self._sent.values()
-            if goal.time_limit > 0 and now - sent_at > goal.time_limit
+            sent.goal
+            for sent in self._sent.values()
+            if 0 < sent.goal.time_limit < self._elapsed(sent)
         ]
         for goal in late:
             del self._sent[goal.robot]
             self._outcomes[goal.mission] = missions.TIMED_OUT
         return late
+
+    def _elapsed(self, sent: Sent) -> float:
+        """Seconds since ``sent``, on the robot's clock where its stamps tell it (a clock
+        set back, as a restarted simulation's is, is not: the server's then)."""
+        robot_now = self.robot_clocks.now(sent.goal.robot)
+        if sent.robot_at is None or robot_now is None or robot_now < sent.robot_at:
+            return self.clock() - sent.at
+        return robot_now - sent.robot_at
 
 
 def _tick(robots: set[str], outcomes: dict[int, str]) -> tuple[list[Goal], set[int]]:

@@ -102,7 +102,7 @@ def test_on_postgresql_a_long_reason_pauses_its_mission_and_the_others_go_on(sca
 
 def test_a_robots_reason_with_a_nul_is_kept_as_storable_text():
     from robots.missions import Goal
-    from telemetry.missions import MissionRunner
+    from telemetry.missions import MissionRunner, Sent
 
     async def as_placed(goal):
         return goal
@@ -114,7 +114,7 @@ def test_a_robots_reason_with_a_nul_is_kept_as_storable_text():
     runner = MissionRunner(
         lambda _goal: None, lambda: {"r1"}, as_placed, late, clock=lambda: now[0]
     )
-    runner._sent["r1"] = (Goal(7, "r1", "b/m", 0.0, 0.0, 0.0), 0.0)  # mission 7's, at 0 s
+    runner._sent["r1"] = Sent(Goal(7, "r1", "b/m", 0.0, 0.0, 0.0), 0.0)  # mission 7's, at 0 s
     now[0] = 5.0
     runner.status("r1", {"status_list": [{"status": 4, "text": "a\x00b\ud800"}]})
     assert runner._outcomes == {7: "goal aborted: a\ufffdb\ufffd"}

@@ -119,3 +119,28 @@ def test_the_api_refuses_a_negative_time_limit_or_an_unknown_rule(token):
     answer = client.post("/api/missions/", {**asked, "on_timeout": "skip"}, format="json")
     assert answer.status_code == 201
     assert (answer.json()["time_limit"], answer.json()["on_timeout"]) == (300.0, "skip")
+
+
+def clock_at(seconds: int) -> dict:
+    """A goal status array (none active) stamped ``seconds`` of the robot's clock."""
+    return {"header": {"stamp": {"sec": seconds, "nanosec": 0}}, "status_list": []}
+
+
+async def test_a_time_limit_runs_on_the_robots_own_clock(rosbridge, token):
+    # A simulated robot whose clock stands still (a paused simulation) is not timed out
+    # by the server's seconds; once its own clock passes the limit, the waypoint is.
+    robot = await robot_taking_goals(rosbridge, token)
+    await robot.send(op="publish", topic="nav_status", msg=clock_at(100))
+    mission = await database_sync_to_async(start)("skip")
+    await robot.receive_until(lambda f: f.get("op") == "publish", wait=20)
+    standing_still = time.monotonic() + 4.0  # well past the 1.5 s limit on the server's clock
+    while time.monotonic() < standing_still:
+        await robot.send(op="publish", topic="nav_status", msg=clock_at(101))
+        await asyncio.sleep(0.2)
+    found = await database_sync_to_async(mission_of)(mission.pk)
+    assert (found.state, found.index) == ("running", 0)
+    await robot.send(op="publish", topic="nav_status", msg=clock_at(102))
+    second = await robot.receive_until(lambda f: f.get("op") == "publish", wait=30)
+    assert position(second) == pytest.approx((21.0, 24.0))
+    found = await database_sync_to_async(mission_of)(mission.pk)
+    assert found.note == "waypoint 1 not reached within 1.5 s: skipped"
