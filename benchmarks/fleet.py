@@ -1,13 +1,15 @@
 """Fleet rules against robots planning alone: patrol missions through the demo building.
 
-``--robots`` simulated robots (``robots.agent.fleet``) start in two rows in Corridor A,
-placed where they stand (no camera: the simulation keeps its pace on a busy machine; the
-particle filters and lasers run as ``make demo``'s do), among ``--people`` people walking
-seeded routes through the building (the navigation bench's crowd). Each is given one
-patrol mission over the REST API: the main spaces of ``TOUR`` (the mapping bench's tour),
-starting at a different one per robot and every other robot going round the other way,
-so they meet head on in corridors and doorways and are sent to the same places. A
-waypoint not reached within ``--time-limit`` wall seconds is skipped (the mission's own
+``--robots`` simulated robots (``robots.agent.fleet``) start parked, as a fleet does: at
+the demo building's parking spots, taken a sub-map at a time in turn (Atria 1 to 3,
+Rooms A and B), any beyond its 12 in two rows in Corridor A, each placed where it stands
+(no camera: the simulation keeps its pace on a busy machine; the particle filters and
+lasers run as ``make demo``'s do), among ``--people`` people walking seeded routes
+through the building (the navigation bench's crowd). Each is given one patrol mission
+over the REST API: the main spaces of ``TOUR`` (the mapping bench's tour), starting at a
+different one per robot and every other robot going round the other way, so they meet
+head on in corridors and doorways and are sent to the same places. A waypoint not
+reached within ``--time-limit`` seconds of the robot's clock is skipped (the mission's own
 rule); a mission paused by a refusal or a failure is told to skip and resume, as an
 operator would.
 
@@ -62,16 +64,17 @@ from benchmarks.navigation import CONTACT, gap_to_others
 from cloudnav_core.messages import GoalStatus
 from cloudnav_core.params import RobotConfig
 from cloudnav_core.se2 import Point, Pose
-from maps.domain.demo_building import space_interiors
+from maps.domain.demo_building import DemoParking, demo_building, space_interiors
 from maps.domain.reservations import FleetRule
 from robots.agent.fleet import FleetOptions, FleetRobot, build_fleet, place_at_truth, run_fleet
 from robots.agent.sim.world import demo_world
 from robots.agent.supervisor.submaps import BundleError
 
 BUILDING = "boccioni_1"
-START_MAP = f"{BUILDING}/CorridorA"
+ROWS_MAP = f"{BUILDING}/CorridorA"
 STARTS_X, STARTS_STEP, STARTS_Y = 4.6, 1.1, (22.7, 23.7)
-"""Where the robots begin: two rows along Corridor A, 1.1 m apart, 1 m between rows."""
+"""Where robots beyond the parking spots begin: two rows along Corridor A, 1.1 m apart,
+1 m between rows."""
 MAX_ROBOTS = 2 * 12
 SAMPLE_S = 0.1
 """Wall seconds between the ground-truth samples."""
@@ -98,7 +101,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--time-scale", type=float, default=1.0, help="simulated s per wall s")
     parser.add_argument("--people", type=int, default=8, help="people walking in the building")
     parser.add_argument(
-        "--time-limit", type=float, default=300.0, help="wall s a waypoint may take, then skipped"
+        "--time-limit",
+        type=float,
+        default=300.0,
+        help="s of its robot's clock a waypoint may take, then skipped",
     )
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     parser.add_argument(
@@ -237,9 +243,10 @@ async def measure(options: dict[str, Any], building: dict[str, Any]) -> dict[str
 async def _placed(fleet: list[FleetRobot]) -> None:
     """Place every robot where it stands (``place_at_truth``), asking again when the loaded
     server dropped a bundle's connection (placing a robot twice is harmless)."""
+    map_ids = [start(index)[0] for index in range(len(fleet))]
     for attempt in range(1, ASKS + 1):
         try:
-            await place_at_truth(fleet, START_MAP)
+            await place_at_truth(fleet, map_ids)
             return
         except BundleError:
             if attempt == ASKS:
@@ -256,13 +263,28 @@ def fleet_options(url: str, options: dict[str, Any]) -> FleetOptions:
         visual=False,
         people=options["people"],
         people_seed=options["seed"],
-        starts=tuple(start(index) for index in range(options["robots"])),
+        starts=tuple(start(index)[1] for index in range(options["robots"])),
     )
 
 
-def start(index: int) -> Pose:
-    """Robot ``index``'s start in Corridor A, facing east."""
-    return (STARTS_X + STARTS_STEP * (index // 2), STARTS_Y[index % 2], 0.0)
+def start(index: int) -> tuple[str, Pose]:
+    """Robot ``index``'s sub-map and start (see the module): a parking spot, else a place
+    in Corridor A's rows, facing east."""
+    spots = _parking_in_turn()
+    if index < len(spots):
+        spot = spots[index]
+        return f"{BUILDING}/{spot.submap}", (spot.x, spot.y, spot.yaw)
+    row = index - len(spots)
+    return ROWS_MAP, (STARTS_X + STARTS_STEP * (row // 2), STARTS_Y[row % 2], 0.0)
+
+
+def _parking_in_turn() -> list[DemoParking]:
+    """The demo building's parking spots, one sub-map's after another's in turn."""
+    by_submap: dict[str, list[DemoParking]] = {}
+    for spot in demo_building().parking:
+        by_submap.setdefault(spot.submap, []).append(spot)
+    rounds = itertools.zip_longest(*by_submap.values())
+    return [spot for spots in rounds for spot in spots if spot is not None]
 
 
 def patrol(index: int) -> list[dict[str, Any]]:

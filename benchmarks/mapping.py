@@ -417,7 +417,7 @@ async def measure_accept_to_robot(options: dict[str, Any]) -> float:
         )
         running = asyncio.create_task(run_fleet(fleet, 1.0))
         try:
-            await place_at_truth(fleet, "boccioni_1/CorridorA")
+            await place_at_truth(fleet, ["boccioni_1/CorridorA"] * len(fleet))
             await _until(lambda: all(_holds(m, 1) for m in fleet), 60)
             async with httpx.AsyncClient(
                 base_url=url, auth=("admin", admin_password()), timeout=HTTP_TIMEOUT

@@ -83,3 +83,15 @@ def contains(shape: tuple[int, ...], cell: Cell) -> bool:
     """Whether ``cell`` lies inside a grid of ``shape`` (height, width)."""
     row, col = cell
     return 0 <= row < shape[0] and 0 <= col < shape[1]
+
+
+def unstandable(grid: npt.NDArray[np.int8], cell: Cell) -> str:
+    """Why no robot's centre can be in ``cell`` of occupancy ``grid`` ("outside the map",
+    "in unknown space" or "in an obstacle"); "" when one can (a known cell below
+    ``OCCUPIED_AT``)."""
+    if not contains(grid.shape, cell):
+        return "outside the map"
+    value = int(grid[cell])
+    if value < 0:
+        return "in unknown space"
+    return "in an obstacle" if value >= OCCUPIED_AT else ""

@@ -5,7 +5,6 @@ from __future__ import annotations
 import base64
 import hashlib
 import json
-import math
 from collections.abc import Iterable, Iterator, Mapping
 from contextlib import contextmanager
 from functools import lru_cache
@@ -16,6 +15,7 @@ from django.conf import settings
 from django.db import transaction
 
 from cloudnav_core.params import RobotConfig
+from cloudnav_core.se2 import Point
 
 from .domain.mapfile import (
     LoadedMap,
@@ -31,7 +31,15 @@ from .domain.preview import upload_preview
 from .domain.reservations import ParkingPlace
 from .domain.tagart import TagArt
 from .domain.tagpayload import TagPayload, encode_payload
-from .domain.topology import Coverage, Edge, RouteStep, TagLink, route_between, tag_coverage
+from .domain.topology import (
+    Coverage,
+    Edge,
+    RouteStep,
+    TagLink,
+    approach_pose,
+    route_between,
+    tag_coverage,
+)
 from .domain.topology import validate_graph as validate_topology
 from .domain.versions import Reason, map_ref
 from .domain.widths import Widths
@@ -376,20 +384,26 @@ def _cached_widths(pk: int, version: str) -> Widths:  # noqa: ARG001 (the cache 
     return Widths.of_grid(grid_of(submap), (submap.origin_x, submap.origin_y), submap.resolution)
 
 
-# Metres in front of a tag's plate where the robot reading it stands: it enters there.
-ENTRY_DISTANCE = 0.6
+def crossings_in(submap: SubMap) -> tuple[Point, ...]:
+    """Where robots stand to read the tags standing in ``submap`` (``approach_pose``):
+    where they enter it, and where they cross to the sub-maps the tags lead to."""
+    tags = submap.tags.order_by("pk").values_list("x", "y", "yaw")
+    return tuple(approach_pose((x, y, yaw))[:2] for x, y, yaw in tags)
+
+
+def crossings_of(map_id: str) -> tuple[Point, ...]:
+    """``crossings_in`` sub-map ``map_id`` (``building/code``, a version ignored); none if
+    no such sub-map is."""
+    building, _, code = map_id.split("@", 1)[0].partition("/")
+    found = SubMap.objects.filter(building__code=building, code=code).first()
+    return () if found is None else crossings_in(found)
 
 
 def goal_check_of(submap: SubMap) -> GoalCheck:
     """Return ``submap`` ready to check goals, waypoints and initial poses on (see
     ``GoalCheck.check``), entered in front of the tags standing in it; cached per
     version and tag poses."""
-    tags = submap.tags.order_by("pk").values_list("x", "y", "yaw")
-    entries = tuple(
-        (x + ENTRY_DISTANCE * math.cos(yaw), y + ENTRY_DISTANCE * math.sin(yaw))
-        for x, y, yaw in tags
-    )
-    return _cached_goal_check(submap.pk, submap.version, entries)
+    return _cached_goal_check(submap.pk, submap.version, crossings_in(submap))
 
 
 @lru_cache(maxsize=16)

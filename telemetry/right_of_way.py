@@ -1,11 +1,13 @@
 """Right of way, on the server: the narrow-place arbiter (``maps.domain.right_of_way``)
 fed by the fleet feed with the robots connected to this process (their ``plan`` and
-``pose``), its verdicts told to the robots on ``/r/right_of_way`` (latched, so a page
-opened later sees who waits) and written as ``right_of_way`` events.
+``pose``) and each sub-map's widths and tag crossings, its verdicts told to the robots on
+``/r/right_of_way`` (latched, so a page opened later sees who waits) and written as
+``right_of_way`` events.
 
-Decisions cost no database work per message: a sub-map's widths are read once per
-version (``maps.services.widths_of``, again at most every ``FRESH_S`` seconds), off the
-event loop, and the arbiter decides at most every ``DECIDE_EVERY_S`` seconds.
+Decisions cost no database work per message: a sub-map's widths and crossings are read
+once per version (``maps.services.widths_of`` and ``crossings_of``, again at most every
+``FRESH_S`` seconds), off the event loop, and the arbiter decides at most every
+``DECIDE_EVERY_S`` seconds.
 """
 
 from __future__ import annotations
@@ -30,6 +32,12 @@ FRESH_S = 2.0
 DECIDE_EVERY_S = 0.2
 
 Tell = Callable[[str, dict[str, Json]], None]
+Places = tuple[Widths | None, tuple[Point, ...]]
+"""A sub-map's widths (None: no such sub-map) and its tag crossings."""
+
+
+def _places_of(map_id: str) -> Places:
+    return map_services.widths_of(map_id), map_services.crossings_of(map_id)
 
 
 class RightOfWay:
@@ -50,7 +58,7 @@ class RightOfWay:
         self._tell = tell
         self._clock = clock
         self._decided = -DECIDE_EVERY_S
-        self._widths: dict[str, tuple[float, Widths | None]] = {}
+        self._places: dict[str, tuple[float, Places]] = {}  # map -> (when read, its places)
         self._plans: dict[str, tuple[str, list[Point]]] = {}  # the newest, while widths load
         self._tasks: set[asyncio.Task[None]] = set()
         self._later: asyncio.TimerHandle | None = None
@@ -61,9 +69,9 @@ class RightOfWay:
         if not self.enabled or found is None:
             return
         map_id, points = found[0].split("@", 1)[0], found[1]
-        held = self._widths.get(map_id)
+        held = self._places.get(map_id)
         if held is not None and self._clock() - held[0] < FRESH_S:
-            self.arbiter.route(robot, map_id, points, held[1])
+            self.arbiter.route(robot, map_id, points, *held[1])
             self._decide(force=True)
             return
         self._plans[robot] = (map_id, points)
@@ -99,12 +107,12 @@ class RightOfWay:
         )
 
     async def _load(self, map_id: str) -> None:
-        widths = await database_sync_to_async(map_services.widths_of)(map_id)
-        self._widths[map_id] = (self._clock(), widths)
+        places = await database_sync_to_async(_places_of)(map_id)
+        self._places[map_id] = (self._clock(), places)
         for robot, (planned_in, points) in list(self._plans.items()):
             if planned_in == map_id:
                 del self._plans[robot]
-                self.arbiter.route(robot, map_id, points, widths)
+                self.arbiter.route(robot, map_id, points, *places)
         self._decide(force=True)
 
     def _decide(self, force: bool = False) -> None:

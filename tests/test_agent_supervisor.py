@@ -14,14 +14,16 @@ import pytest
 
 from cloudnav_core.params import RobotConfig
 from maps.domain.demo_building import PAPER_ROUTE, demo_building
+from maps.domain.topology import approach_pose
 from maps.models import EnvironmentalTag
 from robots.agent.robot import PoseTracker, Robot
 from robots.agent.sim.hardware import SimHardware
 from robots.agent.sim.world import demo_world
 from robots.agent.supervisor.bundle_cache import BundleCache
-from robots.agent.supervisor.legs import Destination
-from robots.agent.supervisor.maps_supervisor import MapsSupervisor, approach_pose
+from robots.agent.supervisor.legs import Destination, LegKind
+from robots.agent.supervisor.maps_supervisor import IN_WALL_S, MapsSupervisor
 from robots.agent.supervisor.submaps import BundleError, submap_from_bundle
+from robots.agent.whereabouts import Localisation
 from tests.conftest import make_robot
 from tests.fixtures_live import ACCESS_LOG_ALL, LiveServer, LiveServers
 
@@ -152,6 +154,35 @@ async def test_a_tag_that_does_not_lead_on_is_read_but_not_entered(cloud):
     assert list(cache.held) == ["boccioni_1/CorridorC"]
     # Reset from the tag it read: the drift given above is gone.
     assert math.dist(tracker.pose()[:2], pose[:2]) < 0.05
+
+
+async def test_a_pose_estimate_inside_a_wall_makes_the_robot_lost_and_look_for_a_tag(cloud):
+    # In the middle of Corridor A, no tag near: the estimate is moved behind the south
+    # wall (where one went in a crowd at tag 1). It stays placed for IN_WALL_S, then it
+    # is lost and, given a goal, turns looking for a tag instead of planning from a wall.
+    truth = (10.0, 23.0, 0.0)
+    hardware = SimHardware(demo_world(), truth, seed=5)
+    tracker = PoseTracker()
+    cache = BundleCache(cloud)
+    supervisor = MapsSupervisor(cache, tracker)
+    robot = Robot(hardware, supervisor, tracker, _Silent(), RobotConfig(camera_rate=0))
+    supervisor.make_current(await cache.load(CORRIDOR_A))
+    tracker.reset(truth, _tiny(), tracker.odom)
+    for _ in range(round(2 * IN_WALL_S / robot.config.period)):
+        await robot.tick()  # where it truly is: placed all along
+    assert supervisor.whereabouts().state is Localisation.LOCALISED
+    tracker.reset((17.259, 21.691, 0.0), _tiny(), tracker.odom)
+    started = robot.seconds
+    while robot.seconds - started < IN_WALL_S - 0.5:
+        await robot.tick()
+        assert supervisor.current is not None
+    while supervisor.current is not None:
+        assert robot.seconds - started < IN_WALL_S + 0.5, "never lost"
+        await robot.tick()
+    assert supervisor.whereabouts().state is Localisation.LOST
+    supervisor.set_destination(Destination("boccioni_1", "Atrium1", (20.0, 23.2, 0.0)))
+    leg = supervisor.leg(tracker.pose(), tracker.odom, robot.seconds)
+    assert leg.kind is LegKind.SEARCH
 
 
 class _Silent:

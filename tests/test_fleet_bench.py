@@ -64,7 +64,7 @@ def test_the_patrols_meet_head_on_and_start_clear_of_each_other() -> None:
     first, second = fleet.patrol(0), fleet.patrol(1)
     assert [w["map"] for w in first][1:3] == ["CorridorB", "CorridorC"]
     assert [w["map"] for w in second][:2] == ["Atrium1", "Office7"]
-    starts = [fleet.start(index) for index in range(fleet.MAX_ROBOTS)]
+    starts = [fleet.start(index)[1] for index in range(fleet.MAX_ROBOTS)]
     gaps = [
         ((a[0] - b[0]) ** 2 + (a[1] - b[1]) ** 2) ** 0.5
         for i, a in enumerate(starts)

@@ -105,6 +105,25 @@ async def test_two_robots_meeting_in_a_door_one_waits_clear_of_the_other_until_i
 
 
 @live
+async def test_two_robots_crossing_at_one_tag_read_it_one_at_a_time(rosbridge, demo):
+    # Both plan to where a robot reads tag 1 (Corridor A's east end, to Atrium 1): the
+    # corridor is wide there, but the crossing is the server's narrow place all the same.
+    _, tokens = demo
+    reading = (17.3, 22.6)  # tag 1 at (17.8, 22.6), facing west: 0.5 m in front of it
+    first = await robot_on_route(rosbridge, tokens["robot_0"], (15.5, 23.0), reading)
+    second = await robot_on_route(rosbridge, tokens["robot_1"], (14.8, 22.0), reading)
+    wait = await told(second)
+    assert (wait["state"], wait["waiting_for"]) == ("wait", "robot_0")
+    order = wait_order_of({"data": json.dumps(wait)})
+    assert order is not None
+    assert math.dist(order.spot[:2], reading) >= 1.5
+    assert await first.quiet()
+    await first.send(op="publish", topic="pose", msg=pose(18.4, 22.6, ATRIUM))  # tag read
+    go = await told(second)
+    assert go["state"] == "go"
+
+
+@live
 async def test_with_right_of_way_off_nobody_is_told_to_wait(rosbridge, demo, settings):
     settings.CLOUDNAV_RIGHT_OF_WAY = False
     _, tokens = demo

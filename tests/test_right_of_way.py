@@ -10,7 +10,8 @@ import pytest
 
 from cloudnav_core.se2 import Point
 from maps.domain.demo_building import demo_building
-from maps.domain.right_of_way import Arbiter, Verdict, narrow_stretches
+from maps.domain.right_of_way import CROSSING_REACH, Arbiter, Verdict, narrow_stretches
+from maps.domain.topology import approach_pose
 from maps.domain.widths import Widths
 
 RADIUS = 0.25  # the planner's footprint: body 0.18 m plus margin 0.07 m
@@ -194,3 +195,37 @@ def test_a_robot_that_leaves_gives_the_door_up(widths):
     arbiter.leave("a")
     [go] = arbiter.decide()
     assert (go.robot, go.waits) == ("b", False)
+
+
+def test_robots_crossing_at_one_tag_read_it_one_at_a_time(widths):
+    # Tag 1 stands at Corridor A's east end, beside the door to Atrium 1 (wide there):
+    # two robots heading to read it are arbitrated as at a door, the second waiting clear
+    # of the first until it has entered Atrium 1, instead of crowding round the tag.
+    tag_1 = next(t for t in demo_building().tags if t.marker_id == 1)
+    reading = approach_pose((tag_1.x, tag_1.y, tag_1.yaw))[:2]
+    crossings = [reading]
+    clock = Clock()
+    arbiter = Arbiter(RADIUS, clock)
+    route_a = line((13.0, 23.2), reading)
+    arbiter.route("a", MAP, route_a, widths, crossings)
+    [passage] = arbiter.passages("a")
+    assert passage.last == len(route_a) - 1
+    assert math.dist(route_a[passage.first], reading) == pytest.approx(CROSSING_REACH, abs=0.06)
+    arbiter.route("a", MAP, route_a, widths)  # the same route with no crossing known
+    assert arbiter.passages("a") == []
+    arbiter.route("a", MAP, route_a, widths, crossings)
+    arbiter.at("a", MAP, (15.0, 23.0))
+    assert arbiter.decide() == []
+    assert arbiter.holder("a") is not None
+    clock.now = 1.0
+    route_b = line((12.0, 22.0), reading)
+    arbiter.route("b", MAP, route_b, widths, crossings)
+    arbiter.at("b", MAP, (14.5, 22.2))
+    [told] = arbiter.decide()
+    assert (told.robot, told.waiting_for) == ("b", "a")
+    assert told.spot is not None
+    assert math.dist(told.spot[:2], reading) >= RADIUS
+    arbiter.at("a", "boccioni_1/Atrium1", (18.5, 22.6))  # a read the tag: it is in Atrium 1
+    [go] = arbiter.decide()
+    assert (go.robot, go.waits) == ("b", False)
+    assert arbiter.holder("b") is not None

@@ -32,7 +32,15 @@ import numba
 import numpy as np
 import numpy.typing as npt
 
-from cloudnav_core.grid import OCCUPIED_AT, Cell, cell_of, cells_to_nearest, centre_of, contains
+from cloudnav_core.grid import (
+    OCCUPIED_AT,
+    Cell,
+    cell_of,
+    cells_to_nearest,
+    centre_of,
+    contains,
+    unstandable,
+)
 from cloudnav_core.se2 import Point
 
 DEFAULT_ROBOT_RADIUS = 0.2
@@ -219,13 +227,9 @@ class GoalCheck:
         if not (math.isfinite(point[0]) and math.isfinite(point[1])):
             raise PoseRefused(what, (math.nan, math.nan), "not a finite point")
         cell = cell_of(point, self.costmap.origin, self.costmap.resolution)
-        if not contains(self.grid.shape, cell):
-            raise PoseRefused(what, point, "outside the map")
-        value = int(self.grid[cell])
-        if value < 0:
-            raise PoseRefused(what, point, "in unknown space")
-        if value >= OCCUPIED_AT:
-            raise PoseRefused(what, point, "in an obstacle")
+        reason = unstandable(self.grid, cell)
+        if reason:
+            raise PoseRefused(what, point, reason)
         free = cell if not self.costmap.blocked[cell] else None
         reach = int(tolerance / self.costmap.resolution)
         free = free or _nearest_free(self.costmap.blocked, cell, reach)

@@ -17,6 +17,12 @@ waits: none is overtaken by a later ask, so none starves. A grant ends once its 
 is past the narrow part, has no route, or leaves. A wide place is never arbitrated: the
 robots' local planners pass each other there as before.
 
+A sub-map crossing is a narrow place too, however wide the room around it: a route that
+ends where a robot stands to read a tag (``crossings``, the sub-map's tags' approach
+points) ends in a narrow part of its last ``CROSSING_REACH`` metres. One robot at a
+time reads a tag; the others wait clear of it instead of crowding round and hiding it.
+The grant ends once its robot has entered the sub-map the tag leads to.
+
 A waiting robot is given a spot, chosen once when its wait begins: the nearest point of
 its own route before the narrow part that is out of it and clear of the other robot's
 remaining route; failing that, a point beside its route there (room for it, clear of
@@ -46,6 +52,10 @@ SIDE_REACH = 1.5
 SIDE_STEP = 0.1
 # Narrow stretches of a route fewer than this many metres apart are one narrow part.
 MERGE_GAP = 0.3
+# A route ending within this many metres of a crossing point ends at that crossing.
+CROSSING_MATCH = 0.3
+# Metres of a route, back from its end at a crossing, that are the crossing's narrow part.
+CROSSING_REACH = 1.5
 
 
 def narrow_stretches(
@@ -67,6 +77,22 @@ def narrow_stretches(
         else:
             stretches.append((i, i))
     return stretches
+
+
+def with_crossing(
+    points: Sequence[Point], stretches: list[tuple[int, int]], crossings: Iterable[Point]
+) -> list[tuple[int, int]]:
+    """``stretches`` of the route ``points``, and its last ``CROSSING_REACH`` metres when it
+    ends at one of ``crossings`` (merged with the stretches it meets)."""
+    if not points or not any(math.dist(points[-1], c) <= CROSSING_MATCH for c in crossings):
+        return stretches
+    last = len(points) - 1
+    first = last
+    while first > 0 and _length(points, first - 1, last) <= CROSSING_REACH:
+        first -= 1
+    kept = [(a, b) for a, b in stretches if _length(points, b, first) > MERGE_GAP]
+    met = [a for a, b in stretches if (a, b) not in kept]
+    return [*kept, (min([first, *met]), last)]
 
 
 @dataclass(frozen=True)
@@ -156,16 +182,23 @@ class Arbiter:
         self._grants: dict[str, Passage] = {}
 
     def route(
-        self, robot: str, map_id: str, points: Sequence[Point], widths: Widths | None
+        self,
+        robot: str,
+        map_id: str,
+        points: Sequence[Point],
+        widths: Widths | None,
+        crossings: Sequence[Point] = (),
     ) -> None:
         """``robot``'s new global plan in ``map_id`` (none: ``points`` empty); its narrow
-        parts are measured on ``widths`` (None: the sub-map is unknown, nothing is narrow).
-        A plan made while the robot waits (to its waiting spot) does not replace its route."""
+        parts are measured on ``widths`` (None: the sub-map is unknown, nothing is narrow),
+        and its end is one if it is at one of ``crossings`` (see the module). A plan made
+        while the robot waits (to its waiting spot) does not replace its route."""
         state = self._robots.setdefault(robot, _Robot())
         if points and state.verdict is not None and state.verdict.waits:
             return  # the plan to its waiting spot: its route stands until it may go
         route = tuple(points)
         stretches = narrow_stretches(route, widths, self.narrower_than) if widths and route else []
+        stretches = with_crossing(route, stretches, crossings)
         state.map_id, state.points, state.progress, state.widths = map_id, route, 0, widths
         state.passages = [Passage(robot, map_id, route, a, b) for a, b in stretches]
         if state.position is not None:

@@ -5,7 +5,8 @@ standing in sub-map ``submap`` and linking to ``links_to`` is what lets a robot 
 that edge in that direction, so routes follow an edge only the ways a tag leads: a robot
 sent along an edge with no tag would drive to nothing and give up. The robot agent runs
 the same ``route_between`` on the topology it downloads (whose ``crossings`` list every
-tag of the building), so the server and the robot agree on every route.
+tag of the building), so the server and the robot agree on every route. A robot crosses
+at a tag by standing at its ``approach_pose``, reading its QR code.
 """
 
 from __future__ import annotations
@@ -17,7 +18,11 @@ from itertools import pairwise
 
 import networkx as nx
 
+from cloudnav_core.se2 import Pose, ahead, wrap
 from maps.exceptions import NoRouteError, TopologyError
+
+APPROACH = 0.5
+"""Metres in front of a tag where a robot crossing there stands to read its QR code."""
 
 
 @dataclass(frozen=True)
@@ -165,3 +170,9 @@ def tag_coverage(edges: Sequence[Edge], tags: Sequence[TagLink]) -> Coverage:
         if tag.submap != tag.links_to and frozenset((tag.submap, tag.links_to)) not in joined
     ]
     return Coverage(uncrossable, dangling)
+
+
+def approach_pose(tag: Pose) -> Pose:
+    """``APPROACH`` metres in front of a tag at ``tag`` (yaw = its outward normal),
+    facing it: where a robot stands to read it."""
+    return (*ahead(tag, APPROACH), wrap(tag[2] + math.pi))

@@ -13,7 +13,7 @@ import argparse
 import asyncio
 import logging
 import math
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field, replace
 
 import httpx
@@ -187,11 +187,11 @@ async def run_fleet(fleet: list[FleetRobot], time_scale: float = 1.0) -> None:
         await asyncio.gather(*(_close(member) for member in fleet))
 
 
-async def place_at_truth(fleet: list[FleetRobot], map_id: str) -> None:
-    """Tell each robot where it truly stands in sub-map ``map_id``, as an operator's
-    initial pose does (a robot without a camera reads no tag). Raises BundleError when
-    the map cannot be had."""
-    for member in fleet:
+async def place_at_truth(fleet: list[FleetRobot], map_ids: Sequence[str]) -> None:
+    """Tell each robot where it truly stands in its sub-map of ``map_ids`` (robot by
+    robot), as an operator's initial pose does (a robot without a camera reads no tag).
+    Raises BundleError when a map cannot be had."""
+    for member, map_id in zip(fleet, map_ids, strict=True):
         estimate = PoseEstimate(*member.robot.hardware.true_pose, np.diag([1e-4, 1e-4, 1e-4]))
         await member.robot.supervisor.relocate(estimate, map_id, member.robot.tracker.odom)
 

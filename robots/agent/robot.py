@@ -316,6 +316,7 @@ class Robot(Generic[H]):
         self.tracker.scan(scan)
         rates = (self.config.detect_rate, self.config.camera_rate, self.config.depth_rate)
         frame = self._look() if self._due(*rates) else None
+        self.supervisor.stand(self.tracker.pose(), self.seconds)
         here = self.hardware.odom_pose
         points = self.seen.update(ranges, self.hardware.scan_angles, here, self.seconds)
         self._drive(LocalObstacles(points, may_enter=self.seen.entry_check(here)))

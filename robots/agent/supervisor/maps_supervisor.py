@@ -12,9 +12,9 @@ The procedure (the paper's)
 3. Route from the current sub-map to the goal's with ``route_between`` on the bundle's
    topology and its crossings (the server's route endpoint runs the same function on the
    same data, so neither sends a robot along an edge no tag lets it cross), and
-   drive to ``APPROACH`` metres in front of the tag leading on, facing it. Standing
-   there a while without reading it (odometry drifted), turn on the spot looking for
-   it. Its QR code read, go to 2.
+   drive to ``APPROACH`` metres in front of the tag leading on, facing it
+   (``maps.domain.topology.approach_pose``). Standing there a while without reading it
+   (odometry drifted), turn on the spot looking for it. Its QR code read, go to 2.
 4. In the goal's sub-map, drive to the goal.
 
 Markers of tags in held bundles also reset the pose whenever seen within
@@ -25,6 +25,10 @@ the tag it heads for; the QR code still decides which sub-map the robot enters. 
 whose stored pose no held bundle has cannot place a lost robot (its QR names the
 sub-map it leads to, whose bundle holds only its own tags): it is passed over and the
 search goes on.
+
+A pose estimate standing where no robot can (in a wall, in unknown space beyond one, off
+the sub-map) for ``IN_WALL_S`` seconds has gone wrong: the robot counts as lost again and
+looks for a tag, rather than planning from inside a wall.
 """
 
 from __future__ import annotations
@@ -39,8 +43,9 @@ from typing import Protocol
 import numpy as np
 from numpy.typing import NDArray
 
-from cloudnav_core.se2 import Pose, ahead, compose, inverse, wrap
-from maps.domain.topology import RouteStep, route_between
+from cloudnav_core.grid import cell_of, unstandable
+from cloudnav_core.se2 import Pose, compose, inverse
+from maps.domain.topology import RouteStep, approach_pose, route_between
 from maps.exceptions import MapStoreError
 from robots.agent.perception import TagDetection
 from robots.agent.relocalise import PoseEstimate, relocalise
@@ -51,8 +56,6 @@ from robots.agent.whereabouts import Localisation, Whereabouts
 
 logger = logging.getLogger(__name__)
 
-APPROACH = 0.5
-"""Metres in front of a tag where the robot stops to read its QR code."""
 SIGHTING_MEMORY = 1.5
 """Seconds a marker sighting steers a lost robot's approach after it was made."""
 SIGHTING_RANGE = 2.0
@@ -69,6 +72,8 @@ SEARCH_TURNS = 1.5
 """Full turns a lost robot makes looking for a tag before it gives up."""
 LOOK_AROUND_AFTER = 2.0
 """Seconds at a tag's approach pose without reading it before looking around."""
+IN_WALL_S = 2.0
+"""Seconds the pose estimate may stand where no robot can before the robot is lost."""
 
 
 class Relocalisable(Protocol):
@@ -115,6 +120,7 @@ class MapsSupervisor:
         self.placed_by = ""  # what made the current sub-map current: "tag 3", "initial pose"
         self._arrived_at: float | None = None
         self._searched_from: float | None = None  # when the current search began
+        self._unstandable_since: float | None = None  # the estimate where no robot can be
 
     # --- perception ----------------------------------------------------------------------
 
@@ -148,6 +154,37 @@ class MapsSupervisor:
             and detection.ambiguity <= MAX_AMBIGUITY
             and seconds - self._last_reset >= RESET_INTERVAL
         )
+
+    def stand(self, pose: Pose, seconds: float) -> None:
+        """The pose estimate now: one where no robot can stand for ``IN_WALL_S`` seconds
+        makes the robot lost (see the module)."""
+        held = self.current
+        if held is None or self.entering:
+            self._unstandable_since = None
+            return
+        why = unstandable(held.grid, cell_of(pose[:2], held.origin, held.resolution))
+        if not why:
+            self._unstandable_since = None
+        elif self._unstandable_since is None:
+            self._unstandable_since = seconds
+        elif seconds - self._unstandable_since >= IN_WALL_S:
+            logger.warning(
+                "pose estimate (%.2f, %.2f) %s of %s for %.0f s: lost, looking for a tag",
+                pose[0],
+                pose[1],
+                why,
+                held.map_id,
+                IN_WALL_S,
+            )
+            self.lose()
+
+    def lose(self) -> None:
+        """Hold no sub-map: the robot is lost until a tag (or the cloud) places it."""
+        self.current = None
+        self.placed_by = ""
+        self._unstandable_since = None
+        self._arrived_at = None
+        self._searched_from = None
 
     # --- entering a sub-map ----------------------------------------------------------------
 
@@ -368,12 +405,6 @@ def _named(detection: TagDetection) -> str:
     """The Map ID a decoded tag's QR names."""
     assert detection.payload is not None
     return f"{detection.payload.building_code}/{detection.payload.map_code}"
-
-
-def approach_pose(tag: Pose) -> Pose:
-    """``APPROACH`` metres in front of a tag at ``tag`` (yaw = its outward normal),
-    facing it."""
-    return (*ahead(tag, APPROACH), wrap(tag[2] + math.pi))
 
 
 def to_frame(in_odom: Pose, pose: Pose, odom: Pose) -> Pose:
