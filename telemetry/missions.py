@@ -16,8 +16,8 @@ from typing import Any
 
 from channels.db import database_sync_to_async
 
-from cloudnav_web.batches import BatchInterrupted
-from cloudnav_web.outage import REPORT
+from cloudnav_django.batches import BatchInterrupted
+from cloudnav_django.outage import REPORT
 from robots import missions
 from robots.missions import Goal
 from telemetry.domain.storable import storable_text

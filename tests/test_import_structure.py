@@ -8,7 +8,7 @@ import grimp
 import networkx as nx
 import pytest
 
-PACKAGES = ("cloudnav_core", "cloudnav_web", "maps", "robots", "telemetry")
+PACKAGES = ("cloudnav_core", "cloudnav_django", "cloudnav_web", "maps", "robots", "telemetry")
 
 
 @pytest.fixture(scope="module")

@@ -50,8 +50,8 @@ from django.conf import settings
 from cloudnav_core import topics
 from cloudnav_core.messages import pose_of
 from cloudnav_core.workers import Inbox, Policy, Pool, TaskWorker
-from cloudnav_web.batches import UNREACHABLE
-from cloudnav_web.outage import REPORT
+from cloudnav_django.batches import UNREACHABLE
+from cloudnav_django.outage import REPORT
 from telemetry.domain import names
 from telemetry.domain.bus import OnMessage
 from telemetry.domain.video import stamp_seconds
