@@ -5,6 +5,7 @@ robot's parameters (``params``), occupancy grids (``grid``), the camera (``camer
 ROS messages with their readers (``messages``), their times (``times``), the cameras'
 time code (``timecode``), a robot's topics and services (``topics``), and the one way to
 run background work (``workers``: bounded inboxes with a named drop policy, named
-workers stopped and joined at shutdown). Nothing here imports maps, robots, telemetry or
-cloudnav_web (import-linter, pyproject.toml).
+workers stopped and joined at shutdown). Nothing here imports maps, robots, telemetry,
+cloudnav_django or cloudnav_web: the core is the bottom layer (import-linter,
+pyproject.toml).
 """

@@ -27,6 +27,20 @@ def parse_stamp(value: Mapping[str, Any]) -> tuple[int, int]:
     raise ValueError("a time needs sec/nanosec or secs/nsecs")
 
 
+def stamp_seconds(msg: Mapping[str, Any]) -> float | None:
+    """Return ``header.stamp`` (``timestamp`` in a ``CompressedVideo``) in seconds, or None
+    if the message has none (or a zero one)."""
+    header = msg.get("header")
+    value = header.get("stamp") if isinstance(header, Mapping) else msg.get("timestamp")
+    if not isinstance(value, Mapping):
+        return None
+    try:
+        sec, nanosec = parse_stamp(value)
+    except ValueError:
+        return None
+    return sec + nanosec / NANOS if (sec or nanosec) else None
+
+
 def _is_int(value: Any) -> bool:
     return isinstance(value, int) and not isinstance(value, bool)
 

@@ -56,3 +56,8 @@ SCAN = "scan"
 CAMERA_IMAGE = "camera/image/compressed"
 CAMERA_DEPTH = "camera/depth/image/compressedDepth"
 CAMERA_INFO = "camera/camera_info"
+
+
+def robot_topic(robot: str, suffix: str) -> str:
+    """Return the absolute name of one of ``robot``'s topics, e.g. ``/r1/cmd_vel``."""
+    return f"/{robot}/{suffix}"

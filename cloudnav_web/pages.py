@@ -8,8 +8,6 @@ page's subject lives (``maps.access``); a building or robot the user may not see
 
 from __future__ import annotations
 
-from typing import Any
-
 from django.contrib.auth.decorators import login_required
 from django.core.exceptions import PermissionDenied
 from django.http import Http404, HttpRequest, HttpResponse
@@ -17,30 +15,8 @@ from django.shortcuts import render
 
 from maps.access import Role, buildings_for, buildings_where, global_role, role_in
 from maps.models import Building, SubMap
+from maps.page_context import page_context, role_name
 from robots.models import Robot
-
-
-def _role_name(role: Role) -> str:
-    return role.name.lower()
-
-
-def page_context(request: HttpRequest, role: Role, **kwargs: Any) -> dict[str, Any]:
-    """Template context every page shares; ``config`` is handed to the page's script."""
-    buildings = list(buildings_for(request.user).order_by("code"))
-    config = {
-        "role": _role_name(role),
-        "user": request.user.get_username(),
-        "connect": global_role(request.user) > Role.NONE,
-        **kwargs.pop("config", {}),
-    }
-    return {
-        "role": _role_name(role),
-        "may_drive": role >= Role.OPERATOR,
-        "may_edit": role >= Role.ADMIN,
-        "nav_buildings": buildings,
-        "config": config,
-        **kwargs,
-    }
 
 
 def _building(request: HttpRequest, code: str) -> tuple[Building, Role]:
@@ -113,7 +89,7 @@ def robots(request: HttpRequest) -> HttpResponse:
 def buildings(request: HttpRequest) -> HttpResponse:
     role = global_role(request.user)
     rows = [
-        (b, _role_name(role_in(request.user, b)), b.submaps.count(), b.tags.count())
+        (b, role_name(role_in(request.user, b)), b.submaps.count(), b.tags.count())
         for b in buildings_for(request.user).order_by("code")
     ]
     context = page_context(request, role, page="buildings", rows=rows)

@@ -131,7 +131,7 @@ MIDDLEWARE = [
     # Answers 429 to a sign-in from a name and address that failed too often (below).
     "axes.middleware.AxesMiddleware",
     # The database out of reach: 503 with Retry-After, logged once per 10 s (outage.py).
-    "cloudnav_web.outage.DatabaseOutageMiddleware",
+    "cloudnav_django.outage.DatabaseOutageMiddleware",
 ]
 
 # Sign-in attempts (the login page, the admin, HTTP Basic on the API) are rate-limited by

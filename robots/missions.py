@@ -13,7 +13,7 @@ from typing import Any
 
 from django.db import transaction
 
-from cloudnav_web.batches import write_batch
+from cloudnav_django.batches import write_batch
 from maps.domain.planning import PoseRefused
 from maps.models import Building, SubMap
 from maps.services import goal_check_of

@@ -31,6 +31,11 @@ class Robot(models.Model):
     def __str__(self) -> str:
         return self.name
 
+    def online_state(self) -> RobotState | None:
+        """Its fleet state while it is connected to a live server process, else None."""
+        state = RobotState.objects.filter(robot=self).first()
+        return state if state is not None and is_online(state) else None
+
 
 class RobotState(models.Model):
     """A robot's last known fleet state, written at a throttled rate by the rosbridge server."""

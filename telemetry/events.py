@@ -25,8 +25,8 @@ from django.db.models import Max
 
 from cloudnav_core import topics
 from cloudnav_core.messages import WaitOrder, published_pose_of
-from cloudnav_web.batches import UNREACHABLE, BatchInterrupted, write_batch
-from cloudnav_web.outage import REPORT
+from cloudnav_django.batches import UNREACHABLE, BatchInterrupted, write_batch
+from cloudnav_django.outage import REPORT
 from maps.models import Building
 from robots.models import Robot
 from telemetry.domain.events import EventDeriver, EventDraft, Kind, Severity

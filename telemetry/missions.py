@@ -23,10 +23,9 @@ from typing import Any
 
 from channels.db import database_sync_to_async
 
-from cloudnav_core.messages import NANOS
-from cloudnav_core.times import parse_stamp
-from cloudnav_web.batches import BatchInterrupted
-from cloudnav_web.outage import REPORT
+from cloudnav_core.times import stamp_seconds
+from cloudnav_django.batches import BatchInterrupted
+from cloudnav_django.outage import REPORT
 from robots import missions
 from robots.missions import Goal
 from telemetry.domain.storable import storable_text
@@ -61,15 +60,9 @@ class RobotClocks:
 
     def heard(self, robot: str, msg: Mapping[str, Any]) -> None:
         """``robot`` published ``msg``: its header's stamp, if it has one, is its time now."""
-        header = msg.get("header")
-        stamp = header.get("stamp") if isinstance(header, Mapping) else None
-        if not isinstance(stamp, Mapping):
-            return
-        try:
-            sec, nanosec = parse_stamp(stamp)
-        except ValueError:
-            return
-        self._read[robot] = (sec + nanosec / NANOS, self._clock())
+        said = stamp_seconds(msg)
+        if said is not None:
+            self._read[robot] = (said, self._clock())
 
     def now(self, robot: str) -> float | None:
         """``robot``'s time now, None if it never said."""

@@ -24,7 +24,6 @@ from cloudnav_core.se2 import Point
 from maps import services as map_services
 from maps.domain.right_of_way import Arbiter, Verdict
 from maps.domain.widths import Widths
-from telemetry.domain import names
 from telemetry.domain.protocol import Json
 from telemetry.events import EventLog
 
@@ -137,6 +136,6 @@ class RightOfWay:
             order = WaitOrder(
                 verdict.map_id, verdict.spot, verdict.place, verdict.waiting_for, text
             )
-        topic = names.robot_topic(verdict.robot, topics.RIGHT_OF_WAY)
+        topic = topics.robot_topic(verdict.robot, topics.RIGHT_OF_WAY)
         self._tell(topic, dict(right_of_way_message(order, text)))
         self._events.right_of_way(verdict.robot, text, order)

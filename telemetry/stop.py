@@ -22,7 +22,6 @@ from channels.db import database_sync_to_async
 
 from cloudnav_core import topics
 from robots import missions
-from telemetry.domain import names
 from telemetry.domain.encoding import Wire
 from telemetry.events import EventLog
 from telemetry.rosbridge.connection import Connection
@@ -68,7 +67,7 @@ class RobotStop:
     async def _halt(self, robot: str) -> str:
         """Zero velocity and the goal cancelled where the robot is connected; return what
         is known of the goal."""
-        service = names.robot_topic(robot, topics.CANCEL_GOAL)
+        service = topics.robot_topic(robot, topics.CANCEL_GOAL)
         if self._calls.services.provider(service) is None:
             found = await self._relay().find("services", service)
             self._teleop.stop_robot(robot)  # reaches the robot on any process
@@ -82,7 +81,7 @@ class RobotStop:
         """Zero velocity, and cancel the goal of ``robot``, connected to this process;
         return what the robot answered."""
         self._teleop.stop_robot(robot)
-        service = names.robot_topic(robot, topics.CANCEL_GOAL)
+        service = topics.robot_topic(robot, topics.CANCEL_GOAL)
         caller = ServerCaller()
         if not self._calls.call_as_server(service, {}, caller):
             return "the robot serves no cancel_goal"

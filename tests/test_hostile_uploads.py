@@ -18,7 +18,7 @@ import psutil
 import pytest
 from asgiref.testing import ApplicationCommunicator
 
-from cloudnav_web.heavy import HeavyBudget, Overloaded
+from cloudnav_django.heavy import HeavyBudget, Overloaded
 from maps.domain.tagart import MAX_SIZE
 from tests.conftest import client_for, make_robot, make_submap, make_tag, map_pgm
 from tests.fixtures_live import LiveServer, session_cookie

@@ -8,7 +8,7 @@ import ast
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
-APPS = ("cloudnav_core", "maps", "robots", "telemetry", "cloudnav_web")
+APPS = ("cloudnav_core", "cloudnav_django", "maps", "robots", "telemetry", "cloudnav_web")
 
 
 def _private(dotted: str) -> bool:

@@ -6,14 +6,14 @@ import logging
 
 from django.db import OperationalError
 
-from cloudnav_web.outage import OutageReport
+from cloudnav_django.outage import OutageReport
 
 
 def test_it_logs_the_first_failure_then_one_line_per_interval_with_what_it_cost(caplog):
     now = [0.0]
     report = OutageReport(every=10.0, clock=lambda: now[0])
     down = OperationalError("connection refused\n\tIs the server running?")
-    with caplog.at_level(logging.WARNING, logger="cloudnav_web.outage"):
+    with caplog.at_level(logging.WARNING, logger="cloudnav_django.outage"):
         report.failed("requests refused", down)
         for second in range(1, 10):
             now[0] = float(second)

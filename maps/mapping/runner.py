@@ -49,12 +49,10 @@ from django.conf import settings
 
 from cloudnav_core import topics
 from cloudnav_core.messages import pose_of
+from cloudnav_core.times import stamp_seconds
 from cloudnav_core.workers import Inbox, Policy, Pool, TaskWorker
-from cloudnav_web.batches import UNREACHABLE
-from cloudnav_web.outage import REPORT
-from telemetry.domain import names
-from telemetry.domain.bus import OnMessage
-from telemetry.domain.video import stamp_seconds
+from cloudnav_django.batches import UNREACHABLE
+from cloudnav_django.outage import REPORT
 
 from ..domain.slam.mapper import Mapper
 from ..domain.slam.params import SlamParams
@@ -75,6 +73,10 @@ SAVE_EVERY = 2.0
 """Seconds between writes of the map so far."""
 
 _EXECUTOR = Pool("mapping", 2).executor  # stopped and joined at the end (the registry)
+
+
+OnMessage = Callable[[Any, dict[str, Any]], None]
+"""What a tap calls with each message: the bus's topic (unread here) and the message."""
 
 
 class Tap(Protocol):
@@ -451,7 +453,7 @@ class MappingRunner:
                 worker.on_saved = lambda w=worker: self._told(w.robot, w.session_pk, "saved")
                 self.workers[pk] = worker
                 self._taps[pk] = [
-                    self.hub.tap(names.robot_topic(worker.robot, suffix), _message_to(callback))
+                    self.hub.tap(topics.robot_topic(worker.robot, suffix), _message_to(callback))
                     for suffix, callback in worker.taps()
                 ]
                 worker.start()
@@ -466,7 +468,7 @@ class MappingRunner:
         for robot in [r for r in self._unmapped if r not in here or r in mapped]:
             self._unmapped.pop(robot).close()
         for robot in here - mapped - self._unmapped.keys():
-            depth = names.robot_topic(robot, topics.CAMERA_DEPTH)
+            depth = topics.robot_topic(robot, topics.CAMERA_DEPTH)
             self._unmapped[robot] = self.hub.tap(depth, self._not_mapping(robot))
 
     def _not_mapping(self, robot: str) -> OnMessage:
@@ -485,7 +487,7 @@ class MappingRunner:
 
     def _tell(self, robot: str, news: dict[str, Any]) -> None:
         if self.tell is not None:
-            self.tell(names.robot_topic(robot, topics.MAPPING), {"data": json.dumps(news)})
+            self.tell(topics.robot_topic(robot, topics.MAPPING), {"data": json.dumps(news)})
 
 
 def _message_to(callback: Callable[[dict[str, Any]], None]) -> OnMessage:

@@ -11,14 +11,13 @@ interrupted) session, which a database constraint guarantees.
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, Protocol, cast
 
 import numpy as np
 from django.db import IntegrityError, transaction
 from django.db.models import QuerySet
 
 from cloudnav_core.grid import FREE_THRESH, OCCUPIED_THRESH
-from robots.models import Robot, RobotState, is_online
 
 from .. import services, versions
 from ..domain.mapfile import (
@@ -39,8 +38,34 @@ PATH_POINTS = 2000
 """Corrected poses kept for the page at most (the path is thinned evenly beyond)."""
 
 
+class Whereabouts(Protocol):
+    """Where a robot last said it was (``robots.models.RobotState``); None where unknown."""
+
+    @property
+    def x(self) -> float | None: ...
+
+    @property
+    def y(self) -> float | None: ...
+
+    @property
+    def yaw(self) -> float | None: ...
+
+
+class SessionRobot(Protocol):
+    """What a session asks of its robot (``robots.models.Robot``): its key, its name, and
+    where it is while it is connected to a live server process (None while it is not)."""
+
+    @property
+    def pk(self) -> Any: ...
+
+    @property
+    def name(self) -> str: ...
+
+    def online_state(self) -> Whereabouts | None: ...
+
+
 def start(
-    robot: Robot,
+    robot: SessionRobot,
     building: Building,
     code: str,
     by: Any = None,
@@ -53,10 +78,10 @@ def start(
 
     Raises MappingError when the robot is offline or not registered here, already has an
     open session, or the code is taken (new) or unknown (update)."""
-    if not robot.buildings.filter(pk=building.pk).exists():
+    if not building.robots.filter(pk=robot.pk).exists():
         raise MappingError(f"{robot.name} is not registered in {building.code}.")
-    state = RobotState.objects.filter(robot=robot).first()
-    if state is None or not is_online(state):
+    state = robot.online_state()
+    if state is None:
         raise MappingError(f"{robot.name} is offline: start mapping once it is connected.")
     submap = building.submaps.defer("image").filter(code=code).first()
     if update and submap is None:
@@ -67,12 +92,12 @@ def start(
 
 
 def _open(
-    robot: Robot,
+    robot: SessionRobot,
     building: Building,
     code: str,
     submap: SubMap | None,
     by: Any,
-    state: RobotState,
+    state: Whereabouts,
     kind: str,
 ) -> MappingSession:
     person = by if getattr(by, "is_authenticated", False) and by.pk else None
@@ -80,7 +105,8 @@ def _open(
     try:
         with transaction.atomic():
             return MappingSession.objects.create(
-                robot=robot,
+                # The robots.models.Robot it was given, a class maps below robots never imports.
+                robot=cast(Any, robot),
                 building=building,
                 kind=kind,
                 code=code,
@@ -114,8 +140,7 @@ def change_state(
             clash = MappingSession.objects.filter(robot=locked.robot, state__in=MappingSession.OPEN)
             if clash.exclude(pk=locked.pk).exists():
                 raise MappingError(f"{locked.robot.name} has another mapping session open.")
-            state = RobotState.objects.filter(robot=locked.robot).first()
-            if state is None or not is_online(state):
+            if locked.robot.online_state() is None:
                 raise MappingError(f"{locked.robot.name} is offline: resume once it is connected.")
         locked.state = to
         locked.reason = reason

@@ -45,7 +45,6 @@ from django.db import transaction
 from cloudnav_core.messages import published_pose_of
 from cloudnav_core.times import parse_stamp
 from cloudnav_core.workers import Inbox, Policy, Pool, TaskWorker
-from telemetry.domain.bus import OnMessage, Topic
 
 from .. import services, versions
 from ..domain.mapfile import export_map, load_map_upload, map_yaml_text
@@ -54,7 +53,7 @@ from ..domain.upkeep import Evidence, Proposal
 from ..domain.versions import Reason
 from ..exceptions import MappingError
 from ..models import Building, ChangeProposal, SubMap, SubMapVersion
-from .runner import Tap, TopicTaps
+from .runner import OnMessage, Tap, TopicTaps
 
 logger = logging.getLogger(__name__)
 
@@ -170,7 +169,7 @@ class UpkeepRunner:
             ]
 
     def _on_pose(self, robot: _Robot) -> OnMessage:
-        def on_pose(_topic: Topic, msg: dict[str, Any]) -> None:
+        def on_pose(_topic: object, msg: dict[str, Any]) -> None:
             found, stamp = published_pose_of(msg), _stamp_of(msg)
             if found is None or stamp is None or not found.map_id:
                 return
@@ -183,7 +182,7 @@ class UpkeepRunner:
         return on_pose
 
     def _on_scan(self, robot: _Robot) -> OnMessage:
-        def on_scan(_topic: Topic, msg: dict[str, Any]) -> None:
+        def on_scan(_topic: object, msg: dict[str, Any]) -> None:
             stamp = _stamp_of(msg)
             if stamp is None:
                 self.unpaired += 1

@@ -17,8 +17,7 @@ from rest_framework.request import Request
 from rest_framework.response import Response
 from rest_framework.views import APIView
 
-from cloudnav_web.heavy import heavy_response
-from robots.models import Robot
+from cloudnav_django.heavy import heavy_response
 
 from .. import versions
 from ..access import Role, buildings_for
@@ -129,7 +128,7 @@ class SessionList(APIView):
         asked.is_valid(raise_exception=True)
         data = asked.validated_data
         building = building_for(request, data["building"], Role.OPERATOR)
-        robot = Robot.objects.filter(name=data["robot"], buildings=building).first()
+        robot = building.robots.filter(name=data["robot"]).first()
         if robot is None:
             raise NotFound(f"No robot {data['robot']} in {building.code}.")
         session = sessions.start(

@@ -7,7 +7,7 @@ from django.http import HttpResponse, HttpResponseBase
 from django.utils.http import content_disposition_header, quote_etag
 from rest_framework.request import Request
 
-from cloudnav_web.heavy import heavy_response
+from cloudnav_django.heavy import heavy_response
 
 from .. import services
 from ..domain.mapfile import occupancy_grid_json

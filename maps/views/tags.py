@@ -14,7 +14,7 @@ from rest_framework.request import Request
 from rest_framework.response import Response
 from rest_framework.views import APIView
 
-from cloudnav_web.heavy import heavy_response
+from cloudnav_django.heavy import heavy_response
 
 from .. import services
 from ..access import Role, buildings_for, global_role

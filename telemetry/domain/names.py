@@ -81,11 +81,6 @@ def robot_namespace(robot: str) -> str:
     return "/" + robot
 
 
-def robot_topic(robot: str, suffix: str) -> str:
-    """Return the absolute name of one of ``robot``'s topics, e.g. ``/r1/cmd_vel``."""
-    return f"/{robot}/{suffix}"
-
-
 def first_segment(name: str) -> str:
     """Return the first segment of an absolute name: ``/r1/pose`` -> ``r1``."""
     return name[1:].split("/", 1)[0]

@@ -19,8 +19,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from cloudnav_core.messages import NANOS
-from cloudnav_core.times import parse_stamp
+from cloudnav_core.times import stamp_seconds
 
 from .names import canonical_type
 
@@ -174,20 +173,6 @@ def _image_bytes(data: Any) -> bytes:
         except (TypeError, ValueError):
             raise BadFrame("image data is not a list of bytes") from None
     raise BadFrame(f"image data is a {type(data).__name__}")
-
-
-def stamp_seconds(msg: Mapping[str, Any]) -> float | None:
-    """Return ``header.stamp`` (``timestamp`` in a ``CompressedVideo``) in seconds, or None
-    if the message has none (or a zero one)."""
-    header = msg.get("header")
-    value = header.get("stamp") if isinstance(header, Mapping) else msg.get("timestamp")
-    if not isinstance(value, Mapping):
-        return None
-    try:
-        sec, nanosec = parse_stamp(value)
-    except ValueError:
-        return None
-    return sec + nanosec / NANOS if (sec or nanosec) else None
 
 
 # ---------------------------------------------------------------- stream requests

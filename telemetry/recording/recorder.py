@@ -172,7 +172,7 @@ class Recorder:
         entry = self.robots.get(draft.robot or "")
         if entry is None or (entry.plan is not None and not entry.plan.topics):
             return
-        topic = names.robot_topic(draft.robot or "", EVENTS_TOPIC)
+        topic = topics.robot_topic(draft.robot or "", EVENTS_TOPIC)
         entry.queue.put((topic, EVENT_TYPE, as_log(draft), int(draft.time * 1e9)))
 
     def stats(self) -> dict[str, dict[str, int]]:

@@ -22,7 +22,7 @@ from rest_framework.request import Request
 from rest_framework.response import Response
 from rest_framework.views import APIView
 
-from cloudnav_web.heavy import budgeted_stream, client_of, export_budget
+from cloudnav_django.heavy import budgeted_stream, client_of, export_budget
 from maps.access import buildings_for, robot_of
 from robots.models import Robot
 

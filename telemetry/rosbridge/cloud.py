@@ -65,9 +65,9 @@ async def teleop_lock(call: ServiceCall) -> Json:
         raise ServiceFailed("'robot' must be a robot's name (a letter, then letters, digits or _)")
     locks, conn = call.server.teleop, call.conn
     if action == "status":
-        await call.access.require("see", names.robot_topic(robot, topics.CMD_VEL))
+        await call.access.require("see", topics.robot_topic(robot, topics.CMD_VEL))
         return await _status(locks, robot)
-    await call.access.require("drive", names.robot_topic(robot, topics.CMD_VEL))
+    await call.access.require("drive", topics.robot_topic(robot, topics.CMD_VEL))
     if action == "acquire":
         granted, holder = await locks.acquire(robot, conn.key, conn.principal.label)
         message = "" if granted else f"{robot} is driven by {holder}"
@@ -130,7 +130,7 @@ async def stop(call: ServiceCall) -> Json:
     robot = call.arg("robot")
     if not names.is_robot_name(robot):
         raise ServiceFailed("'robot' must be a robot's name (a letter, then letters, digits or _)")
-    await call.access.require("drive", names.robot_topic(robot, topics.CMD_VEL))
+    await call.access.require("drive", topics.robot_topic(robot, topics.CMD_VEL))
     stopped = await call.server.stop.stop(robot, call.conn)
     return stopped.as_values()
 
@@ -161,7 +161,7 @@ async def check_pose(call: ServiceCall) -> Json:
         if not robot or what != "goal":
             await call.server.poses.check_point(map_id, point, str(what))
             return {"success": True, "message": ""}
-        await call.access.require("see", names.robot_topic(robot, topics.GOAL))
+        await call.access.require("see", topics.robot_topic(robot, topics.GOAL))
         placed = await call.server.poses.place(map_id, point, robot)
     except PoseRefused as refused:
         return {"success": False, "message": refused.message}

@@ -17,8 +17,8 @@ from channels.generic.websocket import AsyncWebsocketConsumer
 from typing_extensions import override
 
 from cloudnav_core import topics
-from cloudnav_web.batches import UNREACHABLE
-from cloudnav_web.outage import REPORT
+from cloudnav_django.batches import UNREACHABLE
+from cloudnav_django.outage import REPORT
 from telemetry.access.decisions import Access, authenticate
 from telemetry.access.review import Client
 from telemetry.domain import protocol

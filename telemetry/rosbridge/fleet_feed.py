@@ -60,7 +60,7 @@ class FleetFeed:
     def joined(self, robot: str, robot_pk: int) -> None:
         """A connection of ``robot`` opened here."""
         for kind in {topics.MAP_ID, topics.PLAN, *OBSERVED}:
-            self._topics[names.robot_topic(robot, kind)] = (robot_pk, kind)
+            self._topics[topics.robot_topic(robot, kind)] = (robot_pk, kind)
         self.tracker.connected(robot_pk)
         self._events.connected(robot)
         self._missions.ensure_running()
@@ -75,7 +75,7 @@ class FleetFeed:
         self.spots.leave(robot)
         self.right_of_way.left(robot)
         for kind in {topics.MAP_ID, topics.PLAN, *OBSERVED}:
-            self._topics.pop(names.robot_topic(robot, kind), None)
+            self._topics.pop(topics.robot_topic(robot, kind), None)
         self._relay().remove("robots", robot)
 
     def published(self, name: str, msg: dict[str, Json]) -> None:

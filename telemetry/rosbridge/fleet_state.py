@@ -22,8 +22,8 @@ from functools import partial
 from channels.db import database_sync_to_async
 
 from cloudnav_core.messages import Pose2D
-from cloudnav_web.batches import UNREACHABLE, BatchInterrupted, write_batch
-from cloudnav_web.outage import REPORT
+from cloudnav_django.batches import UNREACHABLE, BatchInterrupted, write_batch
+from cloudnav_django.outage import REPORT
 from maps.domain.versions import split_map_ref
 from robots.models import RobotState
 

@@ -48,7 +48,7 @@ from robots.missions import Goal
 from telemetry.access.decisions import Registry
 from telemetry.access.review import AccessReview, Client
 from telemetry.access.revocation import listen
-from telemetry.domain import names, protocol
+from telemetry.domain import protocol
 from telemetry.domain.bus import EVERY_TOPIC, OnMessage, SubscribeParams, TopicBus, TopicTap
 from telemetry.domain.encoding import Outgoing
 from telemetry.domain.events import EventDeriver
@@ -331,7 +331,7 @@ class Hub:
     def _server_goal(self, robot: str, map_id: str, pose: Pose, note: str) -> None:
         msg = dict(pose_stamped(map_id, pose, time.time()))
         self.poses.reservations.aim(robot, map_id, pose[:2])
-        self.bus.publish(None, names.robot_topic(robot, topics.GOAL), msg)
+        self.bus.publish(None, topics.robot_topic(robot, topics.GOAL), msg)
         self._goals[robot] = msg
         self.events.goal_sent(robot, "server", msg, note)
 
@@ -344,7 +344,7 @@ class Hub:
         if sent is None or found is None or robot not in self.robots():
             return False
         msg = dict(pose_stamped(found.map_id, (found.x, found.y, found.yaw), time.time()))
-        self.bus.publish(None, names.robot_topic(robot, topics.GOAL), msg)
+        self.bus.publish(None, topics.robot_topic(robot, topics.GOAL), msg)
         self.events.goal_sent(robot, "server", msg, f"sent again: {why}")
         return True
 

@@ -11,7 +11,7 @@ answers come back as ready frames for one connection (``rb.deliver``).
 
 Every loop (receiving, sending, heartbeat, access changes) is supervised: a loop that
 fails is restarted, never left dead. A failure because Redis cannot be reached is told to
-``REDIS_REPORT`` (``cloudnav_web.outage``: the first, then one line per 10 s naming what
+``REDIS_REPORT`` (``cloudnav_django.outage``: the first, then one line per 10 s naming what
 the outage cost), not a traceback per loop per attempt; any other failure is logged with
 its traceback. After Redis comes back empty (restarted), the heartbeat writes this
 process's part of the shared directory again from what it holds.
@@ -38,7 +38,7 @@ from typing import Any, Protocol
 from redis.exceptions import ConnectionError as RedisDown
 from redis.exceptions import TimeoutError as RedisTimeout
 
-from cloudnav_web.outage import REDIS_REPORT
+from cloudnav_django.outage import REDIS_REPORT
 from telemetry.access.review import AccessReview, Client
 from telemetry.access.revocation import AccessChange, access_channel
 from telemetry.domain import names

@@ -68,7 +68,7 @@ class TeleopGate:
     def stop_robot(self, robot: str) -> None:
         """Send ``robot`` a zero Twist from the server itself."""
         stop = dict(twist_2d(0.0, 0.0))  # the bus takes a plain, mutable message
-        self._bus.publish(None, names.robot_topic(robot, topics.CMD_VEL), stop)
+        self._bus.publish(None, topics.robot_topic(robot, topics.CMD_VEL), stop)
 
 
 def _moving(twist: dict[str, Json]) -> bool:

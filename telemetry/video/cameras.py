@@ -21,6 +21,7 @@ from dataclasses import dataclass
 from channels.db import database_sync_to_async
 from django.http import HttpRequest
 
+from cloudnav_core import topics
 from robots.models import Robot
 
 # The rosbridge server's own identity rules, so a robot or a person is the same principal
@@ -146,7 +147,7 @@ async def watchable_cameras(hub: Hub, principal: Principal) -> list[CameraListin
     published = await published_cameras(hub)
     listing = []
     for owner in owners:
-        default = names.robot_topic(owner.robot, CAMERA)
+        default = topics.robot_topic(owner.robot, CAMERA)
         extra = sorted(t for t in published if names.first_segment(t) == owner.robot)
         for topic in [default, *(t for t in extra if t != default)]:
             listing.append(CameraListing(Camera(topic, owner.robot), topic in published))

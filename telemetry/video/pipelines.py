@@ -44,7 +44,7 @@ from telemetry.domain.webrtc import WEBRTC_H264, h264_keyframe, new_encoder
 from telemetry.video.feeds import CameraFeed
 
 if TYPE_CHECKING:
-    from cloudnav_web.heavy import Ticket
+    from cloudnav_django.heavy import Ticket
 
 logger = logging.getLogger(__name__)
 

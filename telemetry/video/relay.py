@@ -6,7 +6,7 @@ its last viewer and unsubscribes the feed with its last pipeline. So a camera no
 watches costs nothing, and two viewers asking the same thing share one encoder.
 
 An encoder is heavy work: before answering, a view ``reserve``s what a new one would need
-from the video budget (``cloudnav_web.heavy``), and is refused with 429 or 503 beyond it;
+from the video budget (``cloudnav_django.heavy``), and is refused with 429 or 503 beyond it;
 the pipeline holds that ticket until it stops.
 """
 
@@ -21,7 +21,7 @@ from contextlib import asynccontextmanager
 from typing import Any
 
 from cloudnav_core.workers import Pool
-from cloudnav_web.heavy import Ticket, video_budget
+from cloudnav_django.heavy import Ticket, video_budget
 from telemetry.domain.video import SOURCE, VP8, StreamParams, encoder_memory
 from telemetry.domain.webrtc import MIME_TYPES
 from telemetry.rosbridge.hub import Hub, get_hub

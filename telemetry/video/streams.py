@@ -17,14 +17,14 @@ import time
 from collections.abc import AsyncIterator, Mapping
 from typing import Any, TypeVar
 
-from cloudnav_web.heavy import Ticket
+from cloudnav_django.heavy import Ticket
+from cloudnav_django.readiness import Readiness, readiness_for
 from telemetry.access.rules import Principal
 from telemetry.domain import multipart
 from telemetry.domain.newest import Closed, Newest
 from telemetry.domain.video import MJPEG, NoFrame, StreamParams
 from telemetry.video.cameras import Camera
 from telemetry.video.pipelines import FRESH_FOR, ImagePipeline, Part, Vp8Pipeline
-from telemetry.video.readiness import Readiness, readiness_for
 from telemetry.video.relay import VideoRelay
 
 SNAPSHOT_TIMEOUT = 5.0

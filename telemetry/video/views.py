@@ -40,9 +40,9 @@ from django.urls import reverse
 from django.views.decorators.csrf import csrf_exempt
 from django.views.decorators.http import require_GET
 
-from cloudnav_web.heavy import Overloaded, release_with
-from cloudnav_web.pages import page_context
+from cloudnav_django.heavy import Overloaded, release_with
 from maps.access import global_role
+from maps.page_context import page_context
 from telemetry.access.decisions import owner_named
 from telemetry.access.rules import Principal, may_watch
 from telemetry.domain import multipart, names

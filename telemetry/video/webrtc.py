@@ -48,7 +48,7 @@ from telemetry.domain.webrtc import MIME_TYPES
 from telemetry.video.pipelines import RtcPipeline
 
 if TYPE_CHECKING:
-    from cloudnav_web.heavy import Ticket
+    from cloudnav_django.heavy import Ticket
     from telemetry.access.rules import Principal
     from telemetry.video.cameras import Camera
 from telemetry.video.relay import VideoRelay

@@ -6,7 +6,7 @@ size, a video encoder at the largest parameters. Each such request first takes a
 for the memory it will need (an estimate from what it was asked) from the process-wide
 ``HeavyBudget``; the ticket is given back once the answer has been sent, since the body
 stays in memory until then. Under daphne the answer is written at the pace its client reads
-(``telemetry.video.readiness``), since daphne would otherwise take it all at once and hold
+(``cloudnav_django.readiness``), since daphne would otherwise take it all at once and hold
 it in Twisted's buffer out of the budget's sight. A request the budget cannot take at once
 is answered at once:
 
@@ -33,7 +33,7 @@ from django.http import HttpResponse, HttpResponseBase, StreamingHttpResponse
 from rest_framework import status
 from rest_framework.exceptions import APIException
 
-from telemetry.video.readiness import readiness_for
+from cloudnav_django.readiness import readiness_for
 
 RETRY_AFTER = 2  # seconds: heavy answers take about that long
 CHUNK = 256 * 2**10  # bytes written at a time when pacing an answer to its client

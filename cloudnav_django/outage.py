@@ -15,7 +15,7 @@ from collections.abc import Callable
 from django.http import HttpRequest, HttpResponse, JsonResponse
 from django.utils.deprecation import MiddlewareMixin
 
-from cloudnav_web.batches import UNREACHABLE
+from cloudnav_django.batches import UNREACHABLE
 
 logger = logging.getLogger(__name__)
 
