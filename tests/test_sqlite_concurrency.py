@@ -36,7 +36,7 @@ async def edits_by(http: httpx.AsyncClient, cookie: str, who: int) -> list[int]:
     headers = {"Cookie": cookie, "X-CSRFToken": CSRF}
     answers = []
     for i in range(EDITS):
-        origin = [float(who), float(i), 0.0]
+        origin = [float(who) + 1.0, float(i), 0.0]  # never the first version's 0, 0, 0
         answer = await http.patch(URL, json={"origin": origin}, headers=headers)
         answers.append(answer.status_code)
     return answers

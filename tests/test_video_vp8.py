@@ -78,17 +78,22 @@ async def test_the_stream_is_a_live_webm_that_pyav_decodes(daphne_server, token,
 async def test_a_late_joiner_plays_at_once_from_the_last_keyframe(daphne_server, token, jpegs):
     first = Recording(await open_stream(daphne_server.url, QUERY, token=token))
     camera = await Camera.connect(daphne_server.rosbridge_url(token))
-    for jpeg in jpegs[:15]:  # keyframes at frames 0 and 10
-        await camera.send(jpeg)
+    for jpeg in jpegs[:15]:  # keyframes at frames 0 and 10 (and at a gap a loaded machine
+        await camera.send(jpeg)  # makes: a frame late by twice its interval is one)
         await first.read_blocks(1)
+    last_keyframe = max(i for i, block in enumerate(first.blocks) if block.keyframe)
+    interval = first.blocks[last_keyframe:]
+    assert len(first.blocks) == 15
+    assert 1 <= len(interval) <= 5
 
     # No frame is published while the late viewer joins: what it gets, it gets at once.
     late = Recording(await open_stream(daphne_server.url, QUERY, token=token))
-    await late.read_blocks(5)
+    await late.read_blocks(len(interval))
     assert late.blocks[0].keyframe
-    assert len(late.decoded()) == 5  # init segment and frames 10 to 14: decodable from the start
-    newest = first.blocks[-1].timestamp
-    assert [b.timestamp for b in late.blocks] == [newest - 4 + i for i in range(5)]
+    # The init segment and the last keyframe's interval: decodable from the start.
+    assert len(late.decoded()) == len(interval)
+    newest, count = first.blocks[-1].timestamp, len(interval)
+    assert [b.timestamp for b in late.blocks] == [newest - count + 1 + i for i in range(count)]
 
     # Both viewers read one encoder, which encodes each frame once.
     [shared] = await asyncio.to_thread(stats, daphne_server.url, token)
@@ -96,7 +101,7 @@ async def test_a_late_joiner_plays_at_once_from_the_last_keyframe(daphne_server,
     await camera.send(jpegs[15])
     await asyncio.gather(first.read_blocks(1), late.read_blocks(1))
     assert first.blocks[-1] == late.blocks[-1]
-    assert len(late.decoded()) == 6
+    assert len(late.decoded()) == len(interval) + 1
 
     first.stream.close()
     late.stream.close()
