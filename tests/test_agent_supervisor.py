@@ -185,6 +185,29 @@ async def test_a_pose_estimate_inside_a_wall_makes_the_robot_lost_and_look_for_a
     assert leg.kind is LegKind.SEARCH
 
 
+async def test_a_lost_robot_reading_a_tag_of_a_map_it_never_held_is_placed_by_it(cloud):
+    # Lost in Room B before tag 19 (it leads to Atrium 2, whose bundle holds only its own
+    # tags): the crossings in Atrium 2's bundle say the tag stands in Room B, whose bundle
+    # is fetched too, so the tag places the robot instead of being passed over.
+    tag_19 = next(t for t in demo_building().tags if t.marker_id == 19)
+    truth = approach_pose((tag_19.x, tag_19.y, tag_19.yaw))
+    hardware = SimHardware(demo_world(), truth, seed=5)
+    tracker = PoseTracker()
+    cache = BundleCache(cloud)
+    supervisor = MapsSupervisor(cache, tracker)
+    robot = Robot(hardware, supervisor, tracker, _Silent(), RobotConfig(camera_rate=0))
+    for _ in range(10):
+        await robot.tick()
+        await robot.settle()
+        if supervisor.current is not None:
+            break
+    assert supervisor.current is not None
+    assert supervisor.current.map_id == "boccioni_1/Atrium2"
+    assert supervisor.placed_by == "tag 19"
+    assert set(cache.held) == {"boccioni_1/Atrium2", "boccioni_1/RoomB"}
+    assert math.dist(tracker.pose()[:2], truth[:2]) < 0.1
+
+
 class _Silent:
     async def publish(self, _topic: str, _msg: dict) -> bool:
         return True

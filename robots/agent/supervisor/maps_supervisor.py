@@ -22,9 +22,11 @@ Markers of tags in held bundles also reset the pose whenever seen within
 building, so the marker alone says which stored pose it is, and near the tag the
 measured pose is good to a few centimetres. This is what brings a drifted robot onto
 the tag it heads for; the QR code still decides which sub-map the robot enters. A tag
-whose stored pose no held bundle has cannot place a lost robot (its QR names the
-sub-map it leads to, whose bundle holds only its own tags): it is passed over and the
-search goes on.
+whose stored pose no held bundle has (its QR names the sub-map it leads to, whose bundle
+holds only its own tags) is looked up in the building's crossings, which every bundle
+lists: the bundle of the sub-map it stands in is fetched too. Only a tag that no bundle
+the server gives holds cannot place a lost robot: it is passed over and the search goes
+on.
 
 A pose estimate standing where no robot can (in a wall, in unknown space beyond one, off
 the sub-map) for ``IN_WALL_S`` seconds has gone wrong: the robot counts as lost again and
@@ -219,6 +221,8 @@ class MapsSupervisor:
         except BundleError as error:
             logger.warning("cannot enter %s: %s", map_id, error)
             return
+        if self.cache.find_tag(submap.building, detection.marker_id, submap) is None:
+            await self._fetch_home(detection.marker_id, submap)
         if not self._reset_from(detection, odom, submap) and self.current is None:
             logger.warning(
                 "tag %d is in no held bundle: it cannot place the robot", detection.marker_id
@@ -226,6 +230,17 @@ class MapsSupervisor:
             self._useless.add(detection.marker_id)
             return
         self.make_current(submap, f"tag {detection.marker_id}")
+
+    async def _fetch_home(self, marker_id: int, submap: SubMap) -> None:
+        """Fetch the bundle of the sub-map tag ``marker_id`` stands in, as ``submap``'s
+        crossings say, so that its stored pose is held; a failure leaves it unheld."""
+        home = next((c.submap for c in submap.crossings or () if c.marker_id == marker_id), None)
+        if home is None:
+            return
+        try:
+            await self.cache.load(f"{submap.building}/{home}")
+        except BundleError as error:
+            logger.warning("cannot fetch the map tag %d stands in: %s", marker_id, error)
 
     def _reset_from(self, detection: TagDetection, odom: Pose, submap: SubMap) -> bool:
         """Reset the pose from a tag held in some bundle; False if none holds it."""
