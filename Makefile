@@ -33,7 +33,7 @@ test: setup services lint typecheck pytest
 ## The fast tests alone (under two minutes): no live server, browser, Redis or PostgreSQL,
 ## nothing that commits to the database for other threads, nothing marked slow.
 unit:
-	$(BIN)/pytest -m "not live and not transactional and not browser and not scaled and not slow"
+	$(BIN)/pytest -n $(TEST_WORKERS) -m "not live and not transactional and not browser and not scaled and not slow"
 
 ## ruff (lint, unused arguments, format), the import contracts, ESLint on static/js, and
 ## models without their migration.

@@ -68,6 +68,7 @@ def proposal(lab: SubMap) -> ChangeProposal:
     return ChangeProposal.objects.get()
 
 
+@pytest.mark.slow
 def test_two_passes_through_a_changed_room_propose_the_change(
     proposal: ChangeProposal, viewer: User
 ) -> None:
@@ -83,6 +84,7 @@ def test_two_passes_through_a_changed_room_propose_the_change(
     assert shown["removed_robots"] == [1] * len(shown["removed"])
 
 
+@pytest.mark.slow
 def test_an_admin_accepts_the_cells_kept_as_a_new_version(
     proposal: ChangeProposal, admin: User, lab: SubMap
 ) -> None:
@@ -100,6 +102,7 @@ def test_an_admin_accepts_the_cells_kept_as_a_new_version(
     assert int(np.count_nonzero(grid != services.grid_of(versions.version_of(lab, 1)))) == 10
 
 
+@pytest.mark.slow
 def test_a_change_on_a_version_no_longer_current_is_refused_and_stays_open(
     proposal: ChangeProposal, admin: User, lab: SubMap
 ) -> None:
@@ -111,6 +114,7 @@ def test_a_change_on_a_version_no_longer_current_is_refused_and_stays_open(
     assert lab.versions.count() == 2
 
 
+@pytest.mark.slow
 def test_only_admins_decide_and_outsiders_see_nothing(
     proposal: ChangeProposal, operator: User, outsider: User, admin: User
 ) -> None:
@@ -121,6 +125,7 @@ def test_only_admins_decide_and_outsiders_see_nothing(
     assert client_for(admin).post(f"{CHANGES}{proposal.pk}/reject").status_code == 409
 
 
+@pytest.mark.slow
 def test_it_rejects_outsider(proposal: ChangeProposal, outsider: User) -> None:
     assert client_for(outsider).get(CHANGES).status_code == 404
 
@@ -202,6 +207,7 @@ def test_a_scan_whose_pose_never_came_is_not_used_at_another_pose(lab: SubMap) -
     assert runner.maps["boccioni_1/Lab"].evidence.scans >= 40
 
 
+@pytest.mark.slow
 def test_a_robots_pass_ends_when_it_leaves_and_after_a_minute_of_its_own_clock(
     lab: SubMap,
 ) -> None:

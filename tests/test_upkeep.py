@@ -11,6 +11,7 @@ import itertools
 import math
 
 import numpy as np
+import pytest
 
 from maps.domain.slam.scans import Scan
 from maps.domain.upkeep import Evidence, UpkeepParams
@@ -54,6 +55,7 @@ def cells_between(cells: np.ndarray, rows: range, cols: range) -> int:
     return int(np.count_nonzero(np.isin(cells[:, 0], rows) & np.isin(cells[:, 1], cols)))
 
 
+@pytest.mark.slow
 def test_a_changed_room_is_proposed_after_two_passes_and_not_one() -> None:
     evidence = Evidence(STORED, (0.0, 0.0), RES)
     drive(evidence, seed=1)
@@ -75,6 +77,7 @@ def test_a_changed_room_is_proposed_after_two_passes_and_not_one() -> None:
     assert changed[80, 75] == 100
 
 
+@pytest.mark.slow
 def test_the_free_rim_in_front_of_a_new_table_is_not_proposed() -> None:
     """Returns from a face on a cell border fall on both sides of it; the free cells in
     front of the table must not become occupied."""
@@ -95,6 +98,7 @@ def test_scans_from_a_robot_whose_pose_is_off_are_not_used() -> None:
     assert evidence.untrusted > 100
 
 
+@pytest.mark.slow
 def test_the_wall_a_tag_hangs_on_is_never_freed_by_the_fleet() -> None:
     """A tag on the cabinet's west face: the cabinet is gone, but its cells stay."""
     tag = (1.5, 1.75, math.pi)  # its face at x = 1.5 m, looking west
@@ -107,6 +111,7 @@ def test_the_wall_a_tag_hangs_on_is_never_freed_by_the_fleet() -> None:
     assert cells_between(proposal.added, range(79, 91), range(69, 91)) >= 40  # still seen
 
 
+@pytest.mark.slow
 def test_a_proposal_says_how_many_passes_and_robots_saw_each_cell() -> None:
     evidence = Evidence(STORED, (0.0, 0.0), RES)
     drive(evidence, seed=1, robot="r1")
@@ -153,6 +158,7 @@ def test_a_thick_wall_seen_from_a_heading_a_few_degrees_off_is_not_freed() -> No
     assert len(evidence.proposal().added) == 0
 
 
+@pytest.mark.slow
 def test_furniture_taken_from_against_a_wall_is_freed() -> None:
     """A 50 cm deep cabinet stood against the west wall: the returns from the wall behind
     where it stood end 50 cm inside the stored wall, deeper than a pose error puts them,
@@ -169,6 +175,7 @@ def test_furniture_taken_from_against_a_wall_is_freed() -> None:
     assert len(proposal.added) == 0
 
 
+@pytest.mark.slow
 def test_scans_from_a_pose_10_to_15_cm_off_are_dropped_and_propose_nothing() -> None:
     """Off by this much (or 3 degrees), most returns still end within a cell of a wall
     (the trust check passes), but a pose nearby fits them to the stored walls better:
@@ -210,6 +217,7 @@ def test_beams_grazing_a_wall_face_do_not_free_it() -> None:
     assert cells_between(evidence.proposal().removed, range(58, 60), range(2, 60)) == 0
 
 
+@pytest.mark.slow
 def test_a_surface_just_beyond_the_grid_s_rim_is_not_proposed() -> None:
     """A sub-map cut from a building may end at the face of a wall it leaves out; the
     returns from that face, with centimetres of error, land in the rim's free cells."""
@@ -224,6 +232,7 @@ def test_a_surface_just_beyond_the_grid_s_rim_is_not_proposed() -> None:
     assert cells_between(proposal.added, range(79, 91), range(67, 89)) >= 40  # the table
 
 
+@pytest.mark.slow
 def test_another_robot_standing_in_the_room_is_not_proposed_as_an_obstacle() -> None:
     """A robot waiting in the room (a 0.35 m body at (2.5, 3) m) is seen on every pass;
     where the other robots said they were, returns are their bodies, not the map."""
@@ -241,6 +250,7 @@ def test_another_robot_standing_in_the_room_is_not_proposed_as_an_obstacle() -> 
     assert told.proposal().empty
 
 
+@pytest.mark.slow
 def test_a_cell_diagonal_to_a_wall_s_corner_is_not_proposed() -> None:
     """A pose 3 cm and 0.6 degrees off puts some of the cabinet's corner returns in the
     free cell diagonal to it, pass after pass; it is the same cabinet."""
@@ -253,6 +263,7 @@ def test_a_cell_diagonal_to_a_wall_s_corner_is_not_proposed() -> None:
         assert cells_between(evidence.proposal().added, range(28, 42), range(28, 42)) == 0
 
 
+@pytest.mark.slow
 def test_scans_half_a_metre_off_along_a_corridor_free_no_door_frame() -> None:
     """Off by 0.5 m along a corridor, the long walls fit every pose of the narrow
     alignment window alike, so the scans pass that check, and the beams through a side

@@ -248,6 +248,7 @@ def test_frames_beyond_the_queue_drop_the_oldest_and_the_session_says_so() -> No
     assert "no header.stamp" in worker.refusal
 
 
+@pytest.mark.slow
 def test_a_tour_out_and_back_closes_a_loop_and_its_grid_agrees_with_the_building() -> None:
     poses = corridor_tour(length=3.0, step=0.1, turn=math.radians(10.0))
     mapper = VisualMapper(default_vocabulary(), START)
