@@ -7,7 +7,7 @@ both, and every time it writes carries both (roslibpy reads ``secs``, roslib rea
 from __future__ import annotations
 
 import time
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import Any
 
 from cloudnav_core.messages import NANOS, Time, ros_time
@@ -78,3 +78,34 @@ def complete_header_stamp(msg: dict[str, Any]) -> None:
     except ValueError:
         return
     stamp_value.update(stamp(sec, nanosec))
+
+
+SILENT_S = 30.0
+"""Seconds of the server's clock a robot may stay silent before ``RobotClocks`` takes its
+clock to run on at the server's pace."""
+
+
+class RobotClocks:
+    """Each robot's own time, as the stamps of its messages tell it, as a ROS node's timers
+    run on ``/clock`` under ``use_sim_time``: a simulated robot running at a quarter of real
+    time has a quarter of the server's seconds. ``heard`` reads a stamped message; ``now``
+    is the last stamp heard, standing still between messages, then running on at
+    ``clock``'s pace once the robot has said nothing for ``SILENT_S``."""
+
+    def __init__(self, clock: Callable[[], float] = time.monotonic) -> None:
+        self._clock = clock
+        self._read: dict[str, tuple[float, float]] = {}  # robot -> (its time, ours then)
+
+    def heard(self, robot: str, msg: Mapping[str, Any]) -> None:
+        """``robot`` published ``msg``: its header's stamp, if it has one, is its time now."""
+        said = stamp_seconds(msg)
+        if said is not None:
+            self._read[robot] = (said, self._clock())
+
+    def now(self, robot: str) -> float | None:
+        """``robot``'s time now, None if it never said."""
+        read = self._read.get(robot)
+        if read is None:
+            return None
+        said, heard_at = read
+        return said + max(0.0, self._clock() - heard_at - SILENT_S)

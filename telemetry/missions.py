@@ -5,8 +5,9 @@ waypoint is skipped or the mission paused, as the mission says).
 A time limit runs on the robot's own clock, read from the stamps of its goal statuses, as
 a ROS node's timers run on ``/clock`` under ``use_sim_time``: a simulated robot running
 at a quarter of real time gets its waypoint's whole limit in its own seconds. A robot
-whose statuses carry no stamp is timed on the server's clock; one that says nothing for
-``SILENT_S`` seconds has its clock taken to run on at the server's pace meanwhile.
+whose statuses carry no stamp is timed on the server's clock; one that says nothing for a
+while has its clock taken to run on at the server's pace (``cloudnav_core.times.RobotClocks``,
+shared with the stuck rule).
 
 What robots report is read on the relay's path in memory (``status``); once a tick the
 runner records the outcomes and collects the goals due in one database call, off the loop.
@@ -23,7 +24,7 @@ from typing import Any
 
 from channels.db import database_sync_to_async
 
-from cloudnav_core.times import stamp_seconds
+from cloudnav_core.times import RobotClocks
 from cloudnav_django.batches import BatchInterrupted
 from cloudnav_django.outage import REPORT
 from robots import missions
@@ -37,8 +38,6 @@ GRACE_S = 1.5
 # actionlib_msgs/GoalStatus codes.
 SUCCEEDED = 3
 FAILED = {4: "aborted", 5: "rejected", 9: "lost"}
-# Seconds of the server's clock a robot may stay silent before its clock is taken to run on.
-SILENT_S = 30.0
 
 
 @dataclass(frozen=True)
@@ -49,28 +48,6 @@ class Sent:
     goal: Goal
     at: float
     robot_at: float | None = None
-
-
-class RobotClocks:
-    """Each robot's own time, as the stamps of its statuses tell it (see the module)."""
-
-    def __init__(self, clock: Callable[[], float]) -> None:
-        self._clock = clock
-        self._read: dict[str, tuple[float, float]] = {}  # robot -> (its time, ours then)
-
-    def heard(self, robot: str, msg: Mapping[str, Any]) -> None:
-        """``robot`` published ``msg``: its header's stamp, if it has one, is its time now."""
-        said = stamp_seconds(msg)
-        if said is not None:
-            self._read[robot] = (said, self._clock())
-
-    def now(self, robot: str) -> float | None:
-        """``robot``'s time now, None if it never said."""
-        read = self._read.get(robot)
-        if read is None:
-            return None
-        said, heard_at = read
-        return said + max(0.0, self._clock() - heard_at - SILENT_S)
 
 
 class MissionRunner:
@@ -86,6 +63,7 @@ class MissionRunner:
         late: Callable[[Goal], Awaitable[None]],
         interval: float = 1.0,
         clock: Callable[[], float] = time.monotonic,
+        robot_clocks: RobotClocks | None = None,
     ) -> None:
         self.send = send
         self.robots = robots
@@ -93,7 +71,7 @@ class MissionRunner:
         self.late = late
         self.interval = interval
         self.clock = clock
-        self.robot_clocks = RobotClocks(clock)
+        self.robot_clocks = robot_clocks or RobotClocks(clock)
         self._sent: dict[str, Sent] = {}  # robot -> its mission goal sent
         self._outcomes: dict[int, str] = {}
         self._task: asyncio.Task[None] | None = None

@@ -2,6 +2,7 @@
 ``robot_stuck`` for a robot connected here, decide at once (``maps.domain.stuck_rule``:
 wait or replan), act, and if the same stuck spell lasts ``give_up_after`` seconds more,
 abort; each choice is a ``fleet_rule`` event that says plainly what was chosen and why.
+Seconds are the robot's own, as the stuck alert's are (``EventDeriver.stuck_for``).
 """
 
 from __future__ import annotations
@@ -17,6 +18,8 @@ from telemetry.right_of_way import RightOfWay
 
 # Seconds: a blocking robot that moved within this long is moving (out of the way).
 MOVING_WITHIN_S = 5.0
+# Seconds of the server's clock between looks at a stuck spell's length.
+LOOK_EVERY_S = 1.0
 
 
 class StuckRule:
@@ -48,8 +51,9 @@ class StuckRule:
         if response.action is StuckAction.REPLAN and not self._resend(robot, response.reason):
             response = respond(replace(case, can_resend=False), self.give_up_after)
         self._tell(robot, response)
-        since = self._events.deriver.stuck_since(robot)
-        task = asyncio.get_running_loop().create_task(self._later(case, since))
+        deriver = self._events.deriver
+        since, held = deriver.stuck_since(robot), deriver.stuck_for(robot, self._events.clock())
+        task = asyncio.get_running_loop().create_task(self._later(case, since, held))
         self._tasks.add(task)
         task.add_done_callback(self._tasks.discard)
 
@@ -65,11 +69,18 @@ class StuckRule:
             blocker_moving=self._events.deriver.moved_within(blocker, MOVING_WITHIN_S, now),
         )
 
-    async def _later(self, case: StuckCase, since: float | None) -> None:
-        await asyncio.sleep(self.give_up_after)
-        if since is None or self._events.deriver.stuck_since(case.robot) != since:
-            return  # moving again, goal over, or another spell
-        response = give_up(case, self._events.clock() - since)
+    async def _later(self, case: StuckCase, since: float | None, held: float) -> None:
+        """Give up once the spell that began at ``since``, ``held`` seconds long when it was
+        raised, has lasted ``give_up_after`` seconds more of the robot's clock."""
+        deriver = self._events.deriver
+        while True:
+            await asyncio.sleep(min(LOOK_EVERY_S, self.give_up_after))
+            if since is None or deriver.stuck_since(case.robot) != since:
+                return  # moving again, goal over, or another spell
+            lasted = deriver.stuck_for(case.robot, self._events.clock())
+            if lasted >= held + self.give_up_after:
+                break
+        response = give_up(case, lasted)
         outcome = await self._halt(case.robot)
         self._tell(case.robot, response, f" (goal {outcome})")
 

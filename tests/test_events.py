@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from cloudnav_core.times import RobotClocks
 from telemetry.domain.events import (
     BATTERY_LOW,
     SILENT_AFTER_S,
@@ -109,6 +110,69 @@ def test_a_moving_robot_or_one_without_a_goal_is_not_stuck() -> None:
     for t in range(100, 100 + int(STUCK_AFTER_S) * 2):
         deriver.pose("r1", "b/A", 0.0, 0.0, float(t))
         assert kinds(deriver.tick(float(t))) == []
+
+
+class RobotOnItsClock:
+    """A robot whose clock runs at ``pace`` of the server's, saying its goal is active (a
+    stamped status) once a server second, and standing still at (1, 1)."""
+
+    def __init__(self, pace: float, start: float = 1000.0) -> None:
+        self.server = 0.0
+        self.robot = start
+        self.pace = pace
+        self.clocks = RobotClocks(lambda: self.server)
+        self.deriver = EventDeriver(clocks=self.clocks)
+        self.deriver.connected("r1", 0.0)
+        self.second()
+
+    def second(self) -> list:
+        """One server second on: the robot's status and pose, then the deriver's tick."""
+        self.server += 1.0
+        self.robot += self.pace
+        msg = status(1) | {"header": {"stamp": {"sec": int(self.robot), "nanosec": 0}}}
+        self.clocks.heard("r1", msg)
+        self.deriver.nav_status("r1", msg, self.server)
+        self.deriver.pose("r1", "b/A", 1.0, 1.0, self.server)
+        return self.deriver.tick(self.server)
+
+
+def test_a_robot_is_stuck_after_its_own_clock_s_seconds_not_the_server_s() -> None:
+    slow = RobotOnItsClock(pace=0.25)  # a simulation at a quarter of real time
+    for _ in range(int(STUCK_AFTER_S) * 3):  # 90 server seconds: 22.5 of its own
+        assert kinds(slow.second()) == []
+    while not (drafts := slow.second()):
+        assert slow.server < STUCK_AFTER_S * 5, "never stuck"
+    assert kinds(drafts) == [Kind.STUCK]
+    assert f"in {int(STUCK_AFTER_S) + 1} s" in drafts[0].message
+    assert slow.server > STUCK_AFTER_S * 4  # 30 of its seconds took 120 of the server's
+    held = slow.deriver.stuck_for("r1", slow.server)  # since its last move
+    assert held == STUCK_AFTER_S + 1
+    for _ in range(8):
+        slow.second()
+    assert slow.deriver.stuck_for("r1", slow.server) == held + 2.0  # 8 server s, 2 of its own
+
+
+def test_a_robot_whose_clock_is_set_back_counts_its_progress_afresh() -> None:
+    robot = RobotOnItsClock(pace=1.0)
+    for _ in range(int(STUCK_AFTER_S) - 5):
+        assert kinds(robot.second()) == []
+    robot.robot = 0.0  # its simulation restarted: its clock begins again
+    for _ in range(int(STUCK_AFTER_S) - 5):
+        assert kinds(robot.second()) == []
+    while not (drafts := robot.second()):
+        assert robot.server < STUCK_AFTER_S * 3, "never stuck"
+    assert kinds(drafts) == [Kind.STUCK]
+
+
+def test_a_robot_with_no_stamps_is_timed_on_the_server_s_clock() -> None:
+    deriver = EventDeriver(clocks=RobotClocks(lambda: 0.0))
+    deriver.connected("r1", 0.0)
+    deriver.nav_status("r1", status(1), 0.0)
+    deriver.pose("r1", "b/A", 1.0, 1.0, 0.0)
+    deriver.heard("r1", STUCK_AFTER_S)
+    assert kinds(deriver.tick(STUCK_AFTER_S)) == []
+    deriver.heard("r1", STUCK_AFTER_S + 1)
+    assert kinds(deriver.tick(STUCK_AFTER_S + 1)) == [Kind.STUCK]
 
 
 def test_a_dead_man_stop_names_whoever_was_driving() -> None:

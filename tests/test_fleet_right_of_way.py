@@ -219,6 +219,73 @@ async def test_a_robot_stuck_behind_a_standing_robot_is_replanned_then_aborted(
         await talk
 
 
+class RobotClock:
+    """A robot's clock for its stamped statuses: it runs at the server's pace from 100 s
+    until ``freeze`` and again after ``run``, as a simulation that stalls does."""
+
+    def __init__(self) -> None:
+        self.base, self.since = 100.0, time.monotonic()
+        self.running = True
+
+    def now(self) -> float:
+        return self.base + (time.monotonic() - self.since if self.running else 0.0)
+
+    def freeze(self) -> None:
+        self.base, self.running = self.now(), False
+
+    def run(self) -> None:
+        self.since, self.running = time.monotonic(), True
+
+    def status(self) -> dict:
+        sec, fraction = divmod(self.now(), 1.0)
+        stamp = {"sec": int(sec), "nanosec": int(fraction * 1e9)}
+        return {"header": {"stamp": stamp}, **ACTIVE}
+
+
+@live
+async def test_the_stuck_rule_gives_up_after_the_robot_s_own_seconds(rosbridge, demo, settings):
+    settings.CLOUDNAV_STUCK_AFTER = 2.0
+    settings.CLOUDNAV_STUCK_GIVE_UP_AFTER = 3.0
+    operator, tokens = demo
+    standing = await rosbridge(token=tokens["robot_1"])
+    await standing.send(op="publish", topic="pose", msg=pose(20.0, 23.2, ATRIUM))
+    blocked = await rosbridge(token=tokens["robot_0"])
+    await blocked.send(op="subscribe", topic="goal")
+    await serve_cancel(blocked)
+    page = await rosbridge(user=operator)
+    await page.send(op="publish", topic="/robot_0/goal", msg=pose(20.0, 21.0, ATRIUM))
+    await blocked.receive_until(lambda f: f.get("op") == "publish")
+    clock, done = RobotClock(), asyncio.Event()
+    talk = asyncio.create_task(
+        saying(
+            blocked,
+            ("pose", lambda: pose(20.0, 23.9, ATRIUM)),
+            ("nav_status", clock.status),
+            until=done,
+        )
+    )
+    try:
+        await blocked.receive_until(lambda f: f.get("op") == "publish", wait=60)  # replanned
+        clock.freeze()  # its simulation stalls: no second of its own passes
+        # Twice the give-up time of the server's clock: no cancel comes, nothing aborts.
+        assert await blocked.nothing_more(2 * settings.CLOUDNAV_STUCK_GIVE_UP_AFTER)
+        assert [e.data["action"] for e in await database_sync_to_async(events_of)(
+            Kind.FLEET_RULE, "robot_0"
+        )] == ["replan"]  # fmt: skip
+        clock.run()  # its seconds pass again: it gives up 3 of them later
+        call = await blocked.receive_until(lambda f: f.get("op") == "call_service", wait=30)
+        await blocked.send(
+            op="service_response", id=call.get("id"), service=call["service"],
+            values={"success": True, "message": "cancelled"}, result=True,
+        )  # fmt: skip
+        await eventually(lambda: len(events_of(Kind.FLEET_RULE, "robot_0")) >= 2)
+        abort = (await database_sync_to_async(events_of)(Kind.FLEET_RULE, "robot_0"))[1]
+        assert abort.data["action"] == "abort"
+    finally:
+        done.set()
+        await talk
+
+
 @live
 async def test_a_robot_stuck_behind_a_robot_that_is_moving_waits(rosbridge, demo, settings):
     settings.CLOUDNAV_STUCK_AFTER = 2.0

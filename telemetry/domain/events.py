@@ -13,6 +13,11 @@ raises twice.
 ``EventDeriver`` turns observations into drafts. It is called on the relay's hot path
 (each pose, each status), so every observation is a few dictionary operations and no I/O;
 ``tick`` finds what only the passing of time reveals (a silent robot, a stuck one).
+
+Silence is measured on the server's clock (it is the network's fact). Progress is measured
+on the robot's own clock where ``clocks`` knows it (``cloudnav_core.times.RobotClocks``,
+read from its stamps), as its navigation's timers run: a simulation at a quarter of real
+time is stuck after ``stuck_after`` of its own seconds, not a quarter of them.
 """
 
 from __future__ import annotations
@@ -23,6 +28,8 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
 from enum import StrEnum
 from typing import Any
+
+from cloudnav_core.times import RobotClocks
 
 
 class Kind(StrEnum):
@@ -120,6 +127,7 @@ class _Watch:
     status_key: tuple[str, int] | None = None
     goal_active: bool = False
     anchor: tuple[float, float, float] | None = None  # x, y, time of the last real move
+    on_robot_clock: bool = False  # the anchor's and moved_at's times are the robot's
     stuck: bool = False
     localisation: str = ""
     placed: tuple[str, str] = ("", "")  # the map and source of the last localised state
@@ -147,10 +155,22 @@ class EventDeriver:
     blocks it (another robot near it), else the alert says an unknown obstacle or person.
     """
 
-    def __init__(self, stuck_after: float = STUCK_AFTER_S, blocker: Blocker | None = None) -> None:
+    def __init__(
+        self,
+        stuck_after: float = STUCK_AFTER_S,
+        blocker: Blocker | None = None,
+        clocks: RobotClocks | None = None,
+    ) -> None:
         self._watches: dict[str, _Watch] = {}
         self.stuck_after = stuck_after
         self.blocker = blocker
+        self.clocks = clocks
+
+    def _progress_time(self, robot: str, now: float) -> tuple[float, bool]:
+        """The time progress is measured on for ``robot``: its own clock's where known
+        (and True), else the server's ``now``."""
+        robot_now = self.clocks.now(robot) if self.clocks is not None else None
+        return (now, False) if robot_now is None else (robot_now, True)
 
     def _watch(self, robot: str, now: float) -> _Watch:
         watch = self._watches.get(robot)
@@ -214,25 +234,36 @@ class EventDeriver:
         if "/" in map_id:
             watch.building = map_id.split("/", 1)[0]
         watch.at = (x, y)
+        at, on_robot_clock = self._progress_time(robot, now)
         anchor = watch.anchor
-        if anchor is None or math.hypot(x - anchor[0], y - anchor[1]) >= STUCK_METRES:
-            watch.anchor = (x, y, now)
-            watch.moved_at = now if anchor is not None else watch.moved_at
+        if anchor is None or on_robot_clock != watch.on_robot_clock or at < anchor[2]:
+            # First pose, or a clock first heard or set back: progress is counted afresh
+            # (and a stuck spell counted on the old clock ends at the next tick).
+            watch.anchor, watch.on_robot_clock = (x, y, at), on_robot_clock
+            watch.moved_at = watch.stuck_since = -math.inf
+        elif math.hypot(x - anchor[0], y - anchor[1]) >= STUCK_METRES:
+            watch.anchor, watch.moved_at = (x, y, at), at
         return []
 
     def heard(self, robot: str, now: float) -> None:
         self._watch(robot, now)
 
     def moved_within(self, robot: str, seconds: float, now: float) -> bool:
-        """True if ``robot`` moved STUCK_METRES or more in the last ``seconds``."""
+        """True if ``robot`` moved STUCK_METRES or more in the last ``seconds`` (of its clock)."""
         watch = self._watches.get(robot)
-        return watch is not None and now - watch.moved_at <= seconds
+        return watch is not None and self._progress_time(robot, now)[0] - watch.moved_at <= seconds
 
     def stuck_since(self, robot: str) -> float | None:
         """When ``robot``'s current stuck spell began (its last real move), None when it
         is not stuck."""
         watch = self._watches.get(robot)
         return watch.stuck_since if watch is not None and watch.stuck else None
+
+    def stuck_for(self, robot: str, now: float) -> float:
+        """Seconds (of the robot's clock) since ``robot``'s current stuck spell began, 0
+        when it is not stuck."""
+        since = self.stuck_since(robot)
+        return 0.0 if since is None else max(0.0, self._progress_time(robot, now)[0] - since)
 
     def nav_status(self, robot: str, msg: Mapping[str, Any], now: float) -> list[EventDraft]:
         """A GoalStatusArray: an aborted, rejected or lost goal once, with its reason."""
@@ -494,11 +525,13 @@ class EventDeriver:
             watch.stuck = False
             text = f"{robot} is moving again" if watch.goal_active else f"{robot} has no goal"
             return self._clear(watch, now, Kind.STUCK, robot, text)
+        at, on_robot_clock = self._progress_time(robot, now)
         if (
             watch.stuck
             or not watch.goal_active
             or not anchor
-            or now - anchor[2] <= self.stuck_after
+            or on_robot_clock != watch.on_robot_clock
+            or at - anchor[2] <= self.stuck_after
         ):
             return []
         watch.stuck, watch.stuck_since = True, anchor[2]
@@ -506,7 +539,7 @@ class EventDeriver:
         blocker, why = found or ("unknown", "an unknown obstacle or person")
         text = (
             f"{robot} has a goal but moved less than {STUCK_METRES} m in "
-            f"{round(now - anchor[2])} s: blocked by {why}"
+            f"{round(at - anchor[2])} s: blocked by {why}"
         )
         return [
             self._draft(

@@ -41,7 +41,7 @@ from dataclasses import replace
 from cloudnav_core import topics
 from cloudnav_core.messages import goal_of, pose_stamped
 from cloudnav_core.se2 import Pose
-from cloudnav_core.times import complete_header_stamp
+from cloudnav_core.times import RobotClocks, complete_header_stamp
 from maps.domain.reservations import ParkingPlace, Reservations
 from maps.services import GOAL_CHECK_RADIUS
 from robots.missions import Goal
@@ -100,12 +100,13 @@ class Hub:
         self._fragment_shares: dict[str, ByteBudget] = {}
         self.clients: dict[str, Client] = {}
         spots = Reservations(GOAL_CHECK_RADIUS)
-        self.events = EventLog(deriver=EventDeriver(config.stuck_after, self._blocking))
+        clocks = RobotClocks()  # each robot's own time, for its stuck spells and time limits
+        self.events = EventLog(deriver=EventDeriver(config.stuck_after, self._blocking, clocks))
         self.right_of_way = RightOfWay(
             GOAL_CHECK_RADIUS, self.events, self.tell, enabled=config.right_of_way
         )
         self.missions = MissionRunner(
-            self._send_goal, self.robots, self._place_goal, self._waypoint_late
+            self._send_goal, self.robots, self._place_goal, self._waypoint_late, robot_clocks=clocks
         )
         self.teleop = TeleopGate(config, self.bus, self.events)
         self.poses = PoseChecks(spots)
