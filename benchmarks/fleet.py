@@ -183,8 +183,23 @@ class Watch:
         hardware = self.member.robot.hardware
         gap = math.inf if hardware.crowd is None else gap_to_others(hardware.body, hardware.crowd)
         touching = gap < CONTACT or hardware.body.bumped
-        self.contacts += touching and not self.touching
+        if touching and not self.touching:
+            self.contacts += 1
+            what = "a wall (bumper)" if hardware.body.bumped else f"a person or robot {gap:.3f} m"
+            self._say(f"contact with {what}")
         self.touching = touching
+
+    def _say(self, what: str) -> None:
+        """Tell the bench log what happened to this robot, where and what it was doing."""
+        robot = self.member.robot
+        x, y, _ = robot.hardware.true_pose
+        active = robot.navigator.board.active
+        doing = active.text if active is not None else "no goal"
+        print(
+            f"fleet: {self.member.name} {what} at ({x:.2f}, {y:.2f}) t={self.seconds:.0f} s: "
+            f"{doing}",
+            file=sys.stderr,
+        )
 
     def _goals(self) -> None:
         for entry in self.member.robot.navigator.board.entries:
@@ -206,6 +221,7 @@ class Watch:
             self.best, self.progress_at = away, self.seconds
         elif self.seconds - self.progress_at >= STUCK_S:
             self.deadlocks += 1
+            self._say(f"deadlock: {away:.1f} m from its goal ({goal[0]:.2f}, {goal[1]:.2f})")
             self.progress_at = self.seconds  # the next one after another minute stuck
 
 
