@@ -174,12 +174,8 @@ async def answer_cancels(robot, cancelled: asyncio.Event) -> None:
             return
 
 
-@live
-async def test_a_robot_stuck_behind_a_standing_robot_is_replanned_then_aborted(
-    rosbridge, demo, settings
-):
-    settings.CLOUDNAV_STUCK_AFTER = 2.0
-    settings.CLOUDNAV_STUCK_GIVE_UP_AFTER = 3.0
+async def sent_behind_a_standing_robot(rosbridge, demo):
+    """robot_0, serving cancels, given a goal past robot_1 standing 0.7 m in its way."""
     operator, tokens = demo
     standing = await rosbridge(token=tokens["robot_1"])
     await standing.send(op="publish", topic="pose", msg=pose(20.0, 23.2, ATRIUM))
@@ -189,6 +185,16 @@ async def test_a_robot_stuck_behind_a_standing_robot_is_replanned_then_aborted(
     page = await rosbridge(user=operator)
     await page.send(op="publish", topic="/robot_0/goal", msg=pose(20.0, 21.0, ATRIUM))
     await blocked.receive_until(lambda f: f.get("op") == "publish")
+    return blocked
+
+
+@live
+async def test_a_robot_stuck_behind_a_standing_robot_is_replanned_then_aborted(
+    rosbridge, demo, settings
+):
+    settings.CLOUDNAV_STUCK_AFTER = 2.0
+    settings.CLOUDNAV_STUCK_GIVE_UP_AFTER = 3.0
+    blocked = await sent_behind_a_standing_robot(rosbridge, demo)
     done = asyncio.Event()
     talk = asyncio.create_task(
         saying(
@@ -246,15 +252,7 @@ class RobotClock:
 async def test_the_stuck_rule_gives_up_after_the_robot_s_own_seconds(rosbridge, demo, settings):
     settings.CLOUDNAV_STUCK_AFTER = 2.0
     settings.CLOUDNAV_STUCK_GIVE_UP_AFTER = 3.0
-    operator, tokens = demo
-    standing = await rosbridge(token=tokens["robot_1"])
-    await standing.send(op="publish", topic="pose", msg=pose(20.0, 23.2, ATRIUM))
-    blocked = await rosbridge(token=tokens["robot_0"])
-    await blocked.send(op="subscribe", topic="goal")
-    await serve_cancel(blocked)
-    page = await rosbridge(user=operator)
-    await page.send(op="publish", topic="/robot_0/goal", msg=pose(20.0, 21.0, ATRIUM))
-    await blocked.receive_until(lambda f: f.get("op") == "publish")
+    blocked = await sent_behind_a_standing_robot(rosbridge, demo)
     clock, done = RobotClock(), asyncio.Event()
     talk = asyncio.create_task(
         saying(
