@@ -205,6 +205,34 @@ REGISTRY = Registry()
 atexit.register(REGISTRY.stop_and_join)  # outside daphne (commands, tests): at exit
 
 
+class NotStarted(RuntimeError):
+    """A process's worker was asked for before it was started (the server starts every
+    one from ``cloudnav_web.background``)."""
+
+
+class Started(Generic[T]):
+    """The process's one ``T`` (a worker, or what holds its workers), made and started once
+    by ``start`` and handed to whoever asks after (``get``)."""
+
+    def __init__(self, what: str) -> None:
+        self.what = what
+        self._value: T | None = None
+        self._lock = threading.Lock()
+
+    def start(self, make: Callable[[], T]) -> T:
+        """Make and start it with ``make`` unless that was done; return it."""
+        with self._lock:
+            if self._value is None:
+                self._value = make()
+            return self._value
+
+    def get(self) -> T:
+        """Return it. Raises NotStarted before ``start``."""
+        if self._value is None:
+            raise NotStarted(f"{self.what} was not started (cloudnav_web.background starts it)")
+        return self._value
+
+
 class Worker:
     """A named thread running ``work(stopping)`` until ``stopping`` is set (``stop``);
     ``wake`` is called on ``stop`` to rouse a thread waiting for work (``Inbox.close``)."""
