@@ -6,6 +6,9 @@ is a named thread (``Worker``), a named thread pool (``Pool``) or a named asynci
 (``TaskWorker``); each registers with ``REGISTRY`` when it starts, and the process's end
 (``REGISTRY.finish`` under daphne, ``REGISTRY.stop_and_join`` at exit otherwise) stops
 them all and joins them within a deadline, so none is cut off half way through a write.
+What a process has one of (a queue and its worker, a pool) it holds in a ``Started``,
+started once by the server's composition root and asked for after (``NotStarted``
+before).
 """
 
 from __future__ import annotations

@@ -9,9 +9,10 @@ does at exit elsewhere). ``install`` runs once, when the ASGI application is mad
   (``maps.visual.worker``), the relocalisation lanes (``maps.visual.lanes``) and the video
   encoders (``telemetry.video.relay``). They wait idle; what they work with (OpenCV's
   detector, the vocabulary, a building's keyframes) loads with the first request that
-  needs it, so start-up stays quick. Asked for before they are started, they raise
-  ``NotStarted``; tests that serve requests without the ASGI application call
-  ``start_serving`` as the server does (``tests/conftest.py``).
+  needs it, so start-up stays quick (measured: docs/design.md, "Background work"). Asked
+  for before they are started, they raise ``NotStarted``; tests that serve requests
+  without the ASGI application call ``start_serving`` as the server does
+  (``tests/conftest.py``).
 - it has each hub (one per event loop, ``telemetry.rosbridge.hub.get_hub``, started by the
   first connection or video request) start, once it has started, the workers that tap its
   topics (``start_with_hub``): the recorder (``telemetry.recording``, one per process, if
