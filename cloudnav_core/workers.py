@@ -6,6 +6,9 @@ is a named thread (``Worker``), a named thread pool (``Pool``) or a named asynci
 (``TaskWorker``); each registers with ``REGISTRY`` when it starts, and the process's end
 (``REGISTRY.finish`` under daphne, ``REGISTRY.stop_and_join`` at exit otherwise) stops
 them all and joins them within a deadline, so none is cut off half way through a write.
+What a process has one of (a queue and its worker, a pool) it holds in a ``Started``,
+started once by the server's composition root and asked for after (``NotStarted``
+before).
 """
 
 from __future__ import annotations
@@ -203,6 +206,34 @@ class Registry:
 
 REGISTRY = Registry()
 atexit.register(REGISTRY.stop_and_join)  # outside daphne (commands, tests): at exit
+
+
+class NotStarted(RuntimeError):
+    """A process's worker was asked for before it was started (the server starts every
+    one from ``cloudnav_web.background``)."""
+
+
+class Started(Generic[T]):
+    """The process's one ``T`` (a worker, or what holds its workers), made and started once
+    by ``start`` and handed to whoever asks after (``get``)."""
+
+    def __init__(self, what: str) -> None:
+        self.what = what
+        self._value: T | None = None
+        self._lock = threading.Lock()
+
+    def start(self, make: Callable[[], T]) -> T:
+        """Make and start it with ``make`` unless that was done; return it."""
+        with self._lock:
+            if self._value is None:
+                self._value = make()
+            return self._value
+
+    def get(self) -> T:
+        """Return it. Raises NotStarted before ``start``."""
+        if self._value is None:
+            raise NotStarted(f"{self.what} was not started (cloudnav_web.background starts it)")
+        return self._value
 
 
 class Worker:

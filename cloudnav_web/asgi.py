@@ -8,9 +8,9 @@ the consumer can reach daphne's own ``send`` (see ``telemetry.rosbridge.transpor
 that hold, before daphne keeps them, and ``headers.install`` closes connections whose
 headers do not arrive in time; ``access_log.install`` sends daphne's access log through
 logging (unchanged checks at DEBUG); ``redaction.install`` keeps robot tokens out of it;
-``background.install`` has each hub start the workers that tap it (the one place the
-server's workers start); ``shutdown.install`` makes SIGTERM finish every task and stop
-and join every worker before the process exits.
+``background.install`` starts the workers that serve requests and has each hub start
+those that tap it (the one place the server's workers start); ``shutdown.install`` makes
+SIGTERM finish every task and stop and join every worker before the process exits.
 
 Last, everything loaded so far (modules, settings, URL patterns: about 170,000 objects,
 alive as long as the process) is moved out of the garbage collector's reach

@@ -18,6 +18,7 @@ from django.contrib.auth.models import Group, User
 from PIL import Image
 from rest_framework.test import APIClient
 
+from cloudnav_web import background
 from maps import services
 from maps.domain.mapfile import load_map_upload
 from maps.models import Building, EnvironmentalTag, SubMap
@@ -50,6 +51,13 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
         database = item.get_closest_marker("django_db")
         if "transactional_db" in fixtures or (database and database.kwargs.get("transaction")):
             item.add_marker(pytest.mark.transactional)
+
+
+@pytest.fixture(scope="session", autouse=True)
+def serving_workers() -> None:
+    """The workers that serve requests, started as the server starts them: tests call the
+    views without the ASGI application (``cloudnav_web.background``)."""
+    background.start_serving()
 
 
 def make_user(username: str, group: str | None = None, **kwargs: Any) -> User:

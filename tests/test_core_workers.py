@@ -7,7 +7,18 @@ import asyncio
 import threading
 import time
 
-from cloudnav_core.workers import Inbox, Policy, Pool, Registry, TaskWorker, Worker
+import pytest
+
+from cloudnav_core.workers import (
+    Inbox,
+    NotStarted,
+    Policy,
+    Pool,
+    Registry,
+    Started,
+    TaskWorker,
+    Worker,
+)
 
 
 def test_a_full_inbox_that_drops_the_oldest_keeps_the_newest_and_counts_the_rest() -> None:
@@ -134,3 +145,12 @@ def test_a_task_worker_that_ends_leaves_the_registry() -> None:
 
     asyncio.run(run())
     assert registry.names() == []
+
+
+def test_the_processs_one_worker_is_made_once_and_asked_for_in_vain_before() -> None:
+    one: Started[object] = Started("the test's worker")
+    with pytest.raises(NotStarted, match="the test's worker was not started"):
+        one.get()
+    made = one.start(object)
+    assert one.start(object) is made
+    assert one.get() is made

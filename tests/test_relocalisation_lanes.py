@@ -58,7 +58,7 @@ def done(future: Future[str]) -> str:
 
 
 def test_a_robots_call_runs_at_once_while_people_hold_their_share(calls: Calls) -> None:
-    lanes = RelocalisationLanes(workers=2, waiting=8)
+    lanes = RelocalisationLanes(workers=2, waiting=8).start()
     people = [lanes.submit(person(n), calls.work(f"p{n}")) for n in range(3)]
     assert calls.until_started(1) == ["p0"]  # people take one of the two threads
     robot = lanes.submit(ROBOT, calls.work("robot", hold=False))
@@ -71,7 +71,7 @@ def test_a_robots_call_runs_at_once_while_people_hold_their_share(calls: Calls) 
 def test_a_robots_call_goes_before_the_people_waiting_when_there_is_one_thread(
     calls: Calls,
 ) -> None:
-    lanes = RelocalisationLanes(workers=1, waiting=8)
+    lanes = RelocalisationLanes(workers=1, waiting=8).start()
     people = [lanes.submit(person(n), calls.work(f"p{n}")) for n in range(3)]
     calls.until_started(1)
     robot = lanes.submit(ROBOT, calls.work("robot"))
@@ -83,7 +83,7 @@ def test_a_robots_call_goes_before_the_people_waiting_when_there_is_one_thread(
 
 
 def test_a_caller_with_two_calls_in_progress_is_told_to_wait(calls: Calls) -> None:
-    lanes = RelocalisationLanes(workers=2, waiting=8)
+    lanes = RelocalisationLanes(workers=2, waiting=8).start()
     first = [lanes.submit(person(0), calls.work(f"p0.{n}")) for n in range(2)]
     with pytest.raises(RelocalisationBusy) as refused:
         lanes.submit(person(0), calls.work("p0.2"))
@@ -96,7 +96,7 @@ def test_a_caller_with_two_calls_in_progress_is_told_to_wait(calls: Calls) -> No
 
 
 def test_a_full_lane_is_refused_and_the_other_lane_is_not(calls: Calls) -> None:
-    lanes = RelocalisationLanes(workers=2, waiting=2)
+    lanes = RelocalisationLanes(workers=2, waiting=2).start()
     running = lanes.submit(person(0), calls.work("p0"))
     calls.until_started(1)
     waiting = [lanes.submit(person(n), calls.work(f"p{n}")) for n in (1, 2)]
@@ -109,7 +109,7 @@ def test_a_full_lane_is_refused_and_the_other_lane_is_not(calls: Calls) -> None:
 
 
 def test_a_call_that_fails_hands_its_error_to_the_caller_and_the_lanes_go_on() -> None:
-    lanes = RelocalisationLanes(workers=1, waiting=2)
+    lanes = RelocalisationLanes(workers=1, waiting=2).start()
 
     def broken() -> str:
         raise ValueError("a bad image")

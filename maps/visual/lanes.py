@@ -11,7 +11,9 @@ the people queued. Each lane holds at most ``waiting`` calls and each caller at 
 ``per_caller`` calls, waiting or running; beyond either the call is refused at once
 (``RelocalisationBusy``; the lanes drop the newest, and count it in ``refused``), so a
 flood costs a bounded amount of memory and time. The threads are named workers
-(``cloudnav_core.workers``), stopped and joined at the process's end.
+(``cloudnav_core.workers``), started with the server (``start_relocalisation``, from
+``cloudnav_web.background``) and stopped and joined at the process's end; what a call
+needs (keyframes, the vocabulary) loads with the call.
 """
 
 from __future__ import annotations
@@ -25,7 +27,7 @@ from typing import Any
 
 from django.conf import settings
 
-from cloudnav_core.workers import Worker
+from cloudnav_core.workers import Started, Worker
 
 PER_CALLER = 2
 """Calls one caller may have waiting or running at once."""
@@ -56,7 +58,7 @@ class _Call:
 
 
 class RelocalisationLanes:
-    """``workers`` threads (started on first use) taking calls from two lanes."""
+    """``workers`` threads (once ``start``ed) taking calls from two lanes."""
 
     def __init__(self, workers: int, waiting: int, per_caller: int = PER_CALLER) -> None:
         self.workers = max(1, workers)
@@ -69,7 +71,15 @@ class RelocalisationLanes:
         self._callers: Counter[str] = Counter()
         self.refused = 0  # calls refused: the caller's share or the lane was full
         self._ready = threading.Condition()
-        self._workers: list[Worker] = []
+        self._workers = [
+            Worker(f"relocalise-{n}", self._serve, wake=self._wake_all) for n in range(self.workers)
+        ]
+
+    def start(self) -> RelocalisationLanes:
+        """Start the threads (they wait for calls); return the lanes."""
+        for worker in self._workers:
+            worker.start()
+        return self
 
     def submit(self, caller: Caller, work: Callable[[], Any]) -> Future[Any]:
         """Queue ``work`` for ``caller``; its future holds what it returns or raises.
@@ -92,16 +102,8 @@ class RelocalisationLanes:
             call = _Call(caller, work, Future())
             lane.append(call)
             self._callers[caller.key] += 1
-            self._start_threads()
             self._ready.notify_all()
         return call.future
-
-    def _start_threads(self) -> None:
-        while len(self._workers) < self.workers:
-            name = f"relocalise-{len(self._workers)}"
-            worker = Worker(name, self._serve, wake=self._wake_all)
-            self._workers.append(worker)
-            worker.start()
 
     def _wake_all(self) -> None:
         with self._ready:
@@ -147,17 +149,20 @@ def _run(call: _Call) -> None:
         call.future.set_result(result)
 
 
-_LANES: RelocalisationLanes | None = None
-_LANES_LOCK = threading.Lock()
+_LANES: Started[RelocalisationLanes] = Started("relocalisation")
+
+
+def start_relocalisation() -> RelocalisationLanes:
+    """Make this process's lanes (``CLOUDNAV_RELOCALISE_WORKERS`` threads,
+    ``CLOUDNAV_RELOCALISE_QUEUE`` calls waiting in each lane) and start their threads,
+    once; return the lanes."""
+    return _LANES.start(
+        lambda: RelocalisationLanes(
+            settings.CLOUDNAV_RELOCALISE_WORKERS, settings.CLOUDNAV_RELOCALISE_QUEUE
+        ).start()
+    )
 
 
 def relocalisation_lanes() -> RelocalisationLanes:
-    """This process's lanes (``CLOUDNAV_RELOCALISE_WORKERS`` threads,
-    ``CLOUDNAV_RELOCALISE_QUEUE`` calls waiting in each lane)."""
-    global _LANES
-    with _LANES_LOCK:
-        if _LANES is None:
-            _LANES = RelocalisationLanes(
-                settings.CLOUDNAV_RELOCALISE_WORKERS, settings.CLOUDNAV_RELOCALISE_QUEUE
-            )
-        return _LANES
+    """This process's lanes. Raises NotStarted before ``start_relocalisation``."""
+    return _LANES.get()

@@ -6,6 +6,10 @@ near-duplicates and stores the rest. A full queue refuses at once (the robot tri
 again with a later keyframe), so a flood of keyframes costs a bounded amount of memory
 and never holds up anything else the server does: the rosbridge relay runs on the event
 loop, this on its own thread, and OpenCV releases the GIL while it works.
+
+The server starts the worker when it starts (``start_ingestion``, from
+``cloudnav_web.background``); the vocabulary and the feature detector load with the first
+keyframe, so a process that is sent none never loads them.
 """
 
 from __future__ import annotations
@@ -18,7 +22,7 @@ from django.conf import settings
 from django.db import close_old_connections
 
 from cloudnav_core.camera import Intrinsics, Mount
-from cloudnav_core.workers import Inbox, Policy, Worker
+from cloudnav_core.workers import Inbox, Policy, Started, Worker
 from maps.domain.keyframes import Depth, FeatureExtractor, Image
 from maps.domain.vocabulary import default_vocabulary
 from maps.exceptions import KeyframeError
@@ -56,9 +60,13 @@ class IngestQueue:
         self.worker = Worker("keyframes", self._work, wake=self._jobs.close)
         self.counts = Counts()
 
+    def start(self) -> IngestQueue:
+        """Start the worker (it waits for keyframes); return the queue."""
+        self.worker.start()
+        return self
+
     def submit(self, job: Job) -> bool:
         """Queue ``job``; False (nothing queued) when the queue is full."""
-        self.worker.start()
         if not self._jobs.put(job):
             self.counts.refused += 1
             return False
@@ -69,9 +77,10 @@ class IngestQueue:
         self._jobs.join()
 
     def _work(self, stopping: threading.Event) -> None:
-        extractor = FeatureExtractor(default_vocabulary())
+        extractor: FeatureExtractor | None = None  # made with the first keyframe
         while not stopping.is_set() and (job := self._jobs.get()) is not None:
             try:
+                extractor = extractor or FeatureExtractor(default_vocabulary())
                 self._ingest(extractor, job)
             except Exception:  # the worker must outlive any one keyframe
                 logger.exception("keyframe of %s failed", job.robot)
@@ -96,14 +105,15 @@ class IngestQueue:
             self.counts.stored += 1
 
 
-_QUEUE: IngestQueue | None = None
-_QUEUE_LOCK = threading.Lock()
+_QUEUE: Started[IngestQueue] = Started("keyframe ingestion")
+
+
+def start_ingestion() -> IngestQueue:
+    """Make this process's queue (``CLOUDNAV_KEYFRAME_QUEUE`` long) and start its worker,
+    once; return the queue."""
+    return _QUEUE.start(lambda: IngestQueue(settings.CLOUDNAV_KEYFRAME_QUEUE).start())
 
 
 def ingest_queue() -> IngestQueue:
-    """This process's queue (made on first use, ``CLOUDNAV_KEYFRAME_QUEUE`` long)."""
-    global _QUEUE
-    with _QUEUE_LOCK:
-        if _QUEUE is None:
-            _QUEUE = IngestQueue(settings.CLOUDNAV_KEYFRAME_QUEUE)
-        return _QUEUE
+    """This process's queue. Raises NotStarted before ``start_ingestion``."""
+    return _QUEUE.get()

@@ -21,7 +21,8 @@ _recorder: Recorder | None = None
 
 
 def start_recorder() -> Recorder | None:
-    """This process's recorder, started on first call; None when recording is off.
+    """This process's recorder, made and started on first call (the server's: from
+    ``cloudnav_web.background``, with the first hub); None when recording is off.
 
     It is stopped at the process's end (``cloudnav_core.workers.REGISTRY``), finishing
     its files; a process killed outright leaves files

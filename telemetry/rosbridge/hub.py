@@ -181,13 +181,7 @@ class Hub:
             recorder.connected(robot)
 
     async def start(self) -> None:
-        """Start recording if it is on; join the other server processes when
-        ``REDIS_URL`` is set (scaled mode)."""
-        from telemetry.recording.service import start_recorder
-
-        recorder = start_recorder()
-        if recorder is not None:
-            self.record_with(recorder)
+        """Join the other server processes when ``REDIS_URL`` is set (scaled mode)."""
         if not self.config.redis_url:
             return
         from channels.layers import get_channel_layer

@@ -8,6 +8,9 @@ watches costs nothing, and two viewers asking the same thing share one encoder.
 An encoder is heavy work: before answering, a view ``reserve``s what a new one would need
 from the video budget (``cloudnav_django.heavy``), and is refused with 429 or 503 beyond it;
 the pipeline holds that ticket until it stops.
+
+The encoding threads are the process's, shared by the relays of every event loop, and
+started with the server (``start_encoders``, from ``cloudnav_web.background``).
 """
 
 from __future__ import annotations
@@ -20,7 +23,7 @@ from concurrent.futures import Executor
 from contextlib import asynccontextmanager
 from typing import Any
 
-from cloudnav_core.workers import Pool
+from cloudnav_core.workers import Pool, Started
 from cloudnav_django.heavy import Ticket, video_budget
 from telemetry.domain.video import SOURCE, VP8, StreamParams, encoder_memory
 from telemetry.domain.webrtc import MIME_TYPES
@@ -130,23 +133,22 @@ def _entry(topic: str, kind: str, params: str, viewers: int) -> dict[str, Any]:
 _relays: weakref.WeakKeyDictionary[asyncio.AbstractEventLoop, VideoRelay] = (
     weakref.WeakKeyDictionary()
 )
-_encoders: Pool | None = None
+_encoders: Started[Pool] = Started("video encoding")
 
 
-def encoding_threads() -> Pool:
-    """Return the process's encoding threads (shared by the relays of every event loop),
-    registered to be stopped and joined before the interpreter exits."""
-    global _encoders
-    if _encoders is None:
-        _encoders = Pool("video", WORKERS)
-    return _encoders
+def start_encoders() -> Pool:
+    """Make the process's encoding threads, once (a registered pool: stopped and joined
+    at the end; its threads start with the first frame to encode); return them."""
+    return _encoders.start(lambda: Pool("video", WORKERS))
 
 
 async def get_video_relay() -> VideoRelay:
-    """Return this process's relay (one per event loop, on its hub), creating it first."""
+    """Return this process's relay (one per event loop, on its hub), creating it first.
+    Raises NotStarted before ``start_encoders``."""
     loop = asyncio.get_running_loop()
     relay = _relays.get(loop)
     if relay is None:
+        encoders = _encoders.get()
         hub = await get_hub()
-        relay = _relays.setdefault(loop, VideoRelay(hub, encoding_threads().executor))
+        relay = _relays.setdefault(loop, VideoRelay(hub, encoders.executor))
     return relay
