@@ -43,7 +43,7 @@ import numpy as np
 from django.db import transaction
 
 from cloudnav_core.messages import published_pose_of
-from cloudnav_core.times import parse_stamp
+from cloudnav_core.times import stamp_seconds
 from cloudnav_core.workers import Inbox, Policy, Pool, TaskWorker
 
 from .. import services, versions
@@ -170,7 +170,7 @@ class UpkeepRunner:
 
     def _on_pose(self, robot: _Robot) -> OnMessage:
         def on_pose(_topic: object, msg: dict[str, Any]) -> None:
-            found, stamp = published_pose_of(msg), _stamp_of(msg)
+            found, stamp = published_pose_of(msg), stamp_seconds(msg)
             if found is None or stamp is None or not found.map_id:
                 return
             if not math.isfinite(found.x + found.y + found.yaw):
@@ -183,7 +183,7 @@ class UpkeepRunner:
 
     def _on_scan(self, robot: _Robot) -> OnMessage:
         def on_scan(_topic: object, msg: dict[str, Any]) -> None:
-            stamp = _stamp_of(msg)
+            stamp = stamp_seconds(msg)
             if stamp is None:
                 self.unpaired += 1
                 return
@@ -282,19 +282,6 @@ class UpkeepRunner:
             proposal = held.evidence.proposal()
             if not proposal.empty:
                 store_proposal(held.submap_pk, held.revision, proposal, held.evidence.scans)
-
-
-def _stamp_of(msg: dict[str, Any]) -> float | None:
-    """Seconds of the message's ``header.stamp`` (the robot's clock), or None."""
-    header = msg.get("header")
-    stamp = header.get("stamp") if isinstance(header, dict) else None
-    if not isinstance(stamp, dict):
-        return None
-    try:
-        sec, nanosec = parse_stamp(stamp)
-    except ValueError:
-        return None
-    return sec + nanosec * 1e-9
 
 
 def _moved(before: Placed | None, now: Placed) -> bool:
