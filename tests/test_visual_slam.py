@@ -5,6 +5,7 @@ started again from odometry where the map has nothing to relocalise on."""
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 import pytest
@@ -89,7 +90,7 @@ def test_tracking_lost_on_a_blank_wall_is_recovered_by_relocalisation_after_a_ju
 
 
 def drive_with_odometry(
-    mapper: VisualSlam, frames: list[tuple[Image, Depth]], odometry: list[Pose | None]
+    mapper: VisualSlam, frames: list[tuple[Image, Depth]], odometry: Sequence[Pose | None]
 ) -> list[Tracked]:
     return [mapper.track(i, d, o) for (i, d), o in zip(frames, odometry, strict=True)]
 

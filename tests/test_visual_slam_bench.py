@@ -26,6 +26,7 @@ KEYS = {
     "loop_closures",
     "false_loop_closures",
     "tracking_lost",
+    "tracking_relocalised",
     "tracking_restarted",
     "frames_per_s",
     "cpu_per_robot",

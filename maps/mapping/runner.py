@@ -486,7 +486,7 @@ class MappingRunner:
 
     def _tell(self, robot: str, news: MappingNews) -> None:
         if self.tell is not None:
-            self.tell(topics.robot_topic(robot, topics.MAPPING), mapping_message(news))
+            self.tell(topics.robot_topic(robot, topics.MAPPING), dict(mapping_message(news)))
 
 
 def _message_to(callback: Callable[[dict[str, Any]], None]) -> OnMessage:
