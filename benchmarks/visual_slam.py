@@ -20,7 +20,10 @@ robot's encoding are not timed. Figures (``--json``: one object, these keys):
   about a metre of path apart, over that path's length;
 - ``loop_closures`` and ``false_loop_closures``: a closure is false when its measured
   relative pose misses the truth by more than ``FALSE_LOOP`` (0.3 m or 10 degrees);
-- ``tracking_lost``: frames the tracker could not place;
+- ``tracking_lost``: frames the tracker could not place; ``tracking_relocalised``:
+  frames placed by a search of every keyframe after a loss; ``tracking_restarted``: lost
+  frames it started mapping again from (odometry's pose after 5 lost in a row; the tour
+  sends no odometry, so relocalisation alone ends a loss here and this stays 0);
 - ``frames_per_s``: frames one core could take (1 / the mean CPU a frame);
   ``cpu_per_robot``: the share of a core a robot's 5 frames/s take;
 - ``grid_cell_agreement``: the derived 2D grid against the building's truth over the
@@ -144,6 +147,8 @@ def measure(options: dict[str, Any]) -> dict[str, Any]:
         "loop_closures": ours.mapper.stats.loop_closures,
         "false_loop_closures": false_loops(ours, poses),
         "tracking_lost": ours.mapper.stats.lost,
+        "tracking_relocalised": ours.mapper.stats.relocalised,
+        "tracking_restarted": ours.mapper.stats.restarted,
         "frames_per_s": round(frames / ours.cpu_s, 1),
         "cpu_per_robot": round(ours.cpu_s / frames * CAMERA_RATE, 3),
         "grid_cell_agreement": round(agreement, 4),

@@ -741,6 +741,38 @@ def wait_order_of(msg: Message) -> WaitOrder | None:
     return order if _finite(x, y, yaw, px, py) else None
 
 
+@dataclass(frozen=True)
+class MappingNews:
+    """The cloud's word on a robot's latched ``mapping`` topic: what happened (``event``:
+    ``started``, ``saved``, ``stopped``, or ``not_mapping`` for camera frames streamed
+    with no session) to its mapping session (None: it has none), and why."""
+
+    session: int | None
+    event: str
+    reason: str = ""
+
+
+def mapping_message(news: MappingNews) -> String:
+    """``std_msgs/String`` on ``/r/mapping``: ``data`` is JSON, ``{"session", "event"}``
+    and ``"reason"`` when there is one."""
+    body: dict[str, Any] = {"session": news.session, "event": news.event}
+    if news.reason:
+        body["reason"] = news.reason
+    return string_message(json.dumps(body))
+
+
+def mapping_news_of(msg: Message) -> MappingNews | None:
+    """The news in a ``mapping`` message; None for a message that is not one."""
+    try:
+        body = json.loads(msg["data"])
+        session, event, reason = body["session"], body["event"], body.get("reason", "")
+    except (KeyError, TypeError, ValueError, AttributeError):
+        return None
+    if not (session is None or type(session) is int) or not isinstance(event, str):
+        return None
+    return MappingNews(session, event, reason if isinstance(reason, str) else "")
+
+
 def goal_of(msg: Message) -> Pose2D | None:
     """The target of a goal ``PoseStamped`` (``map_id`` = its frame), or None if the
     message has no usable pose or no frame."""

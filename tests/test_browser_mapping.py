@@ -112,6 +112,7 @@ def test_an_admin_starts_a_visual_session_and_sees_its_figures_and_its_3d_map(
     figures = page.locator("#mapping-figures")
     expect(figures).to_contain_text("0 frames lost", timeout=60_000)  # mapped from the camera
     expect(figures).to_contain_text("1 keyframes")
+    expect(figures).to_contain_text("0 restarts from odometry")
     sessions = page.request.get(demo.url(f"/api/mapping/sessions/?robot={ROBOT}"))
     assert sessions.json()[0]["kind"] == "visual"
 

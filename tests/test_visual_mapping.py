@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import base64
 import math
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -298,3 +299,14 @@ def test_the_grid_is_made_again_only_when_keyframes_moved_past_the_tolerance() -
     assert not np.array_equal(moved, first)
     assert moved_origin == fresh_origin
     assert np.array_equal(moved, fresh)  # past it: made again at the keyframes' poses
+
+
+def test_a_session_started_facing_the_demos_plain_wall_maps_on_and_counts_its_restarts() -> None:
+    start = demo_building().robot_starts[0]
+    poses = [compose(start, (0.0, 0.0, math.radians(10.0 * k))) for k in range(19)]
+    mapper = VisualMapper(default_vocabulary(), start)
+    for frame, odometry in zip(frames(poses), poses, strict=True):
+        mapper.add(replace(frame, odometry=odometry))
+    assert mapper.stats.restarted >= 1  # lost on the wall, then on from odometry's pose
+    assert mapper.stats.tracked + mapper.stats.relocalised > 5  # not only the first frame
+    assert mapper.stats.keyframes == len(mapper.keyframes()) == len(mapper.scans) > 3

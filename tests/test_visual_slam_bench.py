@@ -26,6 +26,8 @@ KEYS = {
     "loop_closures",
     "false_loop_closures",
     "tracking_lost",
+    "tracking_relocalised",
+    "tracking_restarted",
     "frames_per_s",
     "cpu_per_robot",
     "grid_cell_agreement",
@@ -60,6 +62,7 @@ def test_a_tiny_tour_prints_one_json_object_with_the_keys() -> None:
     assert result["frames"] == 21
     assert result["tour_m"] == 2.0
     assert result["tracking_lost"] == 0
+    assert result["tracking_restarted"] == 0  # no odometry sent: nothing to restart from
     assert result["false_loop_closures"] == 0
     assert result["ate_rmse_m"] < 0.05
     assert result["peer_ate_rmse_m"] < 0.2

@@ -58,6 +58,7 @@ class VisualMapStats:
     tracked: int = 0
     relocalised: int = 0
     lost: int = 0
+    restarted: int = 0  # lost frames that started mapping again from odometry's pose
     keyframes: int = 0
     loop_closures: int = 0
     refused: int = 0  # frames of bad input (out of order, depth not matching, ...)
@@ -172,6 +173,7 @@ class VisualMapper:
         self.stats.tracked += state is State.TRACKING
         self.stats.relocalised += state is State.RELOCALISED
         self.stats.lost += state is State.LOST
+        self.stats.restarted += state is State.RESTARTED
         self.stats.loop_closures += loop_closed
 
     def grid(self) -> tuple[Grid, tuple[float, float]]:

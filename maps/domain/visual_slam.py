@@ -33,7 +33,20 @@ its pose, so tracking goes on in the corrected map.
 **Lost**: when the recent keyframes do not place a frame (a blank wall, a kidnapped
 robot), every keyframe is searched, as a wake-up is (retrieval, then the geometric
 check). Until one places it, the pose is dead-reckoned from odometry when there is some
-(else held) and the state is ``lost``; no keyframe is made from a lost frame.
+(else held) and the state is ``lost``.
+
+**Restarted**: a robot that loses tracking where the map has nothing (it turned away
+from the only view it mapped, its camera was covered) would stay lost for good, since
+only a frame some keyframe places goes on. So after ``restart_after_lost`` lost frames
+in a row whose pose odometry carried from the last placed frame, mapping starts again
+where odometry puts the camera (ORB-SLAM starts a new map on loss; RTAB-Map bridges the
+gap with odometry): the frame becomes a keyframe there (state ``restarted``), tied to
+the last keyframe tracking used by an odometry edge with wide sigmas
+(``restart_sigmas``), so a later loop closure pulls it and what follows into place. A
+frame too bare for a keyframe (a covered camera) stays lost and the next one is tried.
+Without odometry, or after a frame without it, or on a resumed map before a frame is
+placed (nobody counted what the robot did meanwhile), nothing says where the camera
+went, so only relocalisation ends the loss.
 
 Nothing here imports Django.
 """
@@ -76,6 +89,12 @@ class VisualSlamParams:
     """...this share of the distance travelled since the loop partner was made."""
     tracking_sigmas: tuple[float, float, float] = (0.02, 0.02, math.radians(1.0))
     loop_sigmas: tuple[float, float, float] = (0.03, 0.03, math.radians(1.0))
+    restart_after_lost: int = 5
+    """Lost frames in a row, each carried by odometry, after which mapping starts again
+    from the odometry's pose (a second of a camera at 5 frames/s)."""
+    restart_sigmas: tuple[float, float, float] = (0.5, 0.5, math.radians(15.0))
+    """The odometry edge that ties a restart to the map: wide, as wheels slip and
+    nothing checked them while the camera was lost."""
     solver: Params = field(default_factory=Params)
     """The pose solver's tuning (the relocalisation service's)."""
 
@@ -84,6 +103,7 @@ class State(Enum):
     TRACKING = "tracking"
     RELOCALISED = "relocalised"
     LOST = "lost"
+    RESTARTED = "restarted"
 
 
 @dataclass(frozen=True)
@@ -130,6 +150,10 @@ class VisualSlam:
         self._index = KeyframeIndex(vocabulary.size)
         self._odometry: Pose | None = None
         self._lost = False
+        self._anchor = 0  # the keyframe the last placed frame was tracked against
+        self._bridged: int | None = 0
+        """Lost frames in a row whose pose odometry carried from the last placed one; None
+        when no odometry carried it from there (a frame without, a resumed map)."""
 
     @property
     def keyframes(self) -> list[Keyframe]:
@@ -170,6 +194,8 @@ class VisualSlam:
         for position, keyframe in enumerate(keyframes):
             slam._index.add(position, "", keyframe)
         slam._lost = bool(keyframes)
+        slam._anchor = max(len(keyframes) - 1, 0)
+        slam._bridged = None  # the robot may have moved with nobody counting its odometry
         return slam
 
     def track(self, image: Image, depth: Depth, odometry: Pose | None = None) -> Tracked:
@@ -183,28 +209,32 @@ class VisualSlam:
                 f"the depth image is {depth.shape[1]}x{depth.shape[0]}, "
                 f"the colour image {image.shape[1]}x{image.shape[0]}: they must match",
             )
-        predicted = self._predicted(odometry)
+        predicted, carried = self._predicted(odometry)
         pixels, descriptors = self.extractor.detect(image)
         frame = QueryFrame(pixels, descriptors, self.extractor.vocabulary.bag(descriptors))
         if not self._graph.keyframes:
             return self._first(image, depth, predicted)
         answer, state = self._placed(frame)
         if not answer.localised:
-            self.pose = predicted
-            return Tracked(predicted, State.LOST, answer.inliers, reason=answer.reason)
+            self._bridged = self._bridged + 1 if carried and self._bridged is not None else None
+            self._move_to(predicted)
+            return self._lost_or_restarted(image, depth, answer)
+        self._bridged = 0
+        self._anchor = max(answer.keyframes)
         self._move_to(answer.pose)
         made, closed = self._maybe_keyframe(image, depth, frame, answer)
         return Tracked(self.pose, state, answer.inliers, made, closed)
 
     # --- tracking ---------------------------------------------------------------------
 
-    def _predicted(self, odometry: Pose | None) -> Pose:
+    def _predicted(self, odometry: Pose | None) -> tuple[Pose, bool]:
         """Where the robot is before the image is looked at: the last pose moved by the
-        odometry step since the last frame, or the last pose."""
+        odometry step since the last frame, or the last pose; and whether odometry moved
+        it."""
         previous, self._odometry = self._odometry, odometry
         if odometry is None or previous is None:
-            return self.pose
-        return compose(self.pose, relative(previous, odometry))
+            return self.pose, False
+        return compose(self.pose, relative(previous, odometry)), True
 
     def _first(self, image: Image, depth: Depth, pose: Pose) -> Tracked:
         try:
@@ -225,6 +255,21 @@ class VisualSlam:
         anywhere = relocalise(self._index, [frame], *self._camera(), params=self.params.solver)
         self._lost = not anywhere.localised
         return anywhere, State.RELOCALISED if anywhere.localised else State.LOST
+
+    def _lost_or_restarted(self, image: Image, depth: Depth, answer: Answer) -> Tracked:
+        """A frame no keyframe placed, at the predicted pose: ``lost``, or, once
+        ``restart_after_lost`` lost frames in a row were carried by odometry, a keyframe
+        tied to the last keyframe tracked by an odometry edge (``restarted``)."""
+        if self._bridged is not None and self._bridged >= self.params.restart_after_lost:
+            try:
+                keyframe = self.extractor.keyframe(image, depth, self.pose, *self._camera())
+            except KeyframeError:
+                pass  # too bare to map from (a covered camera): the next frame may do
+            else:
+                self._add_keyframe(keyframe, self._anchor, self.params.restart_sigmas)
+                self._lost, self._bridged = False, 0
+                return Tracked(self.pose, State.RESTARTED, answer.inliers, keyframe=True)
+        return Tracked(self.pose, State.LOST, answer.inliers, reason=answer.reason)
 
     def _local_index(self) -> KeyframeIndex:
         count = len(self._graph.keyframes)
@@ -267,12 +312,20 @@ class VisualSlam:
             or inliers < params.weak_inliers
         )
 
-    def _add_keyframe(self, keyframe: Keyframe, anchor: int | None) -> None:
+    def _add_keyframe(
+        self,
+        keyframe: Keyframe,
+        anchor: int | None,
+        sigmas: tuple[float, float, float] | None = None,
+    ) -> None:
+        """Add ``keyframe`` tied to keyframe ``anchor`` (if any) by the relative pose of
+        the two, with ``sigmas`` (else tracking's)."""
         graph = self._graph
         if anchor is not None:
             measured = relative(graph.keyframes[anchor].pose, keyframe.pose)
-            edge = (anchor, len(graph.keyframes), measured, self.params.tracking_sigmas, False)
-            graph.edges.append(edge)
+            noise = sigmas or self.params.tracking_sigmas
+            graph.edges.append((anchor, len(graph.keyframes), measured, noise, False))
+        self._anchor = len(graph.keyframes)
         self._index.add(len(graph.keyframes), "", keyframe)
         graph.keyframes.append(keyframe)
         graph.travelled.append(self.travelled)

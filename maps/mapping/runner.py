@@ -35,7 +35,6 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import json
 import logging
 import math
 import threading
@@ -48,7 +47,7 @@ from asgiref.sync import sync_to_async
 from django.conf import settings
 
 from cloudnav_core import topics
-from cloudnav_core.messages import pose_of
+from cloudnav_core.messages import MappingNews, mapping_message, pose_of
 from cloudnav_core.times import stamp_seconds
 from cloudnav_core.workers import Inbox, Policy, Pool, TaskWorker
 from cloudnav_django.batches import UNREACHABLE
@@ -478,16 +477,16 @@ class MappingRunner:
         def tell(_topic: Any, _msg: Any) -> None:
             if not told:
                 told.append(True)
-                self._tell(robot, {"session": None, "event": "not_mapping", "reason": NOT_MAPPING})
+                self._tell(robot, MappingNews(None, "not_mapping", NOT_MAPPING))
 
         return tell
 
     def _told(self, robot: str, session: int, what: str) -> None:
-        self._tell(robot, {"session": session, "event": what})
+        self._tell(robot, MappingNews(session, what))
 
-    def _tell(self, robot: str, news: dict[str, Any]) -> None:
+    def _tell(self, robot: str, news: MappingNews) -> None:
         if self.tell is not None:
-            self.tell(topics.robot_topic(robot, topics.MAPPING), {"data": json.dumps(news)})
+            self.tell(topics.robot_topic(robot, topics.MAPPING), dict(mapping_message(news)))
 
 
 def _message_to(callback: Callable[[dict[str, Any]], None]) -> OnMessage:

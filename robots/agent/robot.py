@@ -50,6 +50,7 @@ from numpy.typing import NDArray
 from cloudnav_core import timecode
 from cloudnav_core.messages import (
     Json,
+    MappingNews,
     Message,
     battery_state,
     camera_info,
@@ -57,6 +58,7 @@ from cloudnav_core.messages import (
     depth_image,
     goal_of,
     initial_pose_of,
+    mapping_news_of,
     path_message,
     pose_stamped,
     status_array,
@@ -235,6 +237,7 @@ class Robot(Generic[H]):
         self._published_status = -1
         self._published_whereabouts: Whereabouts | None = None
         self._map_to_publish: str | None = None
+        self._mapping_news: MappingNews | None = None
         self._tasks: set[asyncio.Task[Any]] = set()
         self._checking: asyncio.Task[Any] | None = None
         supervisor.on_map.append(self._entered)
@@ -266,6 +269,19 @@ class Robot(Generic[H]):
     def on_right_of_way(self, msg: Json) -> None:
         """The cloud's right of way: wait at a spot before a narrow place, or go on."""
         self.navigator.give_way(wait_order_of(msg))
+
+    def on_mapping(self, msg: Json) -> None:
+        """The cloud's word on mapping this robot, logged when it changes (the latched
+        topic says it again on every reconnect): above all why camera frames streamed
+        with no session are not mapped."""
+        news = mapping_news_of(msg)
+        if news is None or news == self._mapping_news:
+            return
+        self._mapping_news = news
+        if news.event == "not_mapping":
+            logger.warning("the cloud is not mapping this robot: %s", news.reason)
+        elif news.event in ("started", "stopped"):
+            logger.info("the cloud's mapping session %s of this robot %s", news.session, news.event)
 
     def on_initial_pose(self, msg: Json) -> None:
         """An operator's pose estimate, in the sub-map its frame names."""
@@ -519,4 +535,5 @@ def declare(robot: Robot[Any], client: RosbridgeClient) -> None:
     client.subscribe("goal", ROBOT_TOPIC_TYPES["goal"], robot.on_goal)
     client.subscribe("initialpose", ROBOT_TOPIC_TYPES["initialpose"], robot.on_initial_pose)
     client.subscribe("right_of_way", ROBOT_TOPIC_TYPES["right_of_way"], robot.on_right_of_way)
+    client.subscribe("mapping", ROBOT_TOPIC_TYPES["mapping"], robot.on_mapping)
     client.advertise_service(CANCEL_GOAL, ROBOT_SERVICE_TYPES[CANCEL_GOAL], robot.on_cancel)

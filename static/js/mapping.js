@@ -45,7 +45,9 @@ async function show(session) {
   const s = session.stats || {};
   const visual = session.kind === "visual";
   const dropped = `${s.dropped ?? 0} ${visual ? "frames" : "scans"} dropped`;
-  const lost = visual ? ` · ${s.lost ?? 0} frames lost · ${s.refused ?? 0} refused` : "";
+  const lost = visual
+    ? ` · ${s.lost ?? 0} frames lost · ${s.restarted ?? 0} restarts from odometry · ${s.refused ?? 0} refused`
+    : "";
   $("mapping-figures").textContent = session.snapshot
     ? `${session.size[0]}×${session.size[1]} cells · ${s.keyframes ?? 0} keyframes · ${s.loop_closures ?? 0} loop closures · ${dropped}${lost} · ${fixed(100 * (s.cpu_share ?? 0), 1)} % CPU`
     : `waiting for the robot's ${visual ? "camera" : "scans"}…`;
