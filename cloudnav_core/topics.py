@@ -40,7 +40,7 @@ COMMAND_TOPICS = frozenset({"cmd_vel", "goal", "initialpose"})
 # Topics whose last message every new subscriber receives, whatever the publisher asked.
 LATCHED_TOPICS = frozenset({"map_id", "localisation", "mapping", "right_of_way"})
 # Robot topics only the server publishes: the robot itself may not.
-SERVER_TOPICS = frozenset({"right_of_way"})
+SERVER_TOPICS = frozenset({"mapping", "right_of_way"})
 CMD_VEL = "cmd_vel"
 POSE = "pose"
 MAP_ID = "map_id"

@@ -133,11 +133,12 @@ async def test_with_right_of_way_off_nobody_is_told_to_wait(rosbridge, demo, set
 
 
 @live
-async def test_a_robot_may_not_publish_its_own_right_of_way(rosbridge, demo):
+@pytest.mark.parametrize("topic", ["right_of_way", "mapping"])
+async def test_a_robot_may_not_publish_what_only_the_server_tells_it(rosbridge, demo, topic):
     _, tokens = demo
     robot = await rosbridge(token=tokens["robot_0"])
     await robot.send(op="set_level", level="warning")
-    await robot.send(op="publish", topic="right_of_way", msg={"data": '{"state": "go"}'})
+    await robot.send(op="publish", topic=topic, msg={"data": '{"state": "go"}'})
     refused = await robot.receive_until(lambda f: f.get("op") == "status")
     assert refused["level"] == "error"
 
