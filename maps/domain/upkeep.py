@@ -81,6 +81,7 @@ import numpy as np
 import numpy.typing as npt
 from scipy.ndimage import binary_dilation, distance_transform_edt
 
+from cloudnav_core.beams import Beams, grid_point, traverse
 from cloudnav_core.grid import cells_of
 from cloudnav_core.se2 import Pose
 from maps.domain.slam.matching import Field, search
@@ -300,24 +301,25 @@ class Evidence:
     def _crossed(
         self, pose: Pose, ranges: npt.NDArray[np.float64], angles: npt.NDArray[np.float64]
     ) -> tuple[Cells, bool]:
-        """Cells the beams (``ranges`` as measured) crossed, up to ``surface_margin``
-        before each return, a stored wall cell only as ``_beam_frees`` allows; and
-        whether any stored wall cell is among them."""
-        p = self.params
+        """Cells the beams (``ranges`` as measured) passed through (the core's one
+        traversal), up to ``surface_margin`` before each return, a stored wall cell only as
+        ``_beam_frees`` allows; and whether any stored wall cell is among them."""
+        p, res = self.params, self.resolution
         reach = np.clip(ranges - p.surface_margin, 0.0, None)
-        samples = math.ceil(float(reach.max(initial=0.0)) / (self.resolution / 2)) + 1
-        t = np.linspace(0.0, 1.0, samples)[None, :]
-        x = pose[0] + (reach * np.cos(angles))[:, None] * t
-        y = pose[1] + (reach * np.sin(angles))[:, None] * t
-        points = np.column_stack((x.ravel(), y.ravel()))
-        cells = self._cells(points)
-        kept = cells[:, 0] >= 0
+        beams = Beams.towards(*grid_point(pose[:2], self.origin, res), angles)
+        passed = traverse(beams, reach / res)
+        cells = np.column_stack((passed.rows, passed.cols))
+        height, width = self.stored.shape
+        kept = (cells[:, 0] >= 0) & (cells[:, 0] < height) & (cells[:, 1] >= 0)
+        kept &= cells[:, 1] < width
         wall = np.zeros_like(kept)
         wall[kept] = self.stored[cells[kept, 0], cells[kept, 1]] == 1
         frees_wall = False
         if wall.any():
-            beam = np.repeat(np.arange(len(ranges)), samples)[wall]
-            freed = self._beam_frees(pose, points[wall], ranges[beam], angles[beam])
+            gx, gy = passed.middles(beams)
+            middles = np.column_stack((gx, gy))[wall] * res + self.origin
+            beam = passed.beam[wall]
+            freed = self._beam_frees(pose, cells[wall], middles, ranges[beam], angles[beam])
             kept[wall] = freed
             frees_wall = bool(freed.any())
         return cells[kept], frees_wall
@@ -325,28 +327,28 @@ class Evidence:
     def _beam_frees(
         self,
         pose: Pose,
-        points: npt.NDArray[np.float64],
+        cells: Cells,
+        middles: npt.NDArray[np.float64],
         ranges: npt.NDArray[np.float64],
         angles: npt.NDArray[np.float64],
     ) -> npt.NDArray[np.bool_]:
-        """Whether each beam (its range, its heading) frees the stored wall cell under
-        each of its ``points``: only when its return lies beyond the cell by the margin
-        (``free_margin`` plus ``free_margin_per_m`` per metre of range), and the beam
-        moved sideways by ``free_beside`` of that margin either way would still run
-        through stored wall there. A beam grazing a wall's face, or clipping its corner,
-        is what a pose a little off makes of a beam that passed beside the wall: it
-        frees nothing."""
+        """Whether each beam (its range, its heading) frees the stored wall cell of
+        ``cells`` it passed through, ``middles`` the midpoint of its stretch there: only
+        when its return lies beyond the cell by the margin (``free_margin`` plus
+        ``free_margin_per_m`` per metre of range), and the beam moved sideways by
+        ``free_beside`` of that margin either way would still run through stored wall
+        there. A beam grazing a wall's face, or clipping its corner, is what a pose a
+        little off makes of a beam that passed beside the wall: it frees nothing."""
         p, res = self.params, self.resolution
         margin = p.free_margin + p.free_margin_per_m * ranges
         dx, dy = np.cos(angles), np.sin(angles)
-        cells = self._cells(points)
         cx = self.origin[0] + (cells[:, 1] + 0.5) * res - pose[0]
         cy = self.origin[1] + (cells[:, 0] + 0.5) * res - pose[1]
         leaves = cx * dx + cy * dy + res / 2 * (np.abs(dx) + np.abs(dy))  # its far corner
         frees = (ranges - leaves >= margin) & ~self.never_freed[cells[:, 0], cells[:, 1]]
         beside_by = p.free_beside * margin
         for side in (-1.0, 1.0):
-            moved = points + side * beside_by[:, None] * np.column_stack((-dy, dx))
+            moved = middles + side * beside_by[:, None] * np.column_stack((-dy, dx))
             beside = self._cells(moved)
             inside = beside[:, 0] >= 0
             frees[~inside] = False
