@@ -8,7 +8,8 @@ Woo's grid walk but vectorised over beams and boundaries: from its start cell, t
 horizontal one into the next row, and each crossing's parameter is exact. From these,
 ``first_solid`` finds the first solid cell each beam enters (looking a chunk of
 boundaries at a time, so its cost follows the distance to the walls) and ``traverse``
-lists every cell each beam passes through up to its length, in order.
+lists every cell each beam passes through up to its length, with where it enters and
+leaves each (``Traversal.ordered``: in order along each beam).
 
 Positions and lengths here are in cells of the grid (``grid_point``): x along columns, y
 along rows, cell ``(row, col)`` covering ``col..col + 1`` by ``row..row + 1``; a beam's
@@ -26,9 +27,8 @@ import numpy as np
 import numpy.typing as npt
 
 from cloudnav_core.grid import BOUNDARY_NUDGE, Indices, contains
-from cloudnav_core.se2 import Point
+from cloudnav_core.se2 import Floats, Point
 
-Floats = npt.NDArray[np.float64]
 Mask = npt.NDArray[np.bool_]
 
 CHUNK = 48
