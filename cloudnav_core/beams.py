@@ -26,10 +26,8 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from cloudnav_core.grid import BOUNDARY_NUDGE, Indices, contains
+from cloudnav_core.grid import BOUNDARY_NUDGE, Indices, Mask, contains, inside
 from cloudnav_core.se2 import Floats, Point
-
-Mask = npt.NDArray[np.bool_]
 
 CHUNK = 48
 """Boundaries per axis ``first_solid`` tests per beam in one pass; most indoor beams end
@@ -112,17 +110,15 @@ def _crossings(
     The cell entered is the one holding the point ``BOUNDARY_NUDGE`` cells past the
     crossing.
     """
-    forward = (d_along > 0)[:, None]
-    base = math.floor(g_along)
-    boundary = np.where(forward, base + ks[None, :], base - ks[None, :] + 1)
+    backward = (d_along <= 0)[:, None]
+    boundary = math.floor(g_along) + np.where(backward, 1.0 - ks, ks)
     with np.errstate(divide="ignore", invalid="ignore"):
         t = (boundary - g_along) / d_along[:, None]
-    t[~np.isfinite(t)] = np.inf
-    entered = np.where(forward, boundary, boundary - 1)
-    at = np.where(np.isfinite(t), t, 0.0)
-    after = np.floor(g_other + (at + BOUNDARY_NUDGE) * d_other[:, None])
-    before = np.floor(g_other + (at - BOUNDARY_NUDGE) * d_other[:, None])
-    return t, entered, after, before
+    t[d_along == 0] = np.inf  # parallel to these boundaries: its other coordinates are inf
+    entered = boundary - backward
+    other = g_other + t * d_other[:, None]
+    nudge = BOUNDARY_NUDGE * d_other[:, None]
+    return t, entered, np.floor(other + nudge), np.floor(other - nudge)
 
 
 # --- the first solid cell -----------------------------------------------------------------
@@ -149,52 +145,56 @@ def first_solid(solid: Mask, beams: Beams, reach: float) -> Hits:
     on to the next chunk, so the cost follows the distance to the walls, not ``reach``.
     """
     count = len(beams)
-    best = np.full(count, np.inf)
-    cells = np.zeros((count, 2), np.intp)
-    across_x = np.zeros(count, bool)
+    hits = Hits(np.full(count, np.inf), np.zeros((count, 2), np.intp), np.zeros(count, bool))
     if contains(solid.shape, beams.start) and solid[beams.start]:
-        best[:], cells[:] = 0.0, beams.start
-        return Hits(best, cells, across_x)
+        hits.t[:], hits.cells[:] = 0.0, beams.start
+        return hits
     pending = np.arange(count)
     for start in range(1, math.ceil(reach) + 2, CHUNK):
         ks = np.arange(start, start + CHUNK, dtype=np.float64)
         entries = beams.picked(pending).entries(ks)
-        t, rows, cols = _blocked(solid, entries)
-        first = np.argmin(t, axis=1)
-        picked = np.arange(pending.size)
-        found = t[picked, first] < best[pending]
-        best[pending[found]] = t[picked, first][found]
-        cells[pending[found], 0] = rows[picked, first][found]
-        cells[pending[found], 1] = cols[picked, first][found]
-        across_x[pending[found]] = first[found] < ks.size
+        _record(hits, pending, solid, entries)
         # A hit counts once no untested boundary on either axis can come before it.
         looked = np.minimum(entries.t[:, ks.size - 1], entries.t[:, -1])
-        pending = pending[best[pending] > looked]
+        pending = pending[hits.t[pending] > looked]
         if pending.size == 0:
             break
-    best[best > reach] = np.inf
-    return Hits(best, cells, across_x)
+    hits.t[hits.t > reach] = np.inf
+    return hits
 
 
-def _blocked(solid: Mask, entries: Entries) -> tuple[Floats, Floats, Floats]:
+def _record(hits: Hits, beams: Indices, solid: Mask, entries: Entries) -> None:
+    """Keep in ``hits``, for ``beams`` (the rows of ``entries``), the first solid cell
+    among ``entries`` where it comes before the one found so far."""
+    t, side = _blocked(solid, entries)
+    first = np.argmin(t, axis=1)
+    at = np.arange(beams.size), first
+    found = t[at] < hits.t[beams]
+    rows = np.where(side[at], entries.side_rows[at], entries.rows[at])
+    cols = np.where(side[at], entries.side_cols[at], entries.cols[at])
+    hits.t[beams[found]] = t[at][found]
+    hits.cells[beams[found]] = np.column_stack((rows, cols))[found]
+    hits.across_x[beams[found]] = first[found] < t.shape[1] // 2
+
+
+def _blocked(solid: Mask, entries: Entries) -> tuple[Floats, Mask]:
     """Each crossing's parameter where it enters or touches a solid cell (else inf), and
-    that cell: a beam through a corner beside a solid cell is stopped by it, so no beam
-    slips between two solid cells that meet at a corner."""
+    whether that is the cell it touches at a corner (``side_rows``, ``side_cols``): a beam
+    through a corner beside a solid cell is stopped by it, so no beam slips between two
+    solid cells that meet at a corner."""
     blocked = solid_at(solid, entries.rows, entries.cols)
     corner = (entries.side_rows != entries.rows) | (entries.side_cols != entries.cols)
     side = np.zeros_like(corner)
     side[corner] = solid_at(solid, entries.side_rows[corner], entries.side_cols[corner])
-    rows = np.where(side, entries.side_rows, entries.rows)
-    cols = np.where(side, entries.side_cols, entries.cols)
-    return np.where(blocked | side, entries.t, np.inf), rows, cols
+    return np.where(blocked | side, entries.t, np.inf), side
 
 
 def solid_at(solid: Mask, rows: npt.NDArray[Any], cols: npt.NDArray[Any]) -> Mask:
     """Whether the cells at (possibly off-grid, possibly non-finite) indices are solid."""
-    height, width = solid.shape
-    inside = (rows >= 0) & (rows < height) & (cols >= 0) & (cols < width)
-    found = np.zeros(rows.shape, bool)
-    found[inside] = solid[rows[inside].astype(np.intp), cols[inside].astype(np.intp)]
+    on_grid = inside(solid.shape, rows, cols)
+    with np.errstate(invalid="ignore"):
+        flat = np.where(on_grid, rows * solid.shape[1] + cols, 0).astype(np.intp)
+    found: Mask = np.ravel(solid)[flat] & on_grid
     return found
 
 

@@ -82,7 +82,7 @@ import numpy.typing as npt
 from scipy.ndimage import binary_dilation, distance_transform_edt
 
 from cloudnav_core.beams import Beams, grid_point, traverse
-from cloudnav_core.grid import cells_of
+from cloudnav_core.grid import cells_of, inside
 from cloudnav_core.se2 import Pose
 from maps.domain.slam.matching import Field, search
 from maps.domain.slam.scans import Scan
@@ -309,9 +309,7 @@ class Evidence:
         beams = Beams.towards(*grid_point(pose[:2], self.origin, res), angles)
         passed = traverse(beams, reach / res)
         cells = np.column_stack((passed.rows, passed.cols))
-        height, width = self.stored.shape
-        kept = (cells[:, 0] >= 0) & (cells[:, 0] < height) & (cells[:, 1] >= 0)
-        kept &= cells[:, 1] < width
+        kept = inside(self.stored.shape, passed.rows, passed.cols)
         wall = np.zeros_like(kept)
         wall[kept] = self.stored[cells[kept, 0], cells[kept, 1]] == 1
         frees_wall = False
@@ -358,8 +356,7 @@ class Evidence:
     def _cells(self, points: npt.NDArray[np.float64]) -> Cells:
         """(row, col) of each point; (-1, -1) outside the grid."""
         rows, cols = cells_of(points[:, 0], points[:, 1], self.origin, self.resolution, nudge=0.0)
-        height, width = self.stored.shape
-        outside = (rows < 0) | (rows >= height) | (cols < 0) | (cols >= width)
+        outside = ~inside(self.stored.shape, rows, cols)
         rows[outside] = -1
         cols[outside] = -1
         return np.column_stack((rows, cols))

@@ -17,7 +17,7 @@ import numpy as np
 import numpy.typing as npt
 
 from cloudnav_core.beams import Beams, grid_point, traverse
-from cloudnav_core.grid import FREE_BELOW, OCCUPIED_AT, cells_of
+from cloudnav_core.grid import FREE_BELOW, OCCUPIED_AT, cells_of, inside
 from cloudnav_core.se2 import Floats, Pose, transform
 
 from .params import SlamParams
@@ -79,10 +79,9 @@ class LogOddsGrid:
         core's one traversal); a cell a hair off the grid's edge (an end on it) is left
         out."""
         passed = traverse(beams, reach / self.params.resolution)
-        height, width = self.values.shape
         rows, cols = passed.rows, passed.cols
-        inside = (rows >= 0) & (rows < height) & (cols >= 0) & (cols < width)
-        return np.unique(rows[inside] * width + cols[inside])
+        on_grid = inside(self.values.shape, rows, cols)
+        return np.unique(rows[on_grid] * self.values.shape[1] + cols[on_grid])
 
     def _grow(self, points: Floats) -> None:
         """Make the grid hold ``points``, growing it by whole chunks."""
