@@ -233,20 +233,20 @@ def traverse(beams: Beams, lengths: npt.NDArray[np.floating[Any]]) -> Traversal:
     (each at least 0): its start cell, then every cell it enters at a parameter up to its
     length, so the cell its end lies in too. A beam through a cell corner goes from one
     cell to the diagonal one; the two beside them, touched at a point, are not listed."""
-    lengths = np.asarray(lengths, np.float64)
+    reach: Floats = np.asarray(lengths, np.float64)
     count = len(beams)
-    ks = np.arange(1, math.ceil(float(lengths.max(initial=0.0))) + 2, dtype=np.float64)
+    ks = np.arange(1, math.ceil(float(reach.max(initial=0.0))) + 2, dtype=np.float64)
     entries = beams.entries(ks)
     start_row, start_col = beams.start
     t = np.concatenate((np.zeros((count, 1)), entries.t), axis=1)
     rows = np.concatenate((np.full((count, 1), start_row, np.float64), entries.rows), axis=1)
     cols = np.concatenate((np.full((count, 1), start_col, np.float64), entries.cols), axis=1)
-    kept = t <= lengths[:, None]
+    kept = t <= reach[:, None]
     # Through a corner both crossings enter the diagonal cell: its horizontal one goes.
     kept[:, 1 + ks.size :] &= entries.side_cols[:, ks.size :] == entries.cols[:, ks.size :]
     beam = np.broadcast_to(np.arange(count)[:, None], t.shape)[kept]
     passed_rows, passed_cols = rows[kept].astype(np.intp), cols[kept].astype(np.intp)
-    leaves = _leaves(beams, beam, passed_rows, passed_cols, lengths)
+    leaves = _leaves(beams, beam, passed_rows, passed_cols, reach)
     return Traversal(beam, passed_rows, passed_cols, t[kept], leaves)
 
 
@@ -257,6 +257,6 @@ def _leaves(beams: Beams, beam: Indices, rows: Indices, cols: Indices, lengths: 
     with np.errstate(divide="ignore", invalid="ignore"):
         out_x = (cols + (dx > 0) - beams.gx) / dx
         out_y = (rows + (dy > 0) - beams.gy) / dy
-    out_x[~(dx != 0)] = np.inf
-    out_y[~(dy != 0)] = np.inf
+    out_x[dx == 0] = np.inf
+    out_y[dy == 0] = np.inf
     return np.minimum(np.minimum(out_x, out_y), lengths[beam])
