@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from cloudnav_core.grid import BOUNDARY_NUDGE, Indices, Mask, contains, inside
+from cloudnav_core.grid import BOUNDARY_NUDGE, Indices, Mask, cells_inside, contains
 from cloudnav_core.se2 import Floats, Point
 
 CHUNK = 48
@@ -191,7 +191,7 @@ def _blocked(solid: Mask, entries: Entries) -> tuple[Floats, Mask]:
 
 def solid_at(solid: Mask, rows: npt.NDArray[Any], cols: npt.NDArray[Any]) -> Mask:
     """Whether the cells at (possibly off-grid, possibly non-finite) indices are solid."""
-    on_grid = inside(solid.shape, rows, cols)
+    on_grid = cells_inside(solid.shape, rows, cols)
     with np.errstate(invalid="ignore"):
         flat = np.where(on_grid, rows * solid.shape[1] + cols, 0).astype(np.intp)
     found: Mask = np.ravel(solid)[flat] & on_grid

@@ -86,7 +86,7 @@ def contains(shape: tuple[int, ...], cell: Cell) -> bool:
     return 0 <= row < shape[0] and 0 <= col < shape[1]
 
 
-def inside(shape: tuple[int, ...], rows: npt.NDArray[Any], cols: npt.NDArray[Any]) -> Mask:
+def cells_inside(shape: tuple[int, ...], rows: npt.NDArray[Any], cols: npt.NDArray[Any]) -> Mask:
     """Whether each cell ``(rows, cols)`` lies inside a grid of ``shape`` (``contains`` for
     arrays)."""
     found: Mask = (rows >= 0) & (rows < shape[0]) & (cols >= 0) & (cols < shape[1])

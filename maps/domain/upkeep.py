@@ -82,7 +82,7 @@ import numpy.typing as npt
 from scipy.ndimage import binary_dilation, distance_transform_edt
 
 from cloudnav_core.beams import Beams, grid_point, traverse
-from cloudnav_core.grid import cells_of, inside
+from cloudnav_core.grid import cells_inside, cells_of
 from cloudnav_core.se2 import Pose
 from maps.domain.slam.matching import Field, search
 from maps.domain.slam.scans import Scan
@@ -309,7 +309,7 @@ class Evidence:
         beams = Beams.towards(*grid_point(pose[:2], self.origin, res), angles)
         passed = traverse(beams, reach / res)
         cells = np.column_stack((passed.rows, passed.cols))
-        kept = inside(self.stored.shape, passed.rows, passed.cols)
+        kept = cells_inside(self.stored.shape, passed.rows, passed.cols)
         wall = np.zeros_like(kept)
         wall[kept] = self.stored[cells[kept, 0], cells[kept, 1]] == 1
         frees_wall = False
@@ -348,15 +348,15 @@ class Evidence:
         for side in (-1.0, 1.0):
             moved = middles + side * beside_by[:, None] * np.column_stack((-dy, dx))
             beside = self._cells(moved)
-            inside = beside[:, 0] >= 0
-            frees[~inside] = False
-            frees[inside] &= self.stored[beside[inside, 0], beside[inside, 1]] == 1
+            on_grid = beside[:, 0] >= 0
+            frees[~on_grid] = False
+            frees[on_grid] &= self.stored[beside[on_grid, 0], beside[on_grid, 1]] == 1
         return frees
 
     def _cells(self, points: npt.NDArray[np.float64]) -> Cells:
         """(row, col) of each point; (-1, -1) outside the grid."""
         rows, cols = cells_of(points[:, 0], points[:, 1], self.origin, self.resolution, nudge=0.0)
-        outside = ~inside(self.stored.shape, rows, cols)
+        outside = ~cells_inside(self.stored.shape, rows, cols)
         rows[outside] = -1
         cols[outside] = -1
         return np.column_stack((rows, cols))

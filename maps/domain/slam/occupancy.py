@@ -17,7 +17,7 @@ import numpy as np
 import numpy.typing as npt
 
 from cloudnav_core.beams import Beams, grid_point, traverse
-from cloudnav_core.grid import FREE_BELOW, OCCUPIED_AT, cells_of, inside
+from cloudnav_core.grid import FREE_BELOW, OCCUPIED_AT, cells_inside, cells_of
 from cloudnav_core.se2 import Floats, Pose, transform
 
 from .params import SlamParams
@@ -80,7 +80,7 @@ class LogOddsGrid:
         out."""
         passed = traverse(beams, reach / self.params.resolution)
         rows, cols = passed.rows, passed.cols
-        on_grid = inside(self.values.shape, rows, cols)
+        on_grid = cells_inside(self.values.shape, rows, cols)
         return np.unique(rows[on_grid] * self.values.shape[1] + cols[on_grid])
 
     def _grow(self, points: Floats) -> None:

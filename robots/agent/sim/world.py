@@ -141,8 +141,9 @@ class World:
     def cast(self, x: float, y: float, angles: Floats, max_range: float) -> RayHits:
         """Cast rays from ``(x, y)`` at ``angles`` (radians, map frame) up to ``max_range``.
 
-        Exact on the grid (the core's one traversal): a ray ends where it enters the first
-        solid cell. A ray that starts inside a solid cell ends at distance 0.
+        Exact on the grid (the core's one traversal, ``first_solid``): a ray ends where it
+        enters the first solid cell, or touches one at a cell corner it passes through. A
+        ray that starts inside a solid cell ends at distance 0.
         """
         return _cast(self, x, y, np.asarray(angles, np.float64), max_range)
 
