@@ -76,6 +76,18 @@ def test_every_beam_passes_the_cells_a_dense_walk_along_it_finds() -> None:
         assert set(listed) == walked
 
 
+def test_each_cell_is_left_where_the_next_is_entered() -> None:
+    rng = np.random.default_rng(4)
+    lengths = rng.uniform(0.0, 9.0, 40)
+    out = traverse(Beams.towards(2.6, 1.1, rng.uniform(-math.pi, math.pi, 40)), lengths)
+    out = out.ordered()
+    for index, length in enumerate(lengths):
+        mine = out.beam == index
+        assert np.allclose(out.leaves[mine][:-1], out.enters[mine][1:])
+        assert out.enters[mine][0] == 0.0
+        assert out.leaves[mine][-1] == length
+
+
 def test_the_first_solid_cell_is_where_a_beam_enters_it() -> None:
     solid = np.zeros((4, 6), bool)
     solid[:, 4] = True  # a wall at x 4..5
