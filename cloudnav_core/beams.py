@@ -126,10 +126,10 @@ def _crossings(
 
 @dataclass(frozen=True)
 class Hits:
-    """The first solid cell each beam enters: its parameter ``t`` (``inf`` for none within
-    reach), its ``(row, col)`` (meaningless where ``t`` is inf), and ``across_x`` True
-    where the beam entered it across a vertical boundary (a cell side perpendicular to
-    x)."""
+    """The first solid cell each beam enters (or touches at a corner): its parameter ``t``
+    (``inf`` for none within reach), its ``(row, col)`` (meaningless where ``t`` is inf),
+    and ``across_x`` True where the beam entered it across a vertical boundary (a cell
+    side perpendicular to x)."""
 
     t: Floats
     cells: Indices
