@@ -22,6 +22,7 @@ from cloudnav_core.se2 import Point
 Cell = tuple[int, int]
 """(row, col) of a grid cell; row 0 is the bottom row."""
 Indices = npt.NDArray[np.intp]
+Mask = npt.NDArray[np.bool_]
 
 OCCUPIED_THRESH = 0.65
 """map_saver's ``occupied_thresh``: a cell this likely occupied or more is an obstacle."""
@@ -83,6 +84,13 @@ def contains(shape: tuple[int, ...], cell: Cell) -> bool:
     """Whether ``cell`` lies inside a grid of ``shape`` (height, width)."""
     row, col = cell
     return 0 <= row < shape[0] and 0 <= col < shape[1]
+
+
+def cells_inside(shape: tuple[int, ...], rows: npt.NDArray[Any], cols: npt.NDArray[Any]) -> Mask:
+    """Whether each cell ``(rows, cols)`` lies inside a grid of ``shape`` (``contains`` for
+    arrays)."""
+    found: Mask = (rows >= 0) & (rows < shape[0]) & (cols >= 0) & (cols < shape[1])
+    return found
 
 
 def unstandable(grid: npt.NDArray[np.int8], cell: Cell) -> str:

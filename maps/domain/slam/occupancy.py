@@ -2,7 +2,8 @@
 occupied cells of a grid as points (``occupied_points``).
 
 The grid adds each keyframe's scan once, by log-odds (``log_hit`` for the cell a beam ends
-in, ``log_miss`` for the cells it crosses, clamped). Cells at or above
+in, ``log_miss`` for the cells it passes through up to half a cell before its return, by
+the core's one traversal ``cloudnav_core.beams.traverse``, clamped). Cells at or above
 ``occupied_log_odds`` are occupied, at or below ``free_log_odds`` free, the rest unknown:
 map_saver's 0.65 and 0.196 thresholds. No well-kept PyPI library does 2D log-odds
 occupancy from scans, so it is here, in numpy.
@@ -15,7 +16,8 @@ import math
 import numpy as np
 import numpy.typing as npt
 
-from cloudnav_core.grid import FREE_BELOW, OCCUPIED_AT, cells_of
+from cloudnav_core.beams import Beams, grid_point, traverse
+from cloudnav_core.grid import FREE_BELOW, OCCUPIED_AT, cells_inside, cells_of
 from cloudnav_core.se2 import Floats, Pose, transform
 
 from .params import SlamParams
@@ -47,16 +49,15 @@ class LogOddsGrid:
         p = self.params
         hits = transform(keyframe.pose, keyframe.points)
         scan = keyframe.scan
-        no_return = ~np.isfinite(scan.ranges)
-        reach = np.where(no_return, p.free_range, scan.ranges - p.resolution / 2)
-        ends = np.column_stack((np.cos(scan.angles) * reach, np.sin(scan.angles) * reach))
-        lengths = np.clip(reach, 0.0, None)
-        samples = math.ceil(float(lengths.max(initial=0.0)) / (p.resolution / 2)) + 1
-        t = np.linspace(0.0, 1.0, samples)
-        along = ends[:, None, :] * t[None, :, None]  # (beams, samples, 2)
-        free = transform(keyframe.pose, along.reshape(-1, 2))
-        self._grow(np.concatenate((hits, free, [keyframe.pose[:2]])))
-        free_cells = self._cells(free)
+        # a beam is free up to half a cell before its return (``free_range`` with none)
+        reach = np.where(np.isfinite(scan.ranges), scan.ranges - p.resolution / 2, p.free_range)
+        reach = np.clip(reach, 0.0, None)
+        headings = scan.angles + keyframe.pose[2]
+        x, y = keyframe.pose[0], keyframe.pose[1]
+        ends = np.column_stack((x + reach * np.cos(headings), y + reach * np.sin(headings)))
+        self._grow(np.concatenate((hits, ends, [(x, y)])))
+        start = grid_point((x, y), self.origin, p.resolution)
+        free_cells = self._passed(Beams.towards(*start, headings), reach)
         hit_cells = self._cells(hits)
         free_cells = np.setdiff1d(free_cells, hit_cells)
         flat = self.values.reshape(-1)
@@ -72,6 +73,15 @@ class LogOddsGrid:
         res = self.params.resolution
         rows, cols = cells_of(points[:, 0], points[:, 1], self.origin, res, nudge=0.0)
         return np.unique(rows * self.values.shape[1] + cols)
+
+    def _passed(self, beams: Beams, reach: Floats) -> npt.NDArray[np.intp]:
+        """Flat indices of the cells ``beams`` pass through up to ``reach`` metres (the
+        core's one traversal); a cell a hair off the grid's edge (an end on it) is left
+        out."""
+        passed = traverse(beams, reach / self.params.resolution)
+        rows, cols = passed.rows, passed.cols
+        on_grid = cells_inside(self.values.shape, rows, cols)
+        return np.unique(rows[on_grid] * self.values.shape[1] + cols[on_grid])
 
     def _grow(self, points: Floats) -> None:
         """Make the grid hold ``points``, growing it by whole chunks."""

@@ -21,6 +21,7 @@ from functools import cached_property, lru_cache
 import numpy as np
 from numpy.typing import NDArray
 
+from cloudnav_core.beams import Beams, Hits, first_solid, grid_point, solid_at
 from cloudnav_core.grid import OCCUPIED_AT, cell_of
 from maps.domain.demo_building import DemoBuilding, DemoTag, demo_building
 from maps.domain.tagart import DEFAULT_DICTIONARY, QR_VERSION
@@ -32,9 +33,6 @@ FREE, WALL, OBSTACLE = 0, 1, 2
 
 WALL_HEIGHT = 2.5
 """Metres: what the camera draws above the floor for every solid cell."""
-
-_CROSSING_CHUNK = 48
-"""Cell boundaries tested per ray per pass; most indoor rays end in the first pass."""
 
 Cells = NDArray[np.uint8]
 Floats = NDArray[np.float64]
@@ -123,6 +121,11 @@ class World:
         places = tuple((tag.x, tag.y, tag.yaw) for tag in tags)
         return replace(self, tags=(*self.tags, *tags), plain=(*self.plain, *places))
 
+    @cached_property
+    def solid(self) -> NDArray[np.bool_]:
+        """The cells no ray or body passes: walls and obstacles."""
+        return np.asarray(self.cells != FREE)
+
     def cell_of(self, x: float, y: float) -> tuple[int, int]:
         """``(row, col)`` of the cell holding ``(x, y)``; may lie outside the grid."""
         return cell_of((x, y), self.origin, self.resolution, nudge=0.0)
@@ -138,8 +141,9 @@ class World:
     def cast(self, x: float, y: float, angles: Floats, max_range: float) -> RayHits:
         """Cast rays from ``(x, y)`` at ``angles`` (radians, map frame) up to ``max_range``.
 
-        Exact on the grid: a ray ends where it enters the first solid cell. A ray that
-        starts inside a solid cell ends at distance 0.
+        Exact on the grid (the core's one traversal, ``first_solid``): a ray ends where it
+        enters the first solid cell, or touches one at a cell corner it passes through. A
+        ray that starts inside a solid cell ends at distance 0.
         """
         return _cast(self, x, y, np.asarray(angles, np.float64), max_range)
 
@@ -237,140 +241,23 @@ def _nearest_solid(world: World, x: float, y: float, reach: float) -> float:
 # --- ray casting -----------------------------------------------------------------------
 
 
-Crossing = tuple[Floats, NDArray[np.intp]]
-"""Ray parameters of first solid cells across one axis's boundaries, and those cells."""
-
-
-@dataclass
-class _Rays:
-    """Rays from one point, in cell units of the padded grid, and the first solid cell
-    each has met so far: ray parameter ``best``, its ``cell`` and face."""
-
-    gx: float
-    gy: float
-    dx: Floats
-    dy: Floats
-    best: Floats
-    cell: NDArray[np.intp]
-    x_face: NDArray[np.bool_]
-
-    @classmethod
-    def start(cls, world: World, x: float, y: float, angles: Floats) -> _Rays:
-        gx = (x - world.origin[0]) / world.resolution + 1  # + 1: the padding ring
-        gy = (y - world.origin[1]) / world.resolution + 1
-        count = angles.size
-        return cls(
-            gx, gy, np.cos(angles), np.sin(angles), np.full(count, np.inf),
-            np.zeros((count, 2), np.intp), np.zeros(count, bool),
-        )  # fmt: skip
-
-    def record(self, rays: NDArray[np.intp], across_x: Crossing, across_y: Crossing) -> None:
-        """Keep, for ``rays``, the nearer of the two crossings where it beats ``best``."""
-        (tx, x_cell), (ty, y_cell) = across_x, across_y
-        through_x = tx <= ty
-        found = np.minimum(tx, ty) < self.best[rays]
-        self.best[rays[found]] = np.minimum(tx, ty)[found]
-        self.cell[rays[found]] = np.where(through_x[:, None], x_cell, y_cell)[found]
-        self.x_face[rays[found]] = through_x[found]
-
-
 def _cast(world: World, x: float, y: float, angles: Floats, max_range: float) -> RayHits:
-    """Vectorised grid traversal: for each ray, the first solid cell entered through a
-    vertical and through a horizontal cell boundary, whichever comes first."""
-    padded = np.pad(world.cells, 1)  # a free ring: clipped indices off the grid stay free
-    rays = _Rays.start(world, x, y, angles)
-    reach = max_range / world.resolution
-    start_cell = (math.floor(rays.gy), math.floor(rays.gx))
-    if padded[start_cell] != FREE:
-        rays.best[:], rays.cell[:] = 0.0, start_cell
-    else:
-        _march(padded, rays, reach)
-        rays.x_face = _exposed_face(padded, rays)
-    return _hits(world, padded, rays, reach)
+    """The core's traversal (``cloudnav_core.beams.first_solid``) on the world's solid
+    cells, in metres, with the materials hit and the faces they show."""
+    beams = Beams.towards(*grid_point((x, y), world.origin, world.resolution), angles)
+    hits = first_solid(world.solid, beams, max_range / world.resolution)
+    found = np.isfinite(hits.t)
+    rows, cols = hits.cells[:, 0], hits.cells[:, 1]
+    material = np.where(found, world.cells[rows, cols], FREE).astype(np.uint8)
+    x_face = np.where(hits.t > 0, _exposed_face(world.solid, beams, hits), hits.across_x)
+    return RayHits(hits.t * world.resolution, material, x_face & found)
 
 
-def _march(padded: Cells, rays: _Rays, reach: float) -> None:
-    """Test cell boundaries in chunks along every ray; only rays still unresolved go on
-    to the next chunk, so the cost follows the distance to the walls, not ``reach``."""
-    pending = np.arange(rays.dx.size)
-    for start in range(1, math.ceil(reach) + 2, _CROSSING_CHUNK):
-        ks = np.arange(start, start + _CROSSING_CHUNK, dtype=np.float64)
-        dx, dy = rays.dx[pending], rays.dy[pending]
-        across_x, x_end = _first_crossing(padded, rays.gx, rays.gy, dx, dy, ks, across_x=True)
-        across_y, y_end = _first_crossing(padded, rays.gy, rays.gx, dy, dx, ks, across_x=False)
-        rays.record(pending, across_x, across_y)
-        # A hit counts once no untested boundary on either axis can come before it.
-        pending = pending[rays.best[pending] > np.minimum(x_end, y_end)]
-        if pending.size == 0:
-            return
-
-
-def _first_crossing(
-    padded: Cells,
-    g_along: float,
-    g_other: float,
-    d_along: Floats,
-    d_other: Floats,
-    ks: Floats,
-    *,
-    across_x: bool,
-) -> tuple[Crossing, Floats]:
-    """For the ``ks``-th cell boundaries perpendicular to one axis (x when ``across_x``):
-    the ray parameter (cells travelled) of the first solid cell entered across one of
-    them (``inf`` if none) with that cell's ``(row, col)``, and the parameter of the last
-    boundary (how far this chunk has looked).
-
-    From cell ``floor(g)`` a ray moving up that axis crosses boundaries ``floor(g) + k``
-    into the cell of that index; moving down, ``floor(g) - k + 1`` into the cell below.
-    """
-    forward = (d_along > 0)[:, None]
-    base = math.floor(g_along)
-    boundary = np.where(forward, base + ks[None, :], base - ks[None, :] + 1)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t = (boundary - g_along) / d_along[:, None]
-    t[~np.isfinite(t)] = np.inf
-    entered = np.where(forward, boundary, boundary - 1)
-    across = np.floor(g_other + np.where(np.isfinite(t), t, 0.0) * d_other[:, None])
-    rows, cols = (across, entered) if across_x else (entered, across)
-    solid = _lookup(padded, rows, cols) & np.isfinite(t)
-    first = np.argmax(solid, axis=1)
-    picked = np.arange(t.shape[0])
-    hit = np.where(solid[picked, first], t[picked, first], np.inf)
-    cell = np.stack([rows[picked, first], cols[picked, first]], axis=1)
-    return (hit, _clipped(padded, cell)), t[:, -1]
-
-
-def _clipped(padded: Cells, cell: Floats) -> NDArray[np.intp]:
-    """Cell indices clipped into the padded grid (non-finite ones to 0)."""
-    safe = np.nan_to_num(cell, nan=0, posinf=0, neginf=0)
-    limit = np.array(padded.shape) - 1
-    return np.clip(safe, 0, limit).astype(np.intp)
-
-
-def _lookup(padded: Cells, rows: Floats, cols: Floats) -> NDArray[np.bool_]:
-    """Whether the cells at (possibly off-grid, possibly non-finite) indices are solid."""
-    height, width = padded.shape
-    safe_rows = np.clip(np.nan_to_num(rows, posinf=0, neginf=0), 0, height - 1).astype(np.intp)
-    safe_cols = np.clip(np.nan_to_num(cols, posinf=0, neginf=0), 0, width - 1).astype(np.intp)
-    blocked: NDArray[np.bool_] = padded[safe_rows, safe_cols] != FREE
-    return blocked
-
-
-def _exposed_face(padded: Cells, rays: _Rays) -> NDArray[np.bool_]:
+def _exposed_face(solid: NDArray[np.bool_], beams: Beams, hits: Hits) -> NDArray[np.bool_]:
     """Which face of the hit cell each ray met. A ray through a cell corner crosses both
     boundaries at once, and rounding picks either; the face it sees is the one whose
     neighbour (on the ray's side) is free, so a flat wall shades evenly."""
-    rows, cols = rays.cell[:, 0], rays.cell[:, 1]
-    side_x = np.clip(cols - np.sign(rays.dx).astype(np.intp), 0, padded.shape[1] - 1)
-    side_y = np.clip(rows - np.sign(rays.dy).astype(np.intp), 0, padded.shape[0] - 1)
-    x_open = (padded[rows, side_x] == FREE) & (rays.dx != 0)
-    y_open = (padded[side_y, cols] == FREE) & (rays.dy != 0)
-    return np.where(x_open != y_open, x_open, rays.x_face)
-
-
-def _hits(world: World, padded: Cells, rays: _Rays, reach: float) -> RayHits:
-    """Distances in metres and the materials of the cells hit, for hits within reach."""
-    t = np.where(rays.best <= reach, rays.best, np.inf)
-    finite = np.isfinite(t)
-    material = np.where(finite, padded[rays.cell[:, 0], rays.cell[:, 1]], FREE)
-    return RayHits(t * world.resolution, material.astype(np.uint8), rays.x_face & finite)
+    rows, cols = hits.cells[:, 0].astype(np.float64), hits.cells[:, 1].astype(np.float64)
+    x_open = ~solid_at(solid, rows, cols - np.sign(beams.dx)) & (beams.dx != 0)
+    y_open = ~solid_at(solid, rows - np.sign(beams.dy), cols) & (beams.dy != 0)
+    return np.where(x_open != y_open, x_open, hits.across_x)
