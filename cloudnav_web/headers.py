@@ -7,6 +7,11 @@ daphne's factory give each connection ``CLOUDNAV_HEADER_SECONDS`` from the momen
 take a request (when it opens, and after each answer on a kept-alive connection) to the
 end of that request's headers; past it the connection is aborted. The body has its own
 rules (``bodies``), and a request being answered (a stream, a WebSocket) is not timed.
+
+The deadline is judged only after the reactor has read what already came: a server held
+up past it (a busy machine, a long pause) runs its due timers before it reads its
+sockets, and would otherwise abort a connection whose headers came in time and wait in
+the kernel's buffer. Expired, the deadline looks once more on the reactor's next turn.
 """
 
 from __future__ import annotations
@@ -46,6 +51,7 @@ class HeaderDeadline:
     def __init__(self, channel: Any, seconds: float) -> None:
         self.channel, self.seconds = channel, seconds
         self.pending: Any = None  # the reactor's DelayedCall while timing
+        self.read_since = False  # expired once: the reactor has since had a turn to read
         headers_done, request_done = channel.allHeadersReceived, channel.requestDone
         lost = channel.connectionLost
 
@@ -70,6 +76,7 @@ class HeaderDeadline:
 
     def start(self) -> None:
         self.stop()
+        self.read_since = False
         self.pending = clock.callLater(self.seconds, self.expire)
 
     def stop(self) -> None:
@@ -78,6 +85,10 @@ class HeaderDeadline:
         self.pending = None
 
     def expire(self) -> None:
+        if not self.read_since:  # timers run before reads: give the reads one turn
+            self.read_since = True
+            self.pending = clock.callLater(0, self.expire)
+            return
         self.pending = None
         transport = getattr(self.channel, "transport", None)
         if transport is not None:

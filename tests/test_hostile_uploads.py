@@ -7,6 +7,7 @@ memory is sampled while they run.
 from __future__ import annotations
 
 import http.client
+import signal
 import socket
 import threading
 import time
@@ -297,6 +298,26 @@ def open_until_closed(sock: socket.socket, deadline: float) -> float:
         except OSError:  # reset by the server
             break
     return time.monotonic() - began
+
+
+def test_a_request_sent_in_time_to_a_stalled_server_is_served_when_it_wakes(daphne_servers):
+    """A server held up (a busy machine, a long pause) past a kept-alive connection's header
+    deadline reads the request that came in time before it judges the deadline."""
+    server = daphne_servers.start(env={"CLOUDNAV_HEADER_SECONDS": "2"})
+    connection = http.client.HTTPConnection(server.host, server.port, timeout=20)
+    connection.request("GET", "/api/")
+    connection.getresponse().read()  # kept alive: the next request's deadline runs
+    server.process.send_signal(signal.SIGSTOP)
+    try:
+        time.sleep(0.5)
+        connection.request("GET", "/api/")  # within the deadline, into the kernel's buffer
+        time.sleep(3.0)  # the server wakes past the deadline
+    finally:
+        server.process.send_signal(signal.SIGCONT)
+    answer = connection.getresponse()
+    answer.read()
+    assert answer.status < 500
+    connection.close()
 
 
 def test_a_client_sending_its_headers_slowly_is_cut_off(daphne_servers):
