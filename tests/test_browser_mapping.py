@@ -155,6 +155,49 @@ def test_an_admin_starts_a_visual_session_and_sees_its_figures_and_its_3d_map(
     assert view_of(small)[1] < 0.9 * away  # fingers apart: closer
     screenshot(small, "robot-mapping-visual-3d-phone")
 
+    # Driven down the corridor by teleop: the camera's path joins the keyframes, and the
+    # view draws as many loop closures as the session made. (Forward, not on the spot:
+    # keyframes turned on the spot stand at one point, a path no pixel shows.)
+    drive_until_keyframes(page, 4)
+    page.reload()  # looked at afresh: from behind the first keyframe, the path ahead
+    page.wait_for_function(
+        "() => Number(document.getElementById('mapping-3d').dataset.keyframes) >= 4",
+        timeout=60_000,
+    )
+    view = page.locator("#mapping-3d")
+    keyframes = int(view.get_attribute("data-keyframes") or "0")
+    assert int(view.get_attribute("data-path-points") or "0") == keyframes
+    stats = page.request.get(demo.url(f"/api/mapping/sessions/?robot={ROBOT}")).json()[0]["stats"]
+    assert stats["keyframes"] >= keyframes
+    assert int(view.get_attribute("data-loops") or "-1") == stats.get("loop_closures", 0)
+    assert coloured_pixels(canvas_pixels(page, "#mapping-3d"), PATH_COLOUR) > 20
+    screenshot(page, "robot-mapping-visual-3d-path")
+
+
+PATH_COLOUR = (0x4F, 0xC3, 0xF7)
+"""The camera's path in the 3D view (static/js/map3d.js)."""
+
+
+def drive_until_keyframes(page: Page, keyframes: int) -> None:
+    """Take the lock and hold the forward key, slowly, until the 3D view shows
+    ``keyframes``; then let go."""
+    page.click("#lock-acquire")
+    expect(page.locator("#lock-state")).to_have_text("You are driving")
+    page.locator("#max-linear").fill("0.2")  # the camera tracks a walk at 5 frames/s
+    page.evaluate("document.activeElement.blur()")  # keys drive only when not typing
+    page.keyboard.down("ArrowUp")
+    page.wait_for_function(
+        f"() => Number(document.getElementById('mapping-3d').dataset.keyframes) >= {keyframes}",
+        timeout=90_000,
+    )
+    page.keyboard.up("ArrowUp")
+    expect(page.locator("#odom-speed")).to_have_text("0.00 m/s", timeout=10_000)
+
+
+def coloured_pixels(pixels: np.ndarray, colour: tuple[int, int, int]) -> int:
+    """Pixels within 3 of ``colour`` in each channel."""
+    return int((np.abs(pixels.astype(int) - np.array(colour)) <= 3).all(axis=2).sum())
+
 
 def view_of(page: Page) -> tuple[float, float]:
     """Where the 3D view looks from: turned (radians about the map's z) and how far."""

@@ -1,6 +1,7 @@
 """Visual mapping sessions: the 2D grid derived from a known room's depth, bad frames
 refused with nothing kept, and a session fed rendered camera frames through the runner
-whose published map carries its keyframes as the sub-map's relocalisation map."""
+whose published map carries its keyframes as the sub-map's relocalisation map, which
+places a robot waking up there."""
 
 from __future__ import annotations
 
@@ -19,8 +20,15 @@ from cloudnav_core import messages
 from cloudnav_core.camera import CameraModel, Intrinsics
 from cloudnav_core.se2 import Pose, compose
 from maps.domain.demo_building import demo_building
+from maps.domain.keyframes import thinned
 from maps.domain.visual_grid import grid_of_views, obstacle_scan
-from maps.domain.visual_mapping import GRID_TOLERANCE, Frame, VisualMapper, frame_of
+from maps.domain.visual_mapping import (
+    GRID_TOLERANCE,
+    Frame,
+    VisualMapper,
+    frame_of,
+    stored_keyframes,
+)
 from maps.domain.visual_slam import _moved
 from maps.domain.vocabulary import default_vocabulary
 from maps.exceptions import KeyframeError
@@ -29,7 +37,7 @@ from maps.mapping.runner import MappingRunner
 from maps.models import Building, Keyframe, MappingSession, SubMap
 from robots.agent.perception import pinhole_calibration
 from robots.agent.sim.camera import Camera
-from robots.agent.sim.world import world_from_grid
+from robots.agent.sim.world import demo_world, world_from_grid
 from robots.models import Robot
 from tests.conftest import FakeHub, client_for, make_robot
 from tests.support.mapping_sessions import _drained, _session, _until, online
@@ -161,7 +169,7 @@ def _visual_setup() -> tuple[MappingSession, User, Building]:
 
 
 @pytest.mark.django_db(transaction=True)
-async def test_a_visual_session_maps_from_camera_frames_and_publishes_its_keyframes(
+async def test_a_visual_session_maps_from_camera_frames_and_a_robot_wakes_up_on_its_published_map(
     monkeypatch,
 ) -> None:
     monkeypatch.setattr(mapping_runner, "SAVE_EVERY", 0.2)
@@ -210,6 +218,20 @@ async def test_a_visual_session_maps_from_camera_frames_and_publishes_its_keyfra
     assert len(stored) >= 6
     assert {k.robot for k in stored} == {"r1"}
     assert not await Keyframe.objects.exclude(submap=made).aexists()  # r2 gave nothing
+    mapped = stored_keyframes(bytes((await sync_to_async(_session)(session.pk)).keyframes))
+    assert len(stored) == len(thinned(mapped))  # what bench visual-slam wakes up on
+
+    # Issue 27 point 3: the published keyframes are the sub-map's relocalisation map at
+    # once. A view from between two mapped spots, with other sensor noise, is placed.
+    where = compose(ahead[7], (0.04, 0.02, math.radians(2.0)))
+    view = Camera(demo_world(seed=1), seed=9).render(where)
+    body = {"images": [image_message(view, 60.0)]}
+    answer = (await sync_to_async(client.post)("/api/relocalise", body, format="json")).json()
+    assert answer["localised"], answer
+    assert answer["map_id"] == f"{building.code}/CorridorV"
+    placed = answer["pose"]
+    assert math.hypot(placed["x"] - where[0], placed["y"] - where[1]) <= 0.25
+    assert abs(math.remainder(placed["yaw"] - where[2], math.tau)) <= math.radians(5.0)
 
 
 def test_a_visual_map_resumes_from_its_saved_state_and_places_the_next_frame() -> None:

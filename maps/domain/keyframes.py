@@ -44,6 +44,10 @@ DEPTH_EDGE = 0.05
 edge (a door frame's side, a wall's end) and its depth could belong to either side."""
 MIN_POINTS = 20
 """A keyframe with fewer 3D points than this is not worth keeping."""
+DUPLICATE_DISTANCE = 0.15
+"""Metres: a keyframe this near one already kept, facing within ``DUPLICATE_YAW``..."""
+DUPLICATE_YAW = math.radians(10.0)
+"""...adds nothing to a relocalisation map and is dropped."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -86,6 +90,25 @@ class Keyframe:
         if not all(np.isfinite(a).all() for a in (keyframe.pose, keyframe.points, keyframe.words)):
             raise KeyframeError("keyframe", "a file whose pose, points or words are not finite")
         return keyframe
+
+
+def duplicates(kept: tuple[float, float, float], pose: tuple[float, float, float]) -> bool:
+    """Whether a keyframe kept at ``kept`` makes one at ``pose`` a near-duplicate: within
+    ``DUPLICATE_DISTANCE`` of it, facing within ``DUPLICATE_YAW``."""
+    return (
+        math.hypot(kept[0] - pose[0], kept[1] - pose[1]) <= DUPLICATE_DISTANCE
+        and abs(math.remainder(kept[2] - pose[2], math.tau)) <= DUPLICATE_YAW
+    )
+
+
+def thinned(keyframes: list[Keyframe]) -> list[Keyframe]:
+    """``keyframes`` in order without the near-duplicates of those kept before them: what
+    storing them one by one in an empty sub-map keeps (``maps.visual.store.save``)."""
+    kept: list[Keyframe] = []
+    for keyframe in keyframes:
+        if not any(duplicates(k.pose, keyframe.pose) for k in kept):
+            kept.append(keyframe)
+    return kept
 
 
 class FeatureExtractor:

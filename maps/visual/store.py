@@ -22,6 +22,7 @@ from django.db import transaction
 from django.db.models import Count, Max, QuerySet
 
 from cloudnav_core.grid import cell_of
+from maps.domain.keyframes import DUPLICATE_DISTANCE, duplicates
 from maps.domain.keyframes import Keyframe as Features
 from maps.domain.relocalisation import KeyframeIndex
 from maps.domain.vocabulary import default_vocabulary
@@ -31,10 +32,6 @@ from maps.services import grid_of
 
 logger = logging.getLogger(__name__)
 
-DUPLICATE_DISTANCE = 0.15
-"""Metres: a keyframe this near one already stored, facing within ``DUPLICATE_YAW``..."""
-DUPLICATE_YAW = math.radians(10.0)
-"""...adds nothing and is dropped."""
 POSE_SLACK = 0.3
 """Metres: a keyframe's pose must be within this of a free cell of its sub-map."""
 
@@ -56,18 +53,14 @@ def check_pose(submap: SubMap, pose: tuple[float, float, float]) -> None:
 
 
 def is_duplicate(submap: SubMap, pose: tuple[float, float, float]) -> bool:
-    """Whether a stored keyframe of ``submap`` stands within ``DUPLICATE_DISTANCE`` of
-    ``pose``, facing within ``DUPLICATE_YAW``."""
-    x, y, yaw = pose
+    """Whether a stored keyframe of ``submap`` makes one at ``pose`` a near-duplicate
+    (``duplicates``)."""
+    x, y, _yaw = pose
     near = submap.keyframes.filter(
         x__gte=x - DUPLICATE_DISTANCE, x__lte=x + DUPLICATE_DISTANCE,
         y__gte=y - DUPLICATE_DISTANCE, y__lte=y + DUPLICATE_DISTANCE,
     ).values_list("x", "y", "yaw")  # fmt: skip
-    return any(
-        math.hypot(kx - x, ky - y) <= DUPLICATE_DISTANCE
-        and abs(math.remainder(kyaw - yaw, math.tau)) <= DUPLICATE_YAW
-        for kx, ky, kyaw in near
-    )
+    return any(duplicates(kept, pose) for kept in near)
 
 
 def save(submap: SubMap, robot: str, features: Features) -> Keyframe | None:

@@ -75,6 +75,8 @@ export class CloudView {
     this.renderer.render(this.scene, this.camera);
     this.canvas.dataset.points = String(this.points);
     this.canvas.dataset.keyframes = String(this.keyframes.children.length);
+    this.canvas.dataset.pathPoints = String(vertices(this.path));
+    this.canvas.dataset.loops = String(vertices(this.loops) / 2);
     // where the view looks from, for tests and the curious: turned (radians) and how far
     this.canvas.dataset.azimuth = this.controls.getAzimuthalAngle().toFixed(4);
     this.canvas.dataset.distance = this.controls.getDistance().toFixed(4);
@@ -88,6 +90,10 @@ export class CloudView {
     }
     this.points = 0;
     this.framed = false;
+    for (const line of [this.path, this.loops]) {
+      line.geometry.dispose();
+      line.geometry = new BufferGeometry(); // another session's path is not this one's
+    }
   }
 
   #add(feed) {
@@ -131,6 +137,11 @@ export class CloudView {
     this.camera.updateProjectionMatrix();
     this.render();
   }
+}
+
+/** How many points `line` joins (0 before it has any). */
+function vertices(line) {
+  return line.geometry.getAttribute("position")?.count ?? 0;
 }
 
 function lineGeometry(coordinates) {
