@@ -152,6 +152,13 @@ def test_a_robot_is_stuck_after_its_own_clock_s_seconds_not_the_server_s() -> No
     assert slow.deriver.stuck_for("r1", slow.server) == held + 2.0  # 8 server s, 2 of its own
 
 
+def test_a_robot_faster_than_real_time_is_stuck_after_the_server_s_seconds_too() -> None:
+    fast = RobotOnItsClock(pace=8.0)  # a test simulation at eight times real time
+    for _ in range(int(STUCK_AFTER_S)):  # 240 of its seconds: waits on the server count once
+        assert kinds(fast.second()) == []
+    assert kinds(fast.second()) == [Kind.STUCK]
+
+
 def test_a_robot_whose_clock_is_set_back_counts_its_progress_afresh() -> None:
     robot = RobotOnItsClock(pace=1.0)
     for _ in range(int(STUCK_AFTER_S) - 5):

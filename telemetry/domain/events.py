@@ -14,10 +14,13 @@ raises twice.
 (each pose, each status), so every observation is a few dictionary operations and no I/O;
 ``tick`` finds what only the passing of time reveals (a silent robot, a stuck one).
 
-Silence is measured on the server's clock (it is the network's fact). Progress is measured
-on the robot's own clock where ``clocks`` knows it (``cloudnav_core.times.RobotClocks``,
-read from its stamps), as its navigation's timers run: a simulation at a quarter of real
-time is stuck after ``stuck_after`` of its own seconds, not a quarter of them.
+Silence is measured on the server's clock (it is the network's fact). A lack of progress
+is measured on both clocks, the robot's own where ``clocks`` knows it
+(``cloudnav_core.times.RobotClocks``, read from its stamps) and the server's, and counts
+as the shorter: a simulation at a quarter of real time is stuck after ``stuck_after`` of
+its own seconds, not a quarter of them; one eight times faster than real time is not
+stuck after an eighth of them, on waits (a bundle's download, a server's answer) that run
+on the server's clock.
 """
 
 from __future__ import annotations
@@ -128,6 +131,7 @@ class _Watch:
     goal_active: bool = False
     anchor: tuple[float, float, float] | None = None  # x, y, time of the last real move
     on_robot_clock: bool = False  # the anchor's and moved_at's times are the robot's
+    anchor_wall: float = 0.0  # the server's time of the anchor
     stuck: bool = False
     localisation: str = ""
     placed: tuple[str, str] = ("", "")  # the map and source of the last localised state
@@ -241,8 +245,9 @@ class EventDeriver:
             # (and a stuck spell counted on the old clock ends at the next tick).
             watch.anchor, watch.on_robot_clock = (x, y, at), on_robot_clock
             watch.moved_at = watch.stuck_since = -math.inf
+            watch.anchor_wall = now
         elif math.hypot(x - anchor[0], y - anchor[1]) >= STUCK_METRES:
-            watch.anchor, watch.moved_at = (x, y, at), at
+            watch.anchor, watch.moved_at, watch.anchor_wall = (x, y, at), at, now
         return []
 
     def heard(self, robot: str, now: float) -> None:
@@ -260,10 +265,21 @@ class EventDeriver:
         return watch.stuck_since if watch is not None and watch.stuck else None
 
     def stuck_for(self, robot: str, now: float) -> float:
-        """Seconds (of the robot's clock) since ``robot``'s current stuck spell began, 0
-        when it is not stuck."""
-        since = self.stuck_since(robot)
-        return 0.0 if since is None else max(0.0, self._progress_time(robot, now)[0] - since)
+        """Seconds since ``robot``'s current stuck spell began (its last real move; the
+        shorter count of its clock's and the server's), 0 when it is not stuck."""
+        watch = self._watches.get(robot)
+        if watch is None or not watch.stuck:
+            return 0.0
+        return self._still_for(watch, robot, now)
+
+    def _still_for(self, watch: _Watch, robot: str, now: float) -> float:
+        """Seconds since the anchor (the last real move), the shorter count of the robot's
+        clock's and the server's (see the module); 0 when none."""
+        anchor = watch.anchor
+        at, on_robot_clock = self._progress_time(robot, now)
+        if anchor is None or on_robot_clock != watch.on_robot_clock:
+            return 0.0
+        return max(0.0, min(at - anchor[2], now - watch.anchor_wall))
 
     def nav_status(self, robot: str, msg: Mapping[str, Any], now: float) -> list[EventDraft]:
         """A GoalStatusArray: an aborted, rejected or lost goal once, with its reason."""
@@ -525,13 +541,11 @@ class EventDeriver:
             watch.stuck = False
             text = f"{robot} is moving again" if watch.goal_active else f"{robot} has no goal"
             return self._clear(watch, now, Kind.STUCK, robot, text)
-        at, on_robot_clock = self._progress_time(robot, now)
         if (
             watch.stuck
             or not watch.goal_active
             or not anchor
-            or on_robot_clock != watch.on_robot_clock
-            or at - anchor[2] <= self.stuck_after
+            or (still := self._still_for(watch, robot, now)) <= self.stuck_after
         ):
             return []
         watch.stuck, watch.stuck_since = True, anchor[2]
@@ -539,7 +553,7 @@ class EventDeriver:
         blocker, why = found or ("unknown", "an unknown obstacle or person")
         text = (
             f"{robot} has a goal but moved less than {STUCK_METRES} m in "
-            f"{round(at - anchor[2])} s: blocked by {why}"
+            f"{round(still)} s: blocked by {why}"
         )
         return [
             self._draft(
