@@ -2,7 +2,8 @@
 ``robot_stuck`` for a robot connected here, decide at once (``maps.domain.stuck_rule``:
 wait or replan), act, and if the same stuck spell lasts ``give_up_after`` seconds more,
 abort; each choice is a ``fleet_rule`` event that says plainly what was chosen and why.
-Seconds are the robot's own, as the stuck alert's are (``EventDeriver.stuck_for``).
+Seconds are counted as the stuck alert's are, on the robot's clock and the server's, the
+shorter count (``EventDeriver.stuck_for``).
 """
 
 from __future__ import annotations
@@ -71,7 +72,7 @@ class StuckRule:
 
     async def _later(self, case: StuckCase, since: float | None, held: float) -> None:
         """Give up once the spell that began at ``since``, ``held`` seconds long when it was
-        raised, has lasted ``give_up_after`` seconds more of the robot's clock."""
+        raised, has lasted ``give_up_after`` seconds more (``EventDeriver.stuck_for``'s count)."""
         deriver = self._events.deriver
         while True:
             await asyncio.sleep(min(LOOK_EVERY_S, self.give_up_after))
